@@ -1,0 +1,105 @@
+// Recorded sessions: the in-memory form of the contract format
+// (../shared/reference/session-format.md, version 1) and its HDF5 reader and writer.
+#pragma once
+
+#include <cstddef>
+#include <map>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace strut::daq {
+
+//! Ambient pressure that gauge readings are relative to (Pa), as the contract defines it.
+inline constexpr double kGaugeReferencePa = 101325.0;
+
+//! A user-facing error about a session file. what() names the file, experiment and item.
+class SessionError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+enum class ExperimentKind { kPeriodic, kDrop, kStatic };
+std::string_view ToString(ExperimentKind kind);
+
+//! One recorded channel: samples in SI units.
+struct Channel {
+  std::string name;        //!< "stroke", "force", "pressure", or any further channel
+  std::string units;       //!< SI unit symbol: "m", "N", "Pa", "K", "s", "V", ...
+  std::string reference;   //!< pressure only: "absolute" or "gauge"; empty otherwise
+  std::vector<double> samples;
+};
+
+//! One experiment (/experiments/<label>).
+struct Experiment {
+  std::string label;
+  ExperimentKind kind = ExperimentKind::kPeriodic;
+  std::string status = "complete";  //!< "complete" or "aborted"
+  double sample_rate = 0.0;         //!< Hz
+
+  // periodic only
+  double frequency = 0.0;        //!< Hz
+  double amplitude = 0.0;        //!< m
+  double static_position = 0.0;  //!< m
+  std::string waveform = "sine";
+  long periods = 0;              //!< whole periods recorded in steady state
+  std::string group;             //!< optional: "high", "middle", "low"
+
+  // drop only
+  double drop_mass = 0.0;        //!< kg
+  double impact_velocity = 0.0;  //!< m/s
+
+  std::vector<double> time;       //!< s, from 0
+  std::vector<Channel> channels;  //!< in file order; stroke, force, pressure and any further ones
+
+  //! Further attributes found in the file that the contract does not define (kept on rewrite).
+  std::map<std::string, std::string> extra_attributes;
+
+  std::size_t sample_count() const { return time.size(); }
+  const Channel* find_channel(std::string_view name) const;
+  //! The channel, or SessionError naming the experiment and channel.
+  const Channel& channel(std::string_view name) const;
+  //! Pressure samples as absolute pressure (Pa), whatever the recorded reference.
+  std::vector<double> absolute_pressure() const;
+  //! Samples per period (periodic experiments): sample_rate / frequency.
+  double samples_per_period() const { return sample_rate / frequency; }
+};
+
+//! A whole recorded session (one HDF5 file).
+struct Session {
+  std::string source_path;  //!< where it was read from (for messages); empty when built in memory
+  int format_version = 1;
+  std::string created_utc;
+  std::string damper_serial;
+  std::string rig;
+  std::vector<Experiment> experiments;
+
+  const Experiment* find_experiment(std::string_view label) const;
+  //! The experiment, or SessionError naming the file and label.
+  const Experiment& experiment(std::string_view label) const;
+};
+
+//! Options for writing a session file.
+struct WriteOptions {
+  int gzip_level = 4;            //!< 0 = no compression
+  std::size_t chunk_samples = 0; //!< 0 = contiguous when uncompressed, automatic chunks otherwise
+};
+
+//! Reads and validates a session file. Throws SessionError with the file, experiment and item
+//! for every defect: not HDF5 or truncated, missing attribute or channel, wrong types,
+//! lengths that differ, NaN/Inf samples, sample count that does not match `periods`, unknown units.
+Session ReadSession(const std::string& path);
+
+//! Checks an in-memory session against the contract; returns one message per defect (empty = valid).
+std::vector<std::string> Validate(const Session& session);
+
+//! Writes the session crash-safely: to `path + ".partial"`, flushed and closed, then renamed.
+//! Throws SessionError on I/O failure or when the session does not validate.
+void WriteSession(const std::string& path, const Session& session, const WriteOptions& options = {});
+
+//! Current time as ISO 8601 UTC ("2026-11-22T05:32:50Z").
+std::string UtcNowIso8601();
+
+}  // namespace strut::daq

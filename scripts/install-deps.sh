@@ -1,0 +1,23 @@
+#!/usr/bin/env bash
+# Installs every build and test dependency of strut from Debian packages.
+# Idempotent: packages already present are left alone; apt runs only when something is missing.
+set -euo pipefail
+packages=(
+  build-essential cmake ninja-build pkg-config
+  libeigen3-dev libhdf5-dev hdf5-tools libspdlog-dev libfmt-dev libcli11-dev
+  libmodbus-dev libgtest-dev libgmock-dev libsundials-dev liblapack-dev
+  nlohmann-json3-dev libtomlplusplus-dev libmatio-dev
+  python3-h5py python3-numpy
+)
+missing=()
+for p in "${packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if [ ${#missing[@]} -gt 0 ]; then
+  echo "install-deps: installing ${missing[*]}"
+  SUDO=""
+  [ "$(id -u)" -eq 0 ] || SUDO="sudo"
+  export DEBIAN_FRONTEND=noninteractive
+  $SUDO apt-get update -qq
+  $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
+fi

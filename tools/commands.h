@@ -1,0 +1,14 @@
+// Subcommands of the strut CLI. Each Register* adds one subcommand to the app; tools/ only wires
+// the libraries together, all real work lives in daq/, rig/, ident/ and sim/.
+#pragma once
+
+#include <CLI/CLI.hpp>
+
+namespace strut::tools {
+
+void RegisterInfoCommand(CLI::App& app);
+void RegisterPeriodicCommand(CLI::App& app);
+void RegisterDemoCommand(CLI::App& app);
+void RegisterBenchCommand(CLI::App& app);
+
+}  // namespace strut::tools

@@ -1,0 +1,44 @@
+// strut: shaker testing and identification of nonlinear dampers.
+#include <spdlog/spdlog.h>
+
+#include <CLI/CLI.hpp>
+#include <exception>
+
+#include "commands.h"
+
+int main(int argc, char** argv) {
+  CLI::App app{"strut: shaker testing and identification of landing-gear dampers"};
+  app.require_subcommand(1);
+  app.set_version_flag("--version", "strut 0.1.0");
+  int verbosity = 0;
+  bool quiet = false;
+  app.add_flag("-v,--verbose", verbosity, "More log output (-vv for debug traces)");
+  app.add_flag("-q,--quiet", quiet, "Only warnings and errors");
+  app.parse_complete_callback([&] {
+    if (quiet) {
+      spdlog::set_level(spdlog::level::warn);
+    } else if (verbosity >= 2) {
+      spdlog::set_level(spdlog::level::trace);
+    } else if (verbosity == 1) {
+      spdlog::set_level(spdlog::level::debug);
+    } else {
+      spdlog::set_level(spdlog::level::info);
+    }
+  });
+  spdlog::set_pattern("%^[%l]%$ %v");
+
+  strut::tools::RegisterInfoCommand(app);
+  strut::tools::RegisterPeriodicCommand(app);
+  strut::tools::RegisterDemoCommand(app);
+  strut::tools::RegisterBenchCommand(app);
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  } catch (const std::exception& e) {
+    spdlog::error("{}", e.what());
+    return 1;
+  }
+  return 0;
+}

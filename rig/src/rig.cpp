@@ -1,0 +1,1 @@
+int strut_rig_placeholder = 0;

@@ -1,1 +1,1 @@
-// placeholder
+int strut_sim_placeholder = 0;

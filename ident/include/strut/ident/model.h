@@ -1,0 +1,177 @@
+// Damper models as compositions of named physics terms ("1dof", "2dof", "1dof+heat-exchange").
+//
+// Every model is written in residual form on the physical variables of one instant:
+//   stroke q (compression-positive, with rate and acceleration), axle force F, and the states the
+//   terms declare (gas pressure p, gas temperature T, ...), each with its time derivative.
+// One residual per unknown: the force balance  sum(term forces) - F = 0, and one equation per state
+// (the gas law for p, the heat balance for T, ...). The causality picks the mechanical unknown:
+// force input (the paper's choice: q unknown, F given) or stroke input (F unknown, q given).
+// Per grid point the unknowns are [q or F, states...].
+#pragma once
+
+#include <memory>
+#include <span>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "strut/ident/autodiff.h"
+#include "strut/ident/parameters.h"
+
+namespace strut::ident {
+
+class ModelError : public std::invalid_argument {
+ public:
+  using std::invalid_argument::invalid_argument;
+};
+
+enum class Causality {
+  kForceInput,   //!< measured force drives the model; stroke and states are unknown (paper)
+  kStrokeInput,  //!< measured stroke drives the model; force and states are unknown
+};
+std::string_view ToString(Causality c);
+Causality ParseCausality(std::string_view text);  //!< "force" or "stroke"
+
+//! A state a term adds to the model (an unknown at every grid point, with its own equation).
+struct StateSpec {
+  std::string name;            //!< also the output channel name, e.g. "pressure", "temperature"
+  std::string unit;            //!< SI unit
+  int derivative_order = 0;    //!< 0: algebraic (gas law), 1: first order (heat balance)
+  double typical_value = 0.0;  //!< starting value for the static solve
+  double scale = 1.0;          //!< size of a meaningful change, for Newton convergence tests
+  double equation_scale = 1.0; //!< size of a meaningful residual of its equation
+};
+
+//! Variables of one instant, as the terms see them (time derivatives in real time).
+template <typename S>
+struct PointVariables {
+  S stroke{}, stroke_rate{}, stroke_accel{};
+  S force{};
+  std::span<const S> states;       //!< in model state order
+  std::span<const S> state_rates;  //!< time derivatives of the states
+};
+
+//! What the terms read and accumulate while the residual of one instant is formed.
+template <typename S>
+struct TermContext {
+  enum class Phase {
+    kGasState,  //!< terms add to gas_volume and gas_amount
+    kGasLaw,    //!< the gas-law term writes the pressure residual from them
+    kBalance,   //!< terms add forces and write their state equations
+  };
+  Phase phase = Phase::kGasState;
+  const PointVariables<S>* v = nullptr;
+  std::span<const S> theta;   //!< parameter values, model order
+  S force{};                  //!< sum of all term forces (the balance is force - F)
+  S gas_volume{};             //!< gas volume relative to the volume at q = 0
+  S gas_amount{};             //!< free gas relative to the amount at charge
+  std::span<S> state_residuals;
+};
+
+class ModelBuilder;
+
+//! One piece of physics: parameters it uses, states it adds, and its contribution to the residual.
+//! A term is pure logic: all values come through the context; it keeps only resolved positions.
+class Term {
+ public:
+  virtual ~Term() = default;
+  virtual std::string_view name() const = 0;
+  //! Declares parameters and states (first pass) ...
+  virtual void Declare(ModelBuilder& builder) = 0;
+  //! ... then resolves the positions of what it reads (second pass, all terms declared).
+  virtual void Bind(const ModelBuilder& builder) = 0;
+  virtual void Evaluate(TermContext<double>& c) const = 0;
+  virtual void Evaluate(TermContext<Jet>& c) const = 0;
+};
+
+//! Implements both Evaluate overloads with the term's `template <class S> void Eval(TermContext<S>&) const`.
+#define STRUT_TERM_EVALUATE                                                        \
+  void Evaluate(TermContext<double>& c) const override { Eval(c); }                \
+  void Evaluate(TermContext<::strut::ident::Jet>& c) const override { Eval(c); }
+
+//! Collects what the terms declare and resolves names to positions.
+class ModelBuilder {
+ public:
+  //! Adds a parameter; the same index declared twice must mean the same thing.
+  void add_parameter(const ParameterSpec& spec);
+  //! Adds a state; returns nothing, positions come from state_position() after all declared.
+  void add_state(const StateSpec& spec);
+  //! Position of a parameter (by paper index) in the model's parameter vector.
+  int parameter_position(int index) const;
+  //! Position of a state, or ModelError naming the term that needs it.
+  int state_position(std::string_view state, std::string_view needed_by) const;
+  bool has_state(std::string_view state) const;
+  bool has_term(std::string_view term) const;
+
+ private:
+  friend class Model;
+  std::vector<ParameterSpec> parameters_;
+  std::vector<StateSpec> states_;
+  std::vector<std::string> term_names_;
+};
+
+//! A composed model with a fixed causality. Cheap to copy (terms are shared, immutable).
+class Model {
+ public:
+  //! Builds "BASE[+term...]" (BASE: 1dof, 2dof). Throws ModelError listing the catalogue.
+  static Model Build(std::string_view composition, Causality causality);
+  //! Names of the bases and terms that compositions may use.
+  static std::vector<std::string> Catalogue();
+
+  //! Canonical composition, e.g. "2dof" for "1dof+heat-exchange+gas-solubility".
+  const std::string& composition() const { return composition_; }
+  Causality causality() const { return causality_; }
+  const std::vector<std::string>& term_names() const { return term_names_; }
+  bool has_term(std::string_view name) const;
+
+  //! Parameter specs with default values.
+  const ParameterSet& defaults() const { return defaults_; }
+  int parameter_count() const { return defaults_.size(); }
+
+  //! Unknowns per grid point: [mechanical unknown, states...].
+  int unknown_count() const { return 1 + static_cast<int>(states_.size()); }
+  const std::vector<StateSpec>& states() const { return states_; }
+  //! Highest time derivative of unknown j that the equations use (2 for a free stroke).
+  int derivative_order(int j) const;
+  //! Name, unit, typical value and scales of unknown j (j = 0: "stroke" or "force").
+  StateSpec unknown_spec(int j) const;
+  //! Scale of equation j (0: force balance, in N).
+  double equation_scale(int j) const;
+
+  //! Output channels: "stroke", "force", then every state ("pressure", "temperature", ...).
+  std::vector<std::string> output_channels() const;
+  //! Unit of an output channel.
+  std::string channel_unit(std::string_view channel) const;
+
+  //! Residual of one instant: r has unknown_count() entries.
+  //! x, xd, xdd: unknowns and their first and second time derivatives; u, ud, udd: the input
+  //! (force or measured stroke) and its time derivatives. All spans have unknown_count() entries
+  //! except the input.
+  template <typename S>
+  void Residual(std::span<const S> x, std::span<const S> xd, std::span<const S> xdd, const S& u,
+                const S& ud, const S& udd, std::span<const S> theta, std::span<S> r) const;
+
+  //! Output channel values at one instant (order of output_channels()).
+  template <typename S>
+  void Outputs(std::span<const S> x, const S& u, std::span<const S> theta, std::span<S> y) const;
+
+  //! Static equilibrium (all rates zero) for a constant input. Throws ModelError if Newton fails.
+  //! `guess` (unknown_count() values) starts Newton; empty means the typical values.
+  std::vector<double> StaticEquilibrium(double input, std::span<const double> theta,
+                                        std::span<const double> guess = {}) const;
+
+ private:
+  template <typename S>
+  PointVariables<S> Assemble(std::span<const S> x, std::span<const S> xd, std::span<const S> xdd,
+                             const S& u, const S& ud, const S& udd, std::span<const S> theta) const;
+
+  std::string composition_;
+  Causality causality_ = Causality::kForceInput;
+  std::vector<std::string> term_names_;
+  std::vector<std::shared_ptr<const Term>> terms_;
+  std::vector<StateSpec> states_;
+  ParameterSet defaults_;
+  int stroke_offset_position_ = -1;  //!< theta12 position, -1 if the model has none
+};
+
+}  // namespace strut::ident

@@ -1,0 +1,82 @@
+// Model parameters: paper index (theta1..theta17, further terms from theta18 on), a descriptive
+// name, a unit and a default value; and the value sets the commands and the estimator work on.
+#pragma once
+
+#include <map>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace strut::ident {
+
+//! A user mistake in naming or giving parameters (unknown name, bad number, bad file line).
+class ParameterError : public std::invalid_argument {
+ public:
+  using std::invalid_argument::invalid_argument;
+};
+
+//! Description of one model parameter.
+struct ParameterSpec {
+  int index = 0;              //!< paper numbering: 4 means theta4
+  std::string name;           //!< descriptive name, e.g. "gas_area"
+  std::string unit;           //!< SI unit, e.g. "m^2"
+  double default_value = 0.0; //!< physically consistent default (damper-physics.md, lab charge)
+  std::string description;    //!< one line for tables and reports
+
+  std::string key() const { return "theta" + std::to_string(index); }
+};
+
+//! The parameters of one model, in model order, with their current values.
+class ParameterSet {
+ public:
+  ParameterSet() = default;
+  explicit ParameterSet(std::vector<ParameterSpec> specs);
+
+  int size() const { return static_cast<int>(specs_.size()); }
+  const std::vector<ParameterSpec>& specs() const { return specs_; }
+  const ParameterSpec& spec(int position) const { return specs_.at(position); }
+  const std::vector<double>& values() const { return values_; }
+  std::vector<double>& values() { return values_; }
+  double value(int position) const { return values_.at(position); }
+
+  //! Position of a parameter given as "theta4", "4" or its descriptive name; nullopt if absent.
+  std::optional<int> find(std::string_view key_or_name) const;
+  //! Position, or ParameterError that lists the model's parameters.
+  int position(std::string_view key_or_name) const;
+  //! Position of theta<index>, or -1 when the model has no such parameter.
+  int position_of_index(int index) const;
+
+  double get(std::string_view key_or_name) const { return values_[position(key_or_name)]; }
+  void set(std::string_view key_or_name, double value) { values_[position(key_or_name)] = value; }
+
+  //! Applies "NAME=VALUE[,NAME=VALUE...]" (the --set option). Throws ParameterError naming the item.
+  void apply_assignments(std::string_view assignments);
+
+  //! Applies a parameter file (format in docs/parameters.md): lines "NAME = VALUE [# comment]";
+  //! further keys on the line ("sd=...", "estimate", "fixed") are read by the estimator.
+  //! Throws ParameterError naming the file and line.
+  void apply_file(const std::string& path);
+
+  //! A table "theta4  gas_area  5.000e-03 m^2" for logs.
+  std::string table() const;
+
+ private:
+  std::vector<ParameterSpec> specs_;
+  std::vector<double> values_;
+};
+
+//! One line of a parameter file, parsed.
+struct ParameterFileEntry {
+  std::string name;
+  double value = 0.0;
+  std::optional<double> prior_sd;   //!< "sd=..." on the line
+  std::optional<bool> estimate;     //!< "estimate" or "fixed" on the line
+  int line = 0;
+};
+
+//! Parses a parameter file. Throws ParameterError naming the file and line.
+std::vector<ParameterFileEntry> ReadParameterFile(const std::string& path);
+
+}  // namespace strut::ident

@@ -1,0 +1,121 @@
+// Periodic equilibrium states by time discretisation (paper section 2.1, method.md).
+//
+// One period is cut into n equidistant points with periodic wrap-around; time derivatives become
+// difference (or spectral) operators, the model residual on every point gives G(z, theta) = 0,
+// solved by Newton with step halving. Output sensitivities d yhat / d theta reuse the last
+// Newton factorisation (paper eqs. 14, 15).
+#pragma once
+
+#include <Eigen/Dense>
+#include <optional>
+#include <span>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "strut/ident/cyclic_banded.h"
+#include "strut/ident/model.h"
+
+namespace strut::ident {
+
+//! No periodic solution was found (no convergence, singular Jacobian, non-finite values).
+class PeriodicSolverError : public std::runtime_error {
+ public:
+  PeriodicSolverError(const std::string& what, double residual_norm, int iterations)
+      : std::runtime_error(what), residual_norm(residual_norm), iterations(iterations) {}
+  double residual_norm;  //!< scaled residual norm reached
+  int iterations;
+};
+
+enum class Scheme {
+  kBackward2,  //!< second-order backward differences (paper eqs. 8, 9), the default
+  kCentral2,   //!< second-order central differences
+  kCentral4,   //!< fourth-order central differences
+  kSpectral,   //!< Fourier collocation (harmonic balance in the time domain); dense, small n
+};
+std::string_view ToString(Scheme s);
+Scheme ParseScheme(std::string_view text);  //!< backward2, central2, central4, spectral
+
+//! Difference operators on the periodic grid in cyclic time tau (period 1):
+//! dx/dtau at point mu ~ sum_k first[k - kmin] x[mu + k], likewise second for d2x/dtau2.
+struct Stencil {
+  int kmin = 0, kmax = 0;
+  std::vector<double> first, second;
+  static Stencil For(Scheme scheme, int n);
+};
+
+//! One period of the input (force or measured stroke) on the grid t_mu = mu / (n f).
+struct PeriodicInput {
+  double frequency = 0.0;      //!< Hz
+  std::vector<double> values;  //!< n values
+
+  //! mean + amplitude sin(2 pi f t).
+  static PeriodicInput Sine(double frequency, double mean, double amplitude, int n);
+  //! Period-synchronous average of `periods` whole recorded periods starting at sample 0,
+  //! interpolated linearly onto the n grid points. Throws std::invalid_argument on bad sizes.
+  static PeriodicInput FromRecord(std::span<const double> samples, double sample_rate, double frequency, long periods,
+                                  int n);
+};
+
+struct PeriodicSolverOptions {
+  Scheme scheme = Scheme::kBackward2;
+  int max_iterations = 60;  //!< Newton iterations before giving up
+  int max_halvings = 30;    //!< step halvings per iteration before giving up
+  //! Converged when every Newton step component is below its unknown's scale (stroke 1e-9 m,
+  //! force 1e-6 N, pressure 1e-3 Pa, temperature 1e-6 K) times this factor.
+  double tolerance = 1.0;
+  bool IsValid(std::string* error) const;
+};
+
+//! One period of a periodic equilibrium state.
+struct PeriodicSolution {
+  Scheme scheme = Scheme::kBackward2;
+  double frequency = 0.0;
+  int n = 0;
+  Eigen::MatrixXd unknowns;           //!< m x n: column mu holds the unknowns at t_mu
+  std::vector<std::string> channels;  //!< output channel names
+  Eigen::MatrixXd outputs;            //!< channels x n
+  PeriodicInput input;
+  int newton_iterations = 0;
+  double residual_norm = 0.0;  //!< max scaled residual at the solution
+
+  std::vector<double> time() const;  //!< t_mu = mu / (n f), s
+  //! Row of `outputs` for a channel; std::out_of_range if absent.
+  Eigen::VectorXd channel(std::string_view name) const;
+};
+
+//! Solves periodic equilibria of one model; keeps the last factorisation for sensitivities.
+class PeriodicSolver {
+ public:
+  PeriodicSolver(Model model, PeriodicSolverOptions options = {});
+
+  const Model& model() const { return model_; }
+  const PeriodicSolverOptions& options() const { return options_; }
+
+  //! Periodic solution for the input; from `warm_start` (same n) or from the quasi-static guess.
+  //! Throws PeriodicSolverError with the residual reached when Newton fails.
+  PeriodicSolution Solve(const PeriodicInput& input, std::span<const double> theta,
+                         const PeriodicSolution* warm_start = nullptr);
+
+  //! d outputs / d theta at the last solution (eqs. 14, 15): one (n x parameters) matrix per channel.
+  std::vector<Eigen::MatrixXd> OutputSensitivities(const PeriodicSolution& solution, std::span<const double> theta);
+
+  //! The scaled residual G(z) of the discretised equations (m x n), for tests.
+  Eigen::MatrixXd Residual(const Eigen::MatrixXd& unknowns, const PeriodicInput& input,
+                           std::span<const double> theta) const;
+
+ private:
+  void AssembleJacobian(const Eigen::MatrixXd& z, const PeriodicInput& input, std::span<const double> theta);
+  Eigen::MatrixXd QuasiStaticGuess(const PeriodicInput& input, std::span<const double> theta) const;
+  void Prepare(int n);
+
+  Model model_;
+  PeriodicSolverOptions options_;
+  Stencil stencil_;
+  int prepared_n_ = -1;
+  CyclicBlockBanded jacobian_;
+  CyclicBandedLU lu_;
+  bool lu_valid_ = false;
+};
+
+}  // namespace strut::ident

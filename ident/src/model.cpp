@@ -1,0 +1,263 @@
+#include "strut/ident/model.h"
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+#include <fmt/format.h>
+#include <set>
+
+#include "terms.h"
+
+namespace strut::ident {
+namespace {
+constexpr double kForceScale = 1e-6;  // N: a force-balance residual too small to matter
+}  // namespace
+
+std::string_view ToString(Causality c) { return c == Causality::kForceInput ? "force" : "stroke"; }
+
+Causality ParseCausality(std::string_view text) {
+  if (text == "force") return Causality::kForceInput;
+  if (text == "stroke") return Causality::kStrokeInput;
+  throw ModelError(fmt::format("input must be 'force' or 'stroke', not '{}'", text));
+}
+
+void ModelBuilder::add_parameter(const ParameterSpec& spec) {
+  for (const auto& p : parameters_) {
+    if (p.index != spec.index) continue;
+    if (p.name != spec.name)
+      throw ModelError(fmt::format("terms disagree on theta{}: '{}' and '{}'", spec.index, p.name, spec.name));
+    return;
+  }
+  parameters_.push_back(spec);
+}
+
+void ModelBuilder::add_state(const StateSpec& spec) {
+  for (const auto& s : states_)
+    if (s.name == spec.name) return;
+  states_.push_back(spec);
+}
+
+int ModelBuilder::parameter_position(int index) const {
+  for (std::size_t i = 0; i < parameters_.size(); ++i)
+    if (parameters_[i].index == index) return static_cast<int>(i);
+  throw ModelError(fmt::format("the model has no theta{} that a term needs", index));
+}
+
+int ModelBuilder::state_position(std::string_view state, std::string_view needed_by) const {
+  for (std::size_t i = 0; i < states_.size(); ++i)
+    if (states_[i].name == state) return static_cast<int>(i);
+  throw ModelError(fmt::format("term '{}' needs the state '{}', which no term of the model provides", needed_by, state));
+}
+
+bool ModelBuilder::has_state(std::string_view state) const {
+  return std::any_of(states_.begin(), states_.end(), [&](const StateSpec& s) { return s.name == state; });
+}
+
+bool ModelBuilder::has_term(std::string_view term) const {
+  return std::find(term_names_.begin(), term_names_.end(), term) != term_names_.end();
+}
+
+std::vector<std::string> Model::Catalogue() {
+  std::vector<std::string> names = {"1dof", "2dof"};
+  for (const auto& e : ::strut::ident::Catalogue()) names.push_back(e.name);
+  return names;
+}
+
+Model Model::Build(std::string_view composition, Causality causality) {
+  const auto& catalogue = ::strut::ident::Catalogue();
+  const auto catalogue_list = [&] {
+    std::string s;
+    for (const auto& n : Model::Catalogue()) s += " " + n;
+    return s;
+  };
+  std::vector<std::string> tokens;
+  for (std::size_t start = 0;;) {
+    const std::size_t plus = composition.find('+', start);
+    tokens.emplace_back(composition.substr(start, plus == std::string_view::npos ? plus : plus - start));
+    if (plus == std::string_view::npos) break;
+    start = plus + 1;
+  }
+  const auto& base = BaseTerms(tokens.front());
+  if (base.empty())
+    throw ModelError(fmt::format("model '{}': the base must be 1dof or 2dof, not '{}'", composition, tokens.front()));
+  std::set<std::string> chosen(base.begin(), base.end());
+  for (std::size_t i = 1; i < tokens.size(); ++i) {
+    const auto it = std::find_if(catalogue.begin(), catalogue.end(), [&](const TermEntry& e) { return e.name == tokens[i]; });
+    if (it == catalogue.end())
+      throw ModelError(fmt::format("model '{}': unknown term '{}'; the catalogue has:{}", composition, tokens[i], catalogue_list()));
+    if (!chosen.insert(it->name).second)
+      throw ModelError(fmt::format("model '{}': term '{}' is already in the model", composition, tokens[i]));
+    if (!it->replaces.empty()) chosen.erase(it->replaces);
+  }
+
+  Model model;
+  model.causality_ = causality;
+  ModelBuilder builder;
+  std::vector<std::shared_ptr<Term>> terms;
+  for (const auto& entry : catalogue) {  // catalogue order is evaluation order
+    if (!chosen.count(entry.name)) continue;
+    terms.push_back(entry.make());
+    builder.term_names_.push_back(entry.name);
+  }
+  for (auto& t : terms) t->Declare(builder);
+  std::stable_sort(builder.parameters_.begin(), builder.parameters_.end(),
+                   [](const ParameterSpec& a, const ParameterSpec& b) { return a.index < b.index; });
+  for (auto& t : terms) t->Bind(builder);
+
+  // Canonical name: the largest base the term set contains, plus the rest in catalogue order.
+  const auto contains = [&](const std::vector<std::string>& set) {
+    return std::all_of(set.begin(), set.end(), [&](const std::string& n) { return chosen.count(n) > 0; });
+  };
+  const std::string base_name = contains(BaseTerms("2dof")) ? "2dof" : "1dof";
+  const auto& base_set = BaseTerms(base_name);
+  model.composition_ = base_name;
+  for (const auto& n : builder.term_names_)
+    if (std::find(base_set.begin(), base_set.end(), n) == base_set.end()) model.composition_ += "+" + n;
+
+  model.term_names_ = builder.term_names_;
+  model.terms_.assign(terms.begin(), terms.end());
+  model.states_ = builder.states_;
+  model.defaults_ = ParameterSet(builder.parameters_);
+  model.stroke_offset_position_ = model.has_term("stroke-offset") ? builder.parameter_position(12) : -1;
+  return model;
+}
+
+bool Model::has_term(std::string_view name) const {
+  return std::find(term_names_.begin(), term_names_.end(), name) != term_names_.end();
+}
+
+int Model::derivative_order(int j) const {
+  if (j == 0) return causality_ == Causality::kForceInput ? 2 : 0;
+  return states_.at(j - 1).derivative_order;
+}
+
+StateSpec Model::unknown_spec(int j) const {
+  if (j > 0) return states_.at(j - 1);
+  // Scales are changes too small to matter: Newton stops below them.
+  if (causality_ == Causality::kForceInput) return {"stroke", "m", 2, 0.1, 1e-9, kForceScale};
+  return {"force", "N", 0, 5.0e3, 1e-6, kForceScale};
+}
+
+double Model::equation_scale(int j) const { return j == 0 ? kForceScale : states_.at(j - 1).equation_scale; }
+
+std::vector<std::string> Model::output_channels() const {
+  std::vector<std::string> channels = {"stroke", "force"};
+  for (const auto& s : states_) channels.push_back(s.name);
+  return channels;
+}
+
+std::string Model::channel_unit(std::string_view channel) const {
+  if (channel == "stroke") return "m";
+  if (channel == "force") return "N";
+  for (const auto& s : states_)
+    if (s.name == channel) return s.unit;
+  throw ModelError(fmt::format("model '{}' has no output channel '{}'", composition_, channel));
+}
+
+template <typename S>
+PointVariables<S> Model::Assemble(std::span<const S> x, std::span<const S> xd, std::span<const S> xdd, const S& u,
+                                  const S& ud, const S& udd, std::span<const S> theta) const {
+  PointVariables<S> v;
+  if (causality_ == Causality::kForceInput) {
+    v.stroke = x[0];
+    v.stroke_rate = xd[0];
+    v.stroke_accel = xdd[0];
+    v.force = u;
+  } else {
+    // The measured stroke carries the sensor offset: true stroke = measured - theta12.
+    v.stroke = stroke_offset_position_ >= 0 ? S(u - theta[stroke_offset_position_]) : u;
+    v.stroke_rate = ud;
+    v.stroke_accel = udd;
+    v.force = x[0];
+  }
+  v.states = x.subspan(1);
+  v.state_rates = xd.subspan(1);
+  return v;
+}
+
+template <typename S>
+void Model::Residual(std::span<const S> x, std::span<const S> xd, std::span<const S> xdd, const S& u, const S& ud,
+                     const S& udd, std::span<const S> theta, std::span<S> r) const {
+  const PointVariables<S> v = Assemble(x, xd, xdd, u, ud, udd, theta);
+  TermContext<S> c;
+  c.v = &v;
+  c.theta = theta;
+  const S zero = x[0] * 0.0;  // a Jet zero with the callers' derivative size
+  c.force = zero;
+  c.gas_volume = zero;
+  c.gas_amount = zero;
+  c.state_residuals = r.subspan(1);
+  using Phase = typename TermContext<S>::Phase;
+  for (const Phase phase : {Phase::kGasState, Phase::kGasLaw, Phase::kBalance}) {
+    c.phase = phase;
+    for (const auto& t : terms_) t->Evaluate(c);
+  }
+  r[0] = c.force - v.force;
+}
+
+template <typename S>
+void Model::Outputs(std::span<const S> x, const S& u, std::span<const S> theta, std::span<S> y) const {
+  if (causality_ == Causality::kForceInput) {
+    y[0] = stroke_offset_position_ >= 0 ? S(x[0] + theta[stroke_offset_position_]) : x[0];
+    y[1] = u;
+  } else {
+    y[0] = u;
+    y[1] = x[0];
+  }
+  for (std::size_t j = 1; j < x.size(); ++j) y[j + 1] = x[j];
+}
+
+std::vector<double> Model::StaticEquilibrium(double input, std::span<const double> theta,
+                                             std::span<const double> guess) const {
+  const int m = unknown_count();
+  std::vector<double> x(m);
+  for (int j = 0; j < m; ++j) x[j] = static_cast<int>(guess.size()) == m ? guess[j] : unknown_spec(j).typical_value;
+  // Every Jet carries all m directions: Eigen's AutoDiff cannot add an empty derivative to a full one.
+  const auto constant = [&](double v) { return MakeConstant(v, m); };
+  std::vector<Jet> theta_jet;
+  for (double t : theta) theta_jet.push_back(constant(t));
+  std::vector<Jet> xj(m), zero(m, constant(0.0)), r(m);
+  const Jet u = constant(input), zero_rate = constant(0.0);
+  const auto evaluate = [&](const std::vector<double>& at, Eigen::MatrixXd* jac) {
+    for (int j = 0; j < m; ++j) xj[j] = Jet(at[j], DerivativeVector::Unit(m, j));
+    Residual<Jet>(xj, zero, zero, u, zero_rate, zero_rate, theta_jet, r);
+    Eigen::VectorXd res(m);
+    for (int i = 0; i < m; ++i) {
+      res[i] = r[i].value() / equation_scale(i);
+      if (jac) jac->row(i) = r[i].derivatives().transpose() / equation_scale(i);
+    }
+    return res;
+  };
+  Eigen::MatrixXd jac(m, m);
+  Eigen::VectorXd res = evaluate(x, &jac);
+  for (int iteration = 0; iteration < 100; ++iteration) {
+    if (res.allFinite() && res.lpNorm<Eigen::Infinity>() < 1.0) return x;
+    const Eigen::VectorXd step = jac.fullPivLu().solve(-res);
+    double lambda = 1.0;
+    for (int halving = 0; halving < 30; ++halving, lambda *= 0.5) {
+      std::vector<double> trial(x);
+      for (int j = 0; j < m; ++j) trial[j] += lambda * step[j];
+      const Eigen::VectorXd trial_res = evaluate(trial, nullptr);
+      if (trial_res.allFinite() && trial_res.norm() < (1.0 - 1e-4 * lambda) * res.norm()) {
+        x = trial;
+        break;
+      }
+    }
+    if (lambda < 1e-8) break;
+    res = evaluate(x, &jac);
+  }
+  if (res.allFinite() && res.lpNorm<Eigen::Infinity>() < 1e3) return x;  // close enough for a guess
+  throw ModelError(fmt::format("model '{}': no static equilibrium found for input {:.6g} (scaled residual {:.3g})",
+                               composition_, input, res.allFinite() ? res.lpNorm<Eigen::Infinity>() : NAN));
+}
+
+template void Model::Residual<double>(std::span<const double>, std::span<const double>, std::span<const double>,
+                                      const double&, const double&, const double&, std::span<const double>,
+                                      std::span<double>) const;
+template void Model::Residual<Jet>(std::span<const Jet>, std::span<const Jet>, std::span<const Jet>, const Jet&,
+                                   const Jet&, const Jet&, std::span<const Jet>, std::span<Jet>) const;
+template void Model::Outputs<double>(std::span<const double>, const double&, std::span<const double>,
+                                     std::span<double>) const;
+template void Model::Outputs<Jet>(std::span<const Jet>, const Jet&, std::span<const Jet>, std::span<Jet>) const;
+
+}  // namespace strut::ident

@@ -1,0 +1,401 @@
+#include "strut/ident/periodic.h"
+
+#include <algorithm>
+#include <cmath>
+#include <fmt/format.h>
+#include <numbers>
+#include <spdlog/spdlog.h>
+
+namespace strut::ident {
+
+std::string_view ToString(Scheme s) {
+  switch (s) {
+    case Scheme::kBackward2: return "backward2";
+    case Scheme::kCentral2: return "central2";
+    case Scheme::kCentral4: return "central4";
+    case Scheme::kSpectral: return "spectral";
+  }
+  return "?";
+}
+
+Scheme ParseScheme(std::string_view text) {
+  for (Scheme s : {Scheme::kBackward2, Scheme::kCentral2, Scheme::kCentral4, Scheme::kSpectral})
+    if (ToString(s) == text) return s;
+  throw std::invalid_argument(
+      fmt::format("unknown scheme '{}': use backward2, central2, central4 or spectral", text));
+}
+
+Stencil Stencil::For(Scheme scheme, int n) {
+  Stencil s;
+  const double h = 1.0 / n;
+  const auto set = [&](int kmin, int kmax, std::vector<double> first, std::vector<double> second, double p1,
+                       double p2) {
+    s.kmin = kmin;
+    s.kmax = kmax;
+    s.first = std::move(first);
+    s.second = std::move(second);
+    for (double& c : s.first) c /= p1;
+    for (double& c : s.second) c /= p2;
+  };
+  switch (scheme) {
+    case Scheme::kBackward2:  // eqs. 8, 9: offsets -3..0
+      set(-3, 0, {0.0, 0.5, -2.0, 1.5}, {-1.0, 4.0, -5.0, 2.0}, h, h * h);
+      break;
+    case Scheme::kCentral2:
+      set(-1, 1, {-0.5, 0.0, 0.5}, {1.0, -2.0, 1.0}, h, h * h);
+      break;
+    case Scheme::kCentral4:
+      set(-2, 2, {1.0 / 12, -8.0 / 12, 0.0, 8.0 / 12, -1.0 / 12},
+          {-1.0 / 12, 16.0 / 12, -30.0 / 12, 16.0 / 12, -1.0 / 12}, h, h * h);
+      break;
+    case Scheme::kSpectral: {
+      // Fourier differentiation on a period of 1: circulant, so one row gives every row.
+      s.kmin = -((n - 1) / 2);
+      s.kmax = s.kmin + n - 1;
+      Eigen::VectorXd d1(n);
+      for (int j = 0; j < n; ++j) {
+        if (j == 0) {
+          d1[j] = 0.0;
+          continue;
+        }
+        const double sign = (j % 2 == 0) ? 1.0 : -1.0;
+        const double x = std::numbers::pi * j / n;
+        // column j of row 0: derivative weight of x_j at x_0 (antisymmetric in j).
+        d1[j] = -(n % 2 == 0 ? std::numbers::pi * sign / std::tan(x) : std::numbers::pi * sign / std::sin(x));
+      }
+      // Second derivative as the square of the first (circulant convolution).
+      Eigen::VectorXd d2 = Eigen::VectorXd::Zero(n);
+      for (int j = 0; j < n; ++j)
+        for (int l = 0; l < n; ++l) d2[j] += d1[l] * d1[((j - l) % n + n) % n];
+      s.first.resize(n);
+      s.second.resize(n);
+      for (int k = s.kmin; k <= s.kmax; ++k) {
+        const int j = ((k % n) + n) % n;
+        s.first[k - s.kmin] = d1[j];
+        s.second[k - s.kmin] = d2[j];
+      }
+      break;
+    }
+  }
+  return s;
+}
+
+PeriodicInput PeriodicInput::Sine(double frequency, double mean, double amplitude, int n) {
+  PeriodicInput in;
+  in.frequency = frequency;
+  in.values.resize(n);
+  for (int mu = 0; mu < n; ++mu) in.values[mu] = mean + amplitude * std::sin(2.0 * std::numbers::pi * mu / n);
+  return in;
+}
+
+PeriodicInput PeriodicInput::FromRecord(std::span<const double> samples, double sample_rate, double frequency,
+                                        long periods, int n) {
+  if (periods < 1 || sample_rate <= 0 || frequency <= 0 || n < 4)
+    throw std::invalid_argument("period averaging needs periods >= 1, positive rates and n >= 4");
+  const double per_period = sample_rate / frequency;
+  const double total = per_period * periods;
+  if (samples.size() + 1 < static_cast<std::size_t>(std::floor(total)))
+    throw std::invalid_argument(fmt::format("record has {} samples, {} periods need {:.0f}", samples.size(), periods, total));
+  const long count = static_cast<long>(samples.size());
+  PeriodicInput in;
+  in.frequency = frequency;
+  in.values.assign(n, 0.0);
+  for (int mu = 0; mu < n; ++mu) {
+    double sum = 0.0;
+    for (long k = 0; k < periods; ++k) {
+      const double position = (k + static_cast<double>(mu) / n) * per_period;
+      const long i0 = static_cast<long>(std::floor(position));
+      const double w = position - i0;
+      // The record is whole periods, so the sample after the last one is the first one.
+      const double a = samples[i0 % count], b = samples[(i0 + 1) % count];
+      sum += (1.0 - w) * a + w * b;
+    }
+    in.values[mu] = sum / periods;
+  }
+  return in;
+}
+
+bool PeriodicSolverOptions::IsValid(std::string* error) const {
+  const auto fail = [&](const std::string& m) {
+    if (error) *error = m;
+    return false;
+  };
+  if (max_iterations < 1) return fail("max_iterations must be at least 1");
+  if (max_halvings < 0) return fail("max_halvings must not be negative");
+  if (!(tolerance > 0)) return fail("tolerance must be positive");
+  return true;
+}
+
+std::vector<double> PeriodicSolution::time() const {
+  std::vector<double> t(n);
+  for (int mu = 0; mu < n; ++mu) t[mu] = mu / (n * frequency);
+  return t;
+}
+
+Eigen::VectorXd PeriodicSolution::channel(std::string_view name) const {
+  for (std::size_t c = 0; c < channels.size(); ++c)
+    if (channels[c] == name) return outputs.row(static_cast<int>(c)).transpose();
+  throw std::out_of_range(fmt::format("periodic solution has no channel '{}'", name));
+}
+
+PeriodicSolver::PeriodicSolver(Model model, PeriodicSolverOptions options)
+    : model_(std::move(model)), options_(options) {
+  std::string error;
+  if (!options_.IsValid(&error)) throw std::invalid_argument("periodic solver options: " + error);
+}
+
+void PeriodicSolver::Prepare(int n) {
+  if (n == prepared_n_) return;
+  const int minimum = options_.scheme == Scheme::kSpectral ? 4 : 8;
+  if (n < minimum) throw std::invalid_argument(fmt::format("periodic solver needs n >= {}, got {}", minimum, n));
+  stencil_ = Stencil::For(options_.scheme, n);
+  jacobian_ = CyclicBlockBanded(n, model_.unknown_count(), stencil_.kmin, stencil_.kmax);
+  prepared_n_ = n;
+  lu_valid_ = false;
+}
+
+namespace {
+
+// Time derivatives (real time) of a periodic grid function at point mu.
+struct Rates {
+  double first, second;
+};
+
+template <class Row>
+Rates RatesAt(const Stencil& s, const Row& values, int mu, int n, double frequency) {
+  double d1 = 0.0, d2 = 0.0;
+  for (int k = s.kmin; k <= s.kmax; ++k) {
+    int nu = mu + k;
+    if (nu < 0) nu += n;
+    if (nu >= n) nu -= n;
+    const double v = values(nu);
+    d1 += s.first[k - s.kmin] * v;
+    d2 += s.second[k - s.kmin] * v;
+  }
+  return {d1 * frequency, d2 * frequency * frequency};
+}
+
+std::vector<Rates> InputRates(const Stencil& s, const PeriodicInput& input) {
+  const int n = static_cast<int>(input.values.size());
+  const Eigen::Map<const Eigen::VectorXd> u(input.values.data(), n);
+  std::vector<Rates> rates(n);
+  for (int mu = 0; mu < n; ++mu) rates[mu] = RatesAt(s, u, mu, n, input.frequency);
+  return rates;
+}
+
+}  // namespace
+
+Eigen::MatrixXd PeriodicSolver::Residual(const Eigen::MatrixXd& z, const PeriodicInput& input,
+                                         std::span<const double> theta) const {
+  const int m = model_.unknown_count();
+  const int n = static_cast<int>(z.cols());
+  const Stencil stencil = n == prepared_n_ ? stencil_ : Stencil::For(options_.scheme, n);
+  const auto input_rates = InputRates(stencil, input);
+  Eigen::MatrixXd g(m, n);
+  std::vector<double> xd(m), xdd(m), r(m);
+  for (int mu = 0; mu < n; ++mu) {
+    for (int j = 0; j < m; ++j) {
+      const Rates rate = RatesAt(stencil, z.row(j), mu, n, input.frequency);
+      xd[j] = rate.first;
+      xdd[j] = rate.second;
+    }
+    model_.Residual<double>(std::span<const double>(z.col(mu).data(), m), xd, xdd, input.values[mu],
+                            input_rates[mu].first, input_rates[mu].second, theta, r);
+    for (int j = 0; j < m; ++j) g(j, mu) = r[j] / model_.equation_scale(j);
+  }
+  return g;
+}
+
+void PeriodicSolver::AssembleJacobian(const Eigen::MatrixXd& z, const PeriodicInput& input,
+                                      std::span<const double> theta) {
+  const int m = model_.unknown_count();
+  const int n = static_cast<int>(z.cols());
+  const double f = input.frequency;
+  const auto input_rates = InputRates(stencil_, input);
+  const int directions = 3 * m;
+  // All Jets carry every direction (see autodiff.h).
+  std::vector<Jet> theta_jet;
+  for (double t : theta) theta_jet.push_back(MakeConstant(t, directions));
+  std::vector<Jet> x(m), xd(m), xdd(m), r(m);
+  Eigen::MatrixXd rx(m, m), rxd(m, m), rxdd(m, m);
+  for (int mu = 0; mu < n; ++mu) {
+    for (int j = 0; j < m; ++j) {
+      const Rates rate = RatesAt(stencil_, z.row(j), mu, n, f);
+      x[j] = Jet(z(j, mu), DerivativeVector::Unit(directions, j));
+      xd[j] = Jet(rate.first, DerivativeVector::Unit(directions, m + j));
+      xdd[j] = Jet(rate.second, DerivativeVector::Unit(directions, 2 * m + j));
+    }
+    model_.Residual<Jet>(x, xd, xdd, MakeConstant(input.values[mu], directions),
+                         MakeConstant(input_rates[mu].first, directions),
+                         MakeConstant(input_rates[mu].second, directions), theta_jet, r);
+    for (int i = 0; i < m; ++i) {
+      const double scale = 1.0 / model_.equation_scale(i);
+      const auto& d = r[i].derivatives();
+      for (int j = 0; j < m; ++j) {
+        rx(i, j) = d[j] * scale;
+        rxd(i, j) = d[m + j] * scale;
+        rxdd(i, j) = d[2 * m + j] * scale;
+      }
+    }
+    for (int k = stencil_.kmin; k <= stencil_.kmax; ++k) {
+      auto block = jacobian_.block(mu, k);
+      const double a = stencil_.first[k - stencil_.kmin] * f;
+      const double b = stencil_.second[k - stencil_.kmin] * f * f;
+      block = a * rxd + b * rxdd;
+      if (k == 0) block += rx;
+    }
+  }
+}
+
+Eigen::MatrixXd PeriodicSolver::QuasiStaticGuess(const PeriodicInput& input, std::span<const double> theta) const {
+  // Static equilibrium at every instant, each started from its neighbour's: robust for large strokes.
+  const int m = model_.unknown_count();
+  const int n = static_cast<int>(input.values.size());
+  Eigen::MatrixXd z(m, n);
+  std::vector<double> previous;
+  for (int mu = 0; mu < n; ++mu) {
+    previous = model_.StaticEquilibrium(input.values[mu], theta, previous);
+    for (int j = 0; j < m; ++j) z(j, mu) = previous[j];
+  }
+  return z;
+}
+
+PeriodicSolution PeriodicSolver::Solve(const PeriodicInput& input, std::span<const double> theta,
+                                       const PeriodicSolution* warm_start) {
+  const int n = static_cast<int>(input.values.size());
+  const int m = model_.unknown_count();
+  if (!(input.frequency > 0)) throw std::invalid_argument("periodic solver: the input frequency must be positive");
+  if (static_cast<int>(theta.size()) != model_.parameter_count())
+    throw std::invalid_argument(fmt::format("periodic solver: {} parameter values for a model with {}", theta.size(),
+                                            model_.parameter_count()));
+  for (double v : input.values)
+    if (!std::isfinite(v)) throw std::invalid_argument("periodic solver: the input has non-finite values");
+  Prepare(n);
+  lu_valid_ = false;
+
+  Eigen::MatrixXd z;
+  if (warm_start && warm_start->n == n && warm_start->unknowns.rows() == m) {
+    z = warm_start->unknowns;
+  } else {
+    try {
+      z = QuasiStaticGuess(input, theta);
+    } catch (const ModelError& e) {
+      throw PeriodicSolverError(fmt::format("no static-equilibrium guess: {}", e.what()), NAN, 0);
+    }
+  }
+  Eigen::VectorXd step_scale(m);
+  for (int j = 0; j < m; ++j) step_scale[j] = model_.unknown_spec(j).scale * options_.tolerance;
+
+  Eigen::MatrixXd g = Residual(z, input, theta);
+  double norm = g.allFinite() ? g.norm() : INFINITY;
+  int iteration = 0;
+  bool converged = false;
+  for (; iteration < options_.max_iterations && !converged; ++iteration) {
+    if (!std::isfinite(norm))
+      throw PeriodicSolverError(
+          fmt::format("periodic solver: non-finite residual at iteration {} (the guess is outside the model's range)",
+                      iteration),
+          norm, iteration);
+    AssembleJacobian(z, input, theta);
+    if (!lu_.Factorize(jacobian_))
+      throw PeriodicSolverError(
+          fmt::format("periodic solver: singular Jacobian at iteration {} (residual {:.3g})", iteration, norm), norm,
+          iteration);
+    lu_valid_ = true;
+    Eigen::MatrixXd step = -g;
+    lu_.Solve(Eigen::Map<Eigen::VectorXd>(step.data(), step.size()));
+    converged = (step.array().abs().colwise() / step_scale.array()).maxCoeff() <= 1.0;
+    // Step halving (Fey): accept the first fraction that lowers the residual norm.
+    double lambda = 1.0;
+    bool accepted = false;
+    for (int halving = 0; halving <= options_.max_halvings; ++halving, lambda *= 0.5) {
+      Eigen::MatrixXd trial = z + lambda * step;
+      Eigen::MatrixXd g_trial = Residual(trial, input, theta);
+      const double trial_norm = g_trial.allFinite() ? g_trial.norm() : INFINITY;
+      if (converged || trial_norm < norm * (1.0 - 1e-4 * lambda)) {
+        z = std::move(trial);
+        g = std::move(g_trial);
+        norm = trial_norm;
+        accepted = true;
+        break;
+      }
+    }
+    if (!accepted)
+      throw PeriodicSolverError(
+          fmt::format("periodic solver: no descent after {} step halvings at iteration {}; scaled residual {:.3g} "
+                      "(no periodic solution near the guess)",
+                      options_.max_halvings, iteration, norm),
+          norm, iteration);
+    spdlog::trace("periodic Newton {}: residual {:.3e} step {}", iteration, norm, lambda);
+  }
+  if (!converged || !g.allFinite())
+    throw PeriodicSolverError(fmt::format("periodic solver: not converged after {} iterations; scaled residual {:.3g}",
+                                          iteration, norm),
+                              norm, iteration);
+
+  PeriodicSolution solution;
+  solution.scheme = options_.scheme;
+  solution.frequency = input.frequency;
+  solution.n = n;
+  solution.unknowns = std::move(z);
+  solution.input = input;
+  solution.newton_iterations = iteration;
+  solution.residual_norm = g.lpNorm<Eigen::Infinity>();
+  solution.channels = model_.output_channels();
+  solution.outputs.resize(static_cast<int>(solution.channels.size()), n);
+  std::vector<double> y(solution.channels.size());
+  for (int mu = 0; mu < n; ++mu) {
+    model_.Outputs<double>(std::span<const double>(solution.unknowns.col(mu).data(), m), input.values[mu], theta, y);
+    for (std::size_t c = 0; c < y.size(); ++c) solution.outputs(static_cast<int>(c), mu) = y[c];
+  }
+  if (!solution.outputs.allFinite())
+    throw PeriodicSolverError("periodic solver: non-finite outputs at the solution", norm, iteration);
+  return solution;
+}
+
+std::vector<Eigen::MatrixXd> PeriodicSolver::OutputSensitivities(const PeriodicSolution& solution,
+                                                                 std::span<const double> theta) {
+  const int m = model_.unknown_count();
+  const int n = solution.n;
+  const int np = model_.parameter_count();
+  if (!lu_valid_ || n != prepared_n_)
+    throw std::logic_error("OutputSensitivities needs the factorisation of the last Solve");
+  const PeriodicInput& input = solution.input;
+  const auto input_rates = InputRates(stencil_, input);
+  std::vector<Jet> theta_jet(np);
+  for (int i = 0; i < np; ++i) theta_jet[i] = Jet(theta[i], DerivativeVector::Unit(np, i));
+  // dG/dtheta at the solution, scaled like G.
+  Eigen::MatrixXd rhs(n * m, np);
+  std::vector<Jet> x(m), xd(m), xdd(m), r(m);
+  const auto& z = solution.unknowns;
+  for (int mu = 0; mu < n; ++mu) {
+    for (int j = 0; j < m; ++j) {
+      const Rates rate = RatesAt(stencil_, z.row(j), mu, n, input.frequency);
+      x[j] = MakeConstant(z(j, mu), np);
+      xd[j] = MakeConstant(rate.first, np);
+      xdd[j] = MakeConstant(rate.second, np);
+    }
+    model_.Residual<Jet>(x, xd, xdd, MakeConstant(input.values[mu], np), MakeConstant(input_rates[mu].first, np),
+                         MakeConstant(input_rates[mu].second, np), theta_jet, r);
+    for (int i = 0; i < m; ++i) {
+      const auto& d = r[i].derivatives();
+      for (int p = 0; p < np; ++p)
+        rhs(mu * m + i, p) = d.size() == np ? -d[p] / model_.equation_scale(i) : 0.0;
+    }
+  }
+  lu_.Solve(rhs);  // rhs now holds dz/dtheta (eq. 14)
+  const int channels = static_cast<int>(solution.channels.size());
+  std::vector<Eigen::MatrixXd> sens(channels, Eigen::MatrixXd(n, np));
+  std::vector<Jet> xs(m), y(channels);
+  for (int mu = 0; mu < n; ++mu) {
+    for (int j = 0; j < m; ++j) xs[j] = Jet(z(j, mu), rhs.row(mu * m + j).transpose());
+    model_.Outputs<Jet>(xs, MakeConstant(input.values[mu], np), theta_jet, y);  // eq. 15
+    for (int c = 0; c < channels; ++c) {
+      const auto& d = y[c].derivatives();
+      for (int p = 0; p < np; ++p) sens[c](mu, p) = d.size() == np ? d[p] : 0.0;
+    }
+  }
+  return sens;
+}
+
+}  // namespace strut::ident

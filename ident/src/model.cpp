@@ -228,22 +228,38 @@ std::vector<double> Model::StaticEquilibrium(double input, std::span<const doubl
     }
     return res;
   };
+  Eigen::VectorXd scale(m);
+  for (int j = 0; j < m; ++j) scale[j] = unknown_spec(j).scale;
   Eigen::MatrixXd jac(m, m);
   Eigen::VectorXd res = evaluate(x, &jac);
   for (int iteration = 0; iteration < 100; ++iteration) {
     if (res.allFinite() && res.lpNorm<Eigen::Infinity>() < 1.0) return x;
-    const Eigen::VectorXd step = jac.fullPivLu().solve(-res);
+    const auto lu = jac.fullPivLu();
+    Eigen::VectorXd step = lu.solve(-res);
+    const double step_norm = step.cwiseQuotient(scale).norm();  // of the full Newton step
+    // Trust limit: no unknown moves by more than half its size (plus half its typical value) at
+    // once, so the linearised gas law cannot throw the stroke through full compression.
+    double shrink = 1.0;
+    for (int j = 0; j < m; ++j) {
+      const double limit = 0.5 * (std::abs(x[j]) + std::abs(unknown_spec(j).typical_value));
+      if (std::abs(step[j]) > limit && limit > 0) shrink = std::min(shrink, limit / std::abs(step[j]));
+    }
+    step *= shrink;
+    // Natural monotonicity test (Deuflhard): the simplified correction must shrink. It keeps a
+    // stiff gas law from throwing the stroke past full compression.
     double lambda = 1.0;
-    for (int halving = 0; halving < 30; ++halving, lambda *= 0.5) {
+    for (int halving = 0; halving < 40; ++halving, lambda *= 0.5) {
       std::vector<double> trial(x);
       for (int j = 0; j < m; ++j) trial[j] += lambda * step[j];
       const Eigen::VectorXd trial_res = evaluate(trial, nullptr);
-      if (trial_res.allFinite() && trial_res.norm() < (1.0 - 1e-4 * lambda) * res.norm()) {
+      if (!trial_res.allFinite()) continue;
+      if (Eigen::VectorXd(lu.solve(-trial_res)).cwiseQuotient(scale).norm() <=
+          (1.0 - 0.25 * lambda * shrink) * step_norm) {
         x = trial;
         break;
       }
     }
-    if (lambda < 1e-8) break;
+    if (lambda < 1e-11) break;
     res = evaluate(x, &jac);
   }
   if (res.allFinite() && res.lpNorm<Eigen::Infinity>() < 1e3) return x;  // close enough for a guess
@@ -256,6 +272,9 @@ template void Model::Residual<double>(std::span<const double>, std::span<const d
                                       std::span<double>) const;
 template void Model::Residual<Jet>(std::span<const Jet>, std::span<const Jet>, std::span<const Jet>, const Jet&,
                                    const Jet&, const Jet&, std::span<const Jet>, std::span<Jet>) const;
+template void Model::Residual<StateJet>(std::span<const StateJet>, std::span<const StateJet>,
+                                        std::span<const StateJet>, const StateJet&, const StateJet&, const StateJet&,
+                                        std::span<const StateJet>, std::span<StateJet>) const;
 template void Model::Outputs<double>(std::span<const double>, const double&, std::span<const double>,
                                      std::span<double>) const;
 template void Model::Outputs<Jet>(std::span<const Jet>, const Jet&, std::span<const Jet>, std::span<Jet>) const;

@@ -183,6 +183,63 @@ std::vector<Rates> InputRates(const Stencil& s, const PeriodicInput& input) {
   return rates;
 }
 
+// Residual of one grid point and its derivatives with respect to the unknowns and their rates,
+// scaled like G: r, dr/dx, dr/dx', dr/dx''. J is the Jet type that carries the directions.
+template <class J>
+struct PointLinearization {
+  PointLinearization(const Model& model, std::span<const double> theta) : model(model) {
+    const int m = model.unknown_count();
+    first_direction.assign(m + 1, 0);
+    for (int j = 0; j < m; ++j) first_direction[j + 1] = first_direction[j] + model.derivative_order(j) + 1;
+    using Derivatives = typename J::DerType;
+    directions = Derivatives::RowsAtCompileTime == Eigen::Dynamic ? first_direction[m]
+                                                                 : int(Derivatives::RowsAtCompileTime);
+    for (double t : theta) theta_jet.push_back(Constant(t));
+    x.resize(m);
+    xd.resize(m);
+    xdd.resize(m);
+    residual.resize(m);
+    r.resize(m);
+    rx.resize(m, m);
+    rxd.resize(m, m);
+    rxdd.resize(m, m);
+  }
+  // All Jets carry every direction (see autodiff.h).
+  J Constant(double v) const { return J(v, J::DerType::Zero(directions)); }
+
+  void Evaluate(const Stencil& stencil, const Eigen::MatrixXd& z, int mu, double f, double u, double ud, double udd) {
+    using Derivatives = typename J::DerType;
+    const int m = model.unknown_count();
+    const int n = static_cast<int>(z.cols());
+    for (int j = 0; j < m; ++j) {
+      const Rates rate = RatesAt(stencil, z.row(j), mu, n, f);
+      const int order = model.derivative_order(j), d0 = first_direction[j];
+      x[j] = J(z(j, mu), Derivatives::Unit(directions, d0));
+      xd[j] = order >= 1 ? J(rate.first, Derivatives::Unit(directions, d0 + 1)) : Constant(rate.first);
+      xdd[j] = order >= 2 ? J(rate.second, Derivatives::Unit(directions, d0 + 2)) : Constant(rate.second);
+    }
+    model.Residual<J>(x, xd, xdd, Constant(u), Constant(ud), Constant(udd), theta_jet, residual);
+    for (int i = 0; i < m; ++i) {
+      const double scale = 1.0 / model.equation_scale(i);
+      const auto& d = residual[i].derivatives();
+      r[i] = residual[i].value() * scale;
+      for (int j = 0; j < m; ++j) {
+        const int order = model.derivative_order(j), d0 = first_direction[j];
+        rx(i, j) = d[d0] * scale;
+        rxd(i, j) = order >= 1 ? d[d0 + 1] * scale : 0.0;
+        rxdd(i, j) = order >= 2 ? d[d0 + 2] * scale : 0.0;
+      }
+    }
+  }
+
+  const Model& model;
+  std::vector<int> first_direction;
+  int directions = 0;
+  std::vector<J> theta_jet, x, xd, xdd, residual;
+  Eigen::VectorXd r;
+  Eigen::MatrixXd rx, rxd, rxdd;
+};
+
 }  // namespace
 
 Eigen::MatrixXd PeriodicSolver::Residual(const Eigen::MatrixXd& z, const PeriodicInput& input,
@@ -209,42 +266,62 @@ Eigen::MatrixXd PeriodicSolver::Residual(const Eigen::MatrixXd& z, const Periodi
 void PeriodicSolver::AssembleJacobian(const Eigen::MatrixXd& z, const PeriodicInput& input,
                                       std::span<const double> theta) {
   const int m = model_.unknown_count();
+  int directions = 0;
+  for (int j = 0; j < m; ++j) directions += model_.derivative_order(j) + 1;
+  if (directions <= kStateDirections) {
+    AssembleJacobianWith<StateJet>(z, input, theta);
+  } else {
+    AssembleJacobianWith<Jet>(z, input, theta);
+  }
+}
+
+template <class J>
+void PeriodicSolver::AssembleJacobianWith(const Eigen::MatrixXd& z, const PeriodicInput& input,
+                                          std::span<const double> theta) {
   const int n = static_cast<int>(z.cols());
   const double f = input.frequency;
   const auto input_rates = InputRates(stencil_, input);
-  const int directions = 3 * m;
-  // All Jets carry every direction (see autodiff.h).
-  std::vector<Jet> theta_jet;
-  for (double t : theta) theta_jet.push_back(MakeConstant(t, directions));
-  std::vector<Jet> x(m), xd(m), xdd(m), r(m);
-  Eigen::MatrixXd rx(m, m), rxd(m, m), rxdd(m, m);
+  PointLinearization<J> point(model_, theta);
   for (int mu = 0; mu < n; ++mu) {
-    for (int j = 0; j < m; ++j) {
-      const Rates rate = RatesAt(stencil_, z.row(j), mu, n, f);
-      x[j] = Jet(z(j, mu), DerivativeVector::Unit(directions, j));
-      xd[j] = Jet(rate.first, DerivativeVector::Unit(directions, m + j));
-      xdd[j] = Jet(rate.second, DerivativeVector::Unit(directions, 2 * m + j));
-    }
-    model_.Residual<Jet>(x, xd, xdd, MakeConstant(input.values[mu], directions),
-                         MakeConstant(input_rates[mu].first, directions),
-                         MakeConstant(input_rates[mu].second, directions), theta_jet, r);
-    for (int i = 0; i < m; ++i) {
-      const double scale = 1.0 / model_.equation_scale(i);
-      const auto& d = r[i].derivatives();
-      for (int j = 0; j < m; ++j) {
-        rx(i, j) = d[j] * scale;
-        rxd(i, j) = d[m + j] * scale;
-        rxdd(i, j) = d[2 * m + j] * scale;
-      }
-    }
+    point.Evaluate(stencil_, z, mu, f, input.values[mu], input_rates[mu].first, input_rates[mu].second);
     for (int k = stencil_.kmin; k <= stencil_.kmax; ++k) {
       auto block = jacobian_.block(mu, k);
       const double a = stencil_.first[k - stencil_.kmin] * f;
       const double b = stencil_.second[k - stencil_.kmin] * f * f;
-      block = a * rxd + b * rxdd;
-      if (k == 0) block += rx;
+      block = a * point.rxd + b * point.rxdd;
+      if (k == 0) block += point.rx;
     }
   }
+}
+
+Eigen::MatrixXd PeriodicSolver::MarchGuess(Eigen::MatrixXd z, const PeriodicInput& input, std::span<const double> theta,
+                                           int periods) const {
+  // Time-march the backward scheme around the period, each point by a small Newton solve from
+  // its predecessor: friction stick and slip settle locally, which a global Newton from the
+  // quasi-static guess finds only after many halved steps.
+  const int n = static_cast<int>(z.cols());
+  const int m = model_.unknown_count();
+  const double f = input.frequency;
+  const Stencil march = Stencil::For(Scheme::kBackward2, n);
+  const auto input_rates = InputRates(march, input);
+  PointLinearization<Jet> point(model_, theta);
+  const double a0 = march.first[-march.kmin] * f, b0 = march.second[-march.kmin] * f * f;
+  Eigen::VectorXd step_scale(m);
+  for (int j = 0; j < m; ++j) step_scale[j] = model_.unknown_spec(j).scale;
+  for (int pass = 0; pass < periods; ++pass)
+    for (int mu = 0; mu < n; ++mu) {
+      if (mu > 0) z.col(mu) = z.col(mu - 1);  // predictor: hold the previous point
+      for (int iteration = 0; iteration < 20; ++iteration) {
+        point.Evaluate(march, z, mu, f, input.values[mu], input_rates[mu].first, input_rates[mu].second);
+        const Eigen::MatrixXd jac = point.rx + a0 * point.rxd + b0 * point.rxdd;
+        const Eigen::VectorXd step = jac.partialPivLu().solve(-point.r);
+        if (!step.allFinite()) break;
+        z.col(mu) += step;
+        if ((step.array().abs() / step_scale.array()).maxCoeff() <= 1.0) break;
+      }
+      if (!z.col(mu).allFinite()) throw PeriodicSolverError("periodic solver: the start-up march diverged", NAN, 0);
+    }
+  return z;
 }
 
 Eigen::MatrixXd PeriodicSolver::QuasiStaticGuess(const PeriodicInput& input, std::span<const double> theta) const {
@@ -278,7 +355,7 @@ PeriodicSolution PeriodicSolver::Solve(const PeriodicInput& input, std::span<con
     z = warm_start->unknowns;
   } else {
     try {
-      z = QuasiStaticGuess(input, theta);
+      z = MarchGuess(QuasiStaticGuess(input, theta), input, theta, options_.start_up_periods);
     } catch (const ModelError& e) {
       throw PeriodicSolverError(fmt::format("no static-equilibrium guess: {}", e.what()), NAN, 0);
     }
@@ -305,14 +382,27 @@ PeriodicSolution PeriodicSolver::Solve(const PeriodicInput& input, std::span<con
     Eigen::MatrixXd step = -g;
     lu_.Solve(Eigen::Map<Eigen::VectorXd>(step.data(), step.size()));
     converged = (step.array().abs().colwise() / step_scale.array()).maxCoeff() <= 1.0;
-    // Step halving (Fey): accept the first fraction that lowers the residual norm.
+    // Step halving (Fey) with Deuflhard's natural monotonicity test: accept the first fraction
+    // whose simplified Newton correction J^-1 G(trial) (same factorisation, scaled by the unknowns'
+    // scales) shrinks. Unlike the residual norm this test does not depend on how the equations are
+    // scaled, and it lets Newton cross the friction switches of force-driven problems in few steps.
+    const auto scaled_norm = [&](const Eigen::MatrixXd& dz) {
+      return (dz.array().colwise() / step_scale.array()).matrix().norm();
+    };
+    const double step_norm = scaled_norm(step);
     double lambda = 1.0;
     bool accepted = false;
     for (int halving = 0; halving <= options_.max_halvings; ++halving, lambda *= 0.5) {
       Eigen::MatrixXd trial = z + lambda * step;
       Eigen::MatrixXd g_trial = Residual(trial, input, theta);
       const double trial_norm = g_trial.allFinite() ? g_trial.norm() : INFINITY;
-      if (converged || trial_norm < norm * (1.0 - 1e-4 * lambda)) {
+      bool descent = converged;
+      if (!descent && std::isfinite(trial_norm)) {
+        Eigen::MatrixXd correction = -g_trial;
+        lu_.Solve(Eigen::Map<Eigen::VectorXd>(correction.data(), correction.size()));
+        descent = scaled_norm(correction) <= (1.0 - 0.25 * lambda) * step_norm;
+      }
+      if (descent) {
         z = std::move(trial);
         g = std::move(g_trial);
         norm = trial_norm;

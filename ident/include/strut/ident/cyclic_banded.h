@@ -1,8 +1,10 @@
 // Linear systems with a cyclic block-banded matrix: the Newton Jacobian of a periodic time
 // discretisation. Block row mu couples to block columns mu + k (mod n) for k in [kmin, kmax].
-// Factorised in O(n) work and memory: the interior (no wrap-around) is a plain banded matrix
-// (LAPACK dgbtrf with partial pivoting); the wrap-around corners are handled by a small dense
-// Schur complement on the last max(-kmin, kmax) block points.
+// Factorised in O(n) work and memory: the interior (no wrap-around) is a plain banded matrix;
+// the wrap-around corners are handled by a small dense Schur complement on the last
+// max(-kmin, kmax) block points. A block lower-triangular interior (backward schemes, kmax = 0)
+// is solved by block forward substitution with LU-factorised diagonal blocks; any other band by
+// LAPACK dgbtrf with partial pivoting.
 #pragma once
 
 #include <Eigen/Dense>
@@ -57,12 +59,20 @@ class CyclicBandedLU {
 
  private:
   bool FactorizeDense(const CyclicBlockBanded& a);
-  int n_ = 0, m_ = 0, border_ = 0, interior_rows_ = 0, kl_ = 0, ku_ = 0;
+  bool FactorizeInterior(const CyclicBlockBanded& a);
+  void SolveInterior(Eigen::Ref<Eigen::MatrixXd> b) const;
+  //! border_interior_ * x, using only its nonzero column ranges.
+  Eigen::MatrixXd BorderTimes(const Eigen::MatrixXd& x) const;
+
+  int n_ = 0, m_ = 0, border_ = 0, interior_rows_ = 0, kl_ = 0, ku_ = 0, lower_ = 0, upper_ = 0;
   bool ok_ = false;
   bool dense_ = false;
-  std::vector<double> band_;   // LAPACK band storage of the interior block
+  bool lower_triangular_ = false;
+  std::vector<double> band_;   // LAPACK band storage of the interior block, or the LU of its diagonal blocks
+  std::vector<double> sub_;    // lower_triangular_: the blocks below the diagonal, row point major
   std::vector<int> pivots_;
-  Eigen::MatrixXd interior_border_;  // A_IB, then A_II^-1 A_IB
+  Eigen::MatrixXd interior_border_;  // A_II^-1 A_IB, only the columns in border_columns_
+  std::vector<int> border_columns_;  // border unknowns that interior rows couple to (others: zero columns)
   Eigen::MatrixXd border_interior_;  // A_BI
   Eigen::PartialPivLU<Eigen::MatrixXd> schur_;
   Eigen::PartialPivLU<Eigen::MatrixXd> dense_lu_;

@@ -82,12 +82,14 @@ class Term {
   virtual void Bind(const ModelBuilder& builder) = 0;
   virtual void Evaluate(TermContext<double>& c) const = 0;
   virtual void Evaluate(TermContext<Jet>& c) const = 0;
+  virtual void Evaluate(TermContext<StateJet>& c) const = 0;
 };
 
-//! Implements both Evaluate overloads with the term's `template <class S> void Eval(TermContext<S>&) const`.
-#define STRUT_TERM_EVALUATE                                                        \
-  void Evaluate(TermContext<double>& c) const override { Eval(c); }                \
-  void Evaluate(TermContext<::strut::ident::Jet>& c) const override { Eval(c); }
+//! Implements the Evaluate overloads with the term's `template <class S> void Eval(TermContext<S>&) const`.
+#define STRUT_TERM_EVALUATE                                                           \
+  void Evaluate(TermContext<double>& c) const override { Eval(c); }                   \
+  void Evaluate(TermContext<::strut::ident::Jet>& c) const override { Eval(c); }      \
+  void Evaluate(TermContext<::strut::ident::StateJet>& c) const override { Eval(c); }
 
 //! Collects what the terms declare and resolves names to positions.
 class ModelBuilder {

@@ -64,6 +64,9 @@ struct PeriodicSolverOptions {
   //! Converged when every Newton step component is below its unknown's scale (stroke 1e-9 m,
   //! force 1e-6 N, pressure 1e-3 Pa, temperature 1e-6 K) times this factor.
   double tolerance = 1.0;
+  //! Cold start: periods of time marching (backward scheme) from the quasi-static guess before
+  //! Newton; 0 starts Newton from the quasi-static guess itself.
+  int start_up_periods = 2;
   bool IsValid(std::string* error) const;
 };
 
@@ -106,7 +109,11 @@ class PeriodicSolver {
 
  private:
   void AssembleJacobian(const Eigen::MatrixXd& z, const PeriodicInput& input, std::span<const double> theta);
+  template <class J>
+  void AssembleJacobianWith(const Eigen::MatrixXd& z, const PeriodicInput& input, std::span<const double> theta);
   Eigen::MatrixXd QuasiStaticGuess(const PeriodicInput& input, std::span<const double> theta) const;
+  Eigen::MatrixXd MarchGuess(Eigen::MatrixXd z, const PeriodicInput& input, std::span<const double> theta,
+                             int periods) const;
   void Prepare(int n);
 
   Model model_;

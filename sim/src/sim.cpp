@@ -1,1 +1,0 @@
-int strut_sim_placeholder = 0;

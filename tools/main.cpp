@@ -1,4 +1,5 @@
 // strut: shaker testing and identification of nonlinear dampers.
+#include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 
 #include <CLI/CLI.hpp>
@@ -25,6 +26,8 @@ int main(int argc, char** argv) {
       spdlog::set_level(spdlog::level::info);
     }
   });
+  // Logs go to stderr: stdout carries data (tables, JSON).
+  spdlog::set_default_logger(spdlog::stderr_color_mt("strut"));
   spdlog::set_pattern("%^[%l]%$ %v");
 
   strut::tools::RegisterInfoCommand(app);

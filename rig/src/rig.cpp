@@ -1,1 +1,0 @@
-int strut_rig_placeholder = 0;

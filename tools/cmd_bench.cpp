@@ -1,0 +1,170 @@
+// strut bench: speed and accuracy figures, measured side by side in one run (medians and ratios).
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <fstream>
+#include <functional>
+#include <iostream>
+#include <nlohmann/json.hpp>
+
+#include "commands.h"
+#include "strut/ident/periodic.h"
+#include "strut/rig/test_matrix.h"
+
+namespace strut::tools {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+//! Median wall time (ms) of `repeats` calls.
+double MedianMs(int repeats, const std::function<void()>& run) {
+  std::vector<double> times;
+  for (int i = 0; i < repeats; ++i) {
+    const auto start = Clock::now();
+    run();
+    times.push_back(std::chrono::duration<double, std::milli>(Clock::now() - start).count());
+  }
+  std::nth_element(times.begin(), times.begin() + times.size() / 2, times.end());
+  return times[times.size() / 2];
+}
+
+rig::MatrixEntry Experiment(const std::string& label) {
+  for (const auto& e : rig::StandardMatrix())
+    if (e.label == label) return e;
+  throw std::invalid_argument("no experiment " + label);
+}
+
+//! The force of the stroke-driven 2 dof solution: the input a force-driven run would be fed.
+ident::PeriodicInput ForceInput(const rig::MatrixEntry& e, std::span<const double> theta, int n) {
+  ident::PeriodicSolver stroke(ident::Model::Build("2dof", ident::Causality::kStrokeInput));
+  const auto s = stroke.Solve(ident::PeriodicInput::Sine(e.frequency, e.static_position, e.amplitude, n), theta);
+  ident::PeriodicInput input{e.frequency, {}};
+  const Eigen::VectorXd f = s.channel("force");
+  input.values.assign(f.data(), f.data() + f.size());
+  return input;
+}
+
+struct BenchPeriodic {
+  std::string json_path;
+  bool quick = false;
+
+  void Run() const {
+    nlohmann::json report;
+    const ident::Model model = ident::Model::Build("2dof", ident::Causality::kForceInput);
+    const std::vector<double> theta = model.defaults().values();
+    const rig::MatrixEntry b = Experiment("b");
+    const int repeats = quick ? 5 : 21;
+
+    // 1. Cold and warm solves, experiment b, n = 800.
+    {
+      const ident::PeriodicInput input = ForceInput(b, theta, 800);
+      ident::PeriodicSolver solver(model);
+      ident::PeriodicSolution cold;
+      const double cold_ms = MedianMs(repeats, [&] { cold = solver.Solve(input, theta); });
+      std::vector<double> changed = theta;
+      for (const char* name : {"theta4", "theta6", "theta16"}) changed[model.defaults().position(name)] *= 1.01;
+      ident::PeriodicSolution warm;
+      const double warm_ms = MedianMs(repeats, [&] { warm = solver.Solve(input, changed, &cold); });
+      std::cout << fmt::format(
+          "periodic solve, 2dof force-driven, experiment b, n = 800 (median of {}):\n"
+          "  cold  {:8.3f} ms  ({} Newton iterations)   target < 2 ms\n"
+          "  warm  {:8.3f} ms  ({} Newton iterations, 1 % change of theta4, theta6, theta16)   target < 0.2 ms\n"
+          "  cold / warm = {:.1f}\n",
+          repeats, cold_ms, cold.newton_iterations, warm_ms, warm.newton_iterations, cold_ms / warm_ms);
+      report["cold_ms"] = cold_ms;
+      report["cold_iterations"] = cold.newton_iterations;
+      report["warm_ms"] = warm_ms;
+      report["warm_iterations"] = warm.newton_iterations;
+    }
+
+    // 2. Cost growth with n: time per Newton iteration must grow linearly.
+    {
+      std::cout << "cost growth with n (2dof force-driven, experiment b, warm start from the same n):\n"
+                << fmt::format("  {:>6} {:>12} {:>16} {:>18}\n", "n", "solve ms", "ms / iteration", "per-point ratio");
+      nlohmann::json rows = nlohmann::json::array();
+      double base_per_point = 0.0;
+      for (int n = 100; n <= 12800; n *= 2) {
+        const ident::PeriodicInput input = ForceInput(b, theta, n);
+        ident::PeriodicSolver solver(model);
+        const ident::PeriodicSolution start = solver.Solve(input, theta);
+        std::vector<double> changed = theta;
+        changed[model.defaults().position("theta4")] *= 1.01;
+        ident::PeriodicSolution s;
+        const double ms = MedianMs(quick ? 3 : 7, [&] { s = solver.Solve(input, changed, &start); });
+        const double per_iteration = ms / std::max(1, s.newton_iterations);
+        const double per_point = per_iteration / n;
+        if (n == 100) base_per_point = per_point;
+        std::cout << fmt::format("  {:>6} {:>12.3f} {:>16.4f} {:>18.2f}\n", n, ms, per_iteration,
+                                 per_point / base_per_point);
+        rows.push_back({{"n", n}, {"ms", ms}, {"ms_per_iteration", per_iteration},
+                        {"per_point_ratio", per_point / base_per_point}});
+      }
+      report["growth"] = rows;
+    }
+
+    // 3. Accuracy against cost per scheme: error of the stroke against a converged reference.
+    {
+      const int reference_n = 25600;
+      ident::PeriodicSolverOptions reference_options;
+      reference_options.scheme = ident::Scheme::kCentral4;
+      ident::PeriodicSolver reference_solver(model, reference_options);
+      const ident::PeriodicInput reference_input = ForceInput(b, theta, reference_n);
+      const ident::PeriodicSolution reference = reference_solver.Solve(reference_input, theta);
+      const Eigen::VectorXd reference_stroke = reference.channel("stroke");
+      const double range = reference_stroke.maxCoeff() - reference_stroke.minCoeff();
+      std::cout << fmt::format(
+          "accuracy against cost (stroke error relative to its range, against central4 at n = {}):\n", reference_n);
+      std::cout << fmt::format("  {:<10} {:>6} {:>12} {:>10}\n", "scheme", "n", "rel. error", "ms");
+      nlohmann::json rows = nlohmann::json::array();
+      for (const ident::Scheme scheme :
+           {ident::Scheme::kBackward2, ident::Scheme::kCentral2, ident::Scheme::kCentral4, ident::Scheme::kSpectral}) {
+        const bool spectral = scheme == ident::Scheme::kSpectral;
+        for (int n = spectral ? 32 : 50; n <= (spectral ? 256 : 3200); n *= 2) {
+          ident::PeriodicSolverOptions options;
+          options.scheme = scheme;
+          ident::PeriodicSolver solver(model, options);
+          // Same force input, sampled on the coarse grid from the reference grid.
+          ident::PeriodicInput input{b.frequency, {}};
+          for (int mu = 0; mu < n; ++mu) input.values.push_back(reference_input.values[mu * (reference_n / n)]);
+          ident::PeriodicSolution s;
+          double ms = 0;
+          try {
+            ms = MedianMs(quick ? 1 : 3, [&] { s = solver.Solve(input, theta); });
+          } catch (const ident::PeriodicSolverError& e) {
+            std::cout << fmt::format("  {:<10} {:>6} {:>12}\n", ident::ToString(scheme), n, "no solution");
+            continue;
+          }
+          const Eigen::VectorXd stroke = s.channel("stroke");
+          double error = 0.0;
+          for (int mu = 0; mu < n; ++mu)
+            error = std::max(error, std::abs(stroke[mu] - reference_stroke[mu * (reference_n / n)]));
+          std::cout << fmt::format("  {:<10} {:>6} {:>12.3e} {:>10.3f}\n", ident::ToString(scheme), n, error / range, ms);
+          rows.push_back({{"scheme", ident::ToString(scheme)}, {"n", n}, {"relative_error", error / range}, {"ms", ms}});
+        }
+      }
+      report["accuracy"] = rows;
+    }
+
+    if (!json_path.empty()) {
+      std::ofstream out(json_path);
+      out << report.dump(1) << "\n";
+      if (!out) throw std::runtime_error("cannot write " + json_path);
+    }
+  }
+};
+
+}  // namespace
+
+void RegisterBenchCommand(CLI::App& app) {
+  CLI::App* bench = app.add_subcommand("bench", "Benchmarks: figures and ratios measured side by side");
+  bench->require_subcommand(1);
+  auto periodic = std::make_shared<BenchPeriodic>();
+  CLI::App* sub = bench->add_subcommand("periodic", "Periodic solver: cold/warm, growth with n, accuracy vs cost");
+  sub->add_option("--json", periodic->json_path, "Also write the figures as JSON");
+  sub->add_flag("--quick", periodic->quick, "Fewer repeats (for a smoke run)");
+  sub->callback([periodic] { periodic->Run(); });
+}
+
+}  // namespace strut::tools

@@ -1,0 +1,26 @@
+#include "model_options.h"
+
+namespace strut::tools {
+
+void ModelOptions::Add(CLI::App& command) {
+  command.add_option("--model", composition, "Model: BASE[+term...], BASE 1dof or 2dof (e.g. 1dof+heat-exchange)")
+      ->capture_default_str();
+  command.add_option("--input", input, "Causality: force (stroke and pressure are outputs) or stroke")
+      ->check(CLI::IsMember({"force", "stroke"}))
+      ->capture_default_str();
+  command.add_option("--set", assignments, "Parameter values: NAME=VALUE[,NAME=VALUE...] (NAME: theta4 or gas_area)");
+  command.add_option("--params", params_file, "Parameter file (docs/parameters.md)")->check(CLI::ExistingFile);
+}
+
+ident::Model ModelOptions::BuildModel() const {
+  return ident::Model::Build(composition, ident::ParseCausality(input));
+}
+
+ident::ParameterSet ModelOptions::Parameters(const ident::Model& model) const {
+  ident::ParameterSet parameters = model.defaults();
+  if (!params_file.empty()) parameters.apply_file(params_file);
+  if (!assignments.empty()) parameters.apply_assignments(assignments);
+  return parameters;
+}
+
+}  // namespace strut::tools

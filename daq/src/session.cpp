@@ -1,0 +1,460 @@
+// Session accessors and the contract checks shared by ReadSession, Validate and WriteSession.
+#include "strut/daq/session.h"
+
+#include <spdlog/fmt/fmt.h>
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <ctime>
+#include <iterator>
+#include <set>
+
+#include "session_check.h"
+
+namespace strut::daq {
+
+std::string_view ToString(ExperimentKind kind) {
+  switch (kind) {
+    case ExperimentKind::kPeriodic:
+      return "periodic";
+    case ExperimentKind::kDrop:
+      return "drop";
+    case ExperimentKind::kStatic:
+      return "static";
+  }
+  return "unknown";
+}
+
+const Channel* Experiment::find_channel(std::string_view name) const {
+  const auto it = std::find_if(channels.begin(), channels.end(),
+                               [&](const Channel& c) { return c.name == name; });
+  return it == channels.end() ? nullptr : &*it;
+}
+
+const Channel& Experiment::channel(std::string_view name) const {
+  if (const Channel* c = find_channel(name)) return *c;
+  std::vector<std::string_view> names;
+  for (const Channel& c : channels) names.push_back(c.name);
+  throw SessionError(fmt::format("experiment '{}': no channel '{}' (it has: {})", label, name,
+                                 fmt::join(names, ", ")));
+}
+
+std::vector<double> Experiment::absolute_pressure() const {
+  const Channel& p = channel("pressure");
+  if (p.reference == "absolute") return p.samples;
+  if (p.reference != "gauge") {
+    throw SessionError(
+        fmt::format("experiment '{}': channel 'pressure': reference '{}' is neither "
+                    "\"absolute\" nor \"gauge\"",
+                    label, p.reference));
+  }
+  std::vector<double> absolute(p.samples);
+  for (double& v : absolute) v += kGaugeReferencePa;
+  return absolute;
+}
+
+const Experiment* Session::find_experiment(std::string_view label) const {
+  const auto it = std::find_if(experiments.begin(), experiments.end(),
+                               [&](const Experiment& e) { return e.label == label; });
+  return it == experiments.end() ? nullptr : &*it;
+}
+
+const Experiment& Session::experiment(std::string_view label) const {
+  if (const Experiment* e = find_experiment(label)) return *e;
+  std::vector<std::string_view> labels;
+  for (const Experiment& e : experiments) labels.push_back(e.label);
+  throw SessionError(fmt::format("{}: no experiment '{}' (it has: {})",
+                                 source_path.empty() ? "<memory>" : source_path, label,
+                                 fmt::join(labels, ", ")));
+}
+
+std::vector<std::string> Validate(const Session& session) {
+  detail::DefectList defects(session.source_path.empty() ? "<memory>" : session.source_path);
+  detail::CheckSession(session, defects);
+  return defects.messages();
+}
+
+std::string UtcNowIso8601() {
+  const std::time_t now = std::chrono::system_clock::to_time_t(std::chrono::system_clock::now());
+  std::tm utc{};
+  gmtime_r(&now, &utc);
+  std::array<char, 32> text{};
+  const std::size_t n = std::strftime(text.data(), text.size(), "%Y-%m-%dT%H:%M:%SZ", &utc);
+  return std::string(text.data(), n);
+}
+
+namespace detail {
+
+namespace {
+
+// Accepted unit symbols: SI only, so that no reader has to guess a scale factor.
+constexpr std::array<std::string_view, 12> kKnownUnits = {"m", "N",   "Pa",    "K",    "s",  "V",
+                                                          "A", "m/s", "m/s^2", "m/s2", "kg", "1"};
+
+// Above this relative difference between the time axis and sample_rate a file is rejected;
+// above kRateWarning it only gets a warning (a slightly drifting DAQ clock).
+constexpr double kRateTolerance = 0.01;
+constexpr double kRateWarning = 0.001;
+// A single time step this far from 1/sample_rate means dropped or repeated samples.
+constexpr double kStepTolerance = 0.5;
+// Single steps off by more than this (but less than kStepTolerance) are jitter: a warning.
+constexpr double kStepWarning = 0.01;
+
+bool IsValidName(std::string_view name) {
+  return !name.empty() && name != "." && name.find('/') == std::string_view::npos;
+}
+
+bool StartsWithDate(std::string_view text) {
+  // YYYY-MM-DD or the basic form YYYYMMDD.
+  auto digits = [&](std::size_t from, std::size_t count) {
+    if (text.size() < from + count) return false;
+    return std::all_of(text.begin() + from, text.begin() + from + count,
+                       [](char c) { return c >= '0' && c <= '9'; });
+  };
+  return (digits(0, 4) && text.size() >= 10 && text[4] == '-' && digits(5, 2) && text[7] == '-' &&
+          digits(8, 2)) ||
+         digits(0, 8);
+}
+
+// Counts NaN/Inf samples; `first` gets the index of the first one.
+std::size_t CountNonFinite(const std::vector<double>& samples, std::size_t& first) {
+  std::size_t count = 0;
+  for (std::size_t i = 0; i < samples.size(); ++i) {
+    if (!std::isfinite(samples[i])) {
+      if (count == 0) first = i;
+      ++count;
+    }
+  }
+  return count;
+}
+
+std::string NonFiniteMessage(std::size_t count, std::size_t first) {
+  return fmt::format("{} NaN/Inf sample{} (first at index {})", count, count == 1 ? "" : "s",
+                     first);
+}
+
+class ExperimentChecker {
+ public:
+  ExperimentChecker(const Experiment& e, DefectList& defects) : e_(e), defects_(defects) {}
+
+  void Run() {
+    CheckAttributes();
+    const bool time_ok = CheckTime();
+    CheckChannels(time_ok);
+    if (time_ok) CheckPeriodCount();
+  }
+
+ private:
+  bool Has(std::string_view item) const { return defects_.Has(e_.label, item); }
+  void Add(std::string_view item, std::string_view what) { defects_.Add(e_.label, item, what); }
+
+  // True when the attribute was read and is a finite number > 0 (reports it otherwise).
+  bool Positive(std::string_view name, double value) {
+    const std::string item = AttributeItem(name);
+    if (Has(item)) return false;
+    if (std::isfinite(value) && value > 0) return true;
+    Add(item, fmt::format("must be > 0, found {}", value));
+    return false;
+  }
+
+  void CheckAttributes() {
+    // An unknown kind was reported by the reader; kind-specific checks would only add noise.
+    kind_ok_ = !Has(AttributeItem("kind"));
+    const std::string status_item = AttributeItem("status");
+    if (!Has(status_item) && e_.status != "complete" && e_.status != "aborted") {
+      Add(status_item, fmt::format("'{}' is neither \"complete\" nor \"aborted\"", e_.status));
+    }
+    rate_ok_ = Positive("sample_rate", e_.sample_rate);
+
+    if (!kind_ok_) return;
+    if (e_.kind == ExperimentKind::kPeriodic) {
+      frequency_ok_ = Positive("frequency", e_.frequency);
+      Positive("amplitude", e_.amplitude);
+      const std::string position_item = AttributeItem("static_position");
+      // A stroke is compression-positive from full extension, so never negative.
+      if (!Has(position_item) && !(std::isfinite(e_.static_position) && e_.static_position >= 0)) {
+        Add(position_item, fmt::format("must be >= 0 (a stroke), found {}", e_.static_position));
+      }
+      const std::string waveform_item = AttributeItem("waveform");
+      if (!Has(waveform_item) && e_.waveform != "sine") {
+        Add(waveform_item, fmt::format("'{}' is not supported (only \"sine\")", e_.waveform));
+      }
+      // An aborted experiment may hold no steady-state period at all.
+      const std::string periods_item = AttributeItem("periods");
+      const long min_periods = e_.status == "aborted" ? 0 : 1;
+      if (!Has(periods_item)) {
+        if (e_.periods >= min_periods) {
+          periods_ok_ = true;
+        } else {
+          Add(periods_item, fmt::format("must be >= {}, found {}", min_periods, e_.periods));
+        }
+      }
+    } else if (e_.kind == ExperimentKind::kDrop) {
+      Positive("drop_mass", e_.drop_mass);
+      Positive("impact_velocity", e_.impact_velocity);
+    }
+
+    for (const auto& [name, value] : e_.extra_attributes) {
+      const std::string item = AttributeItem(name);
+      if (name.empty()) {
+        Add("extra attributes", "an extra attribute has an empty name");
+      } else if (IsContractAttribute(e_.kind, name)) {
+        Add(item, "extra attribute has the name of a contract attribute");
+      }
+    }
+  }
+
+  // Checks the time axis; true when it can serve as the length reference.
+  bool CheckTime() {
+    if (Has(kTimeItem)) return false;
+    const std::vector<double>& t = e_.time;
+    if (t.empty()) {
+      if (!Has(kSamplesItem)) Add(kSamplesItem, "no samples (empty experiment)");
+      return false;
+    }
+    std::size_t first = 0;
+    if (const std::size_t bad = CountNonFinite(t, first); bad > 0) {
+      Add(kTimeItem, NonFiniteMessage(bad, first));
+      return true;  // the length is still right
+    }
+    for (std::size_t i = 1; i < t.size(); ++i) {
+      if (!(t[i] > t[i - 1])) {
+        Add(kTimeItem,
+            fmt::format("not increasing at index {} ({} s after {} s)", i, t[i], t[i - 1]));
+        return true;
+      }
+    }
+    if (!rate_ok_) return true;
+    const double step = 1.0 / e_.sample_rate;
+    if (std::abs(t.front()) > 0.5 * step) {
+      Add(kTimeItem,
+          fmt::format("starts at {} s, not at 0 (the first recorded sample)", t.front()));
+    }
+    if (t.size() < 2) return true;
+
+    const double mean_step = (t.back() - t.front()) / static_cast<double>(t.size() - 1);
+    const double rate_error = mean_step / step - 1.0;
+    if (std::abs(rate_error) > kRateTolerance) {
+      Add(kTimeItem, fmt::format("mean step {:.6g} s is {:+.2f}% off 1/sample_rate = {:.6g} s "
+                                 "(tolerance {}%)",
+                                 mean_step, 100 * rate_error, step, 100 * kRateTolerance));
+      return true;
+    }
+    if (std::abs(rate_error) > kRateWarning) {
+      defects_.Warn(e_.label, kTimeItem,
+                    fmt::format("mean step {:.6g} s is {:+.3f}% off 1/sample_rate = {:.6g} s "
+                                "(accepted up to {}%)",
+                                mean_step, 100 * rate_error, step, 100 * kRateTolerance));
+    }
+    std::size_t gaps = 0, jitter = 0, first_gap = 0;
+    for (std::size_t i = 1; i < t.size(); ++i) {
+      const double error = std::abs((t[i] - t[i - 1]) / step - 1.0);
+      if (error > kStepTolerance) {
+        if (gaps++ == 0) first_gap = i;
+      } else if (error > kStepWarning) {
+        ++jitter;
+      }
+    }
+    if (gaps > 0) {
+      Add(kTimeItem, fmt::format("{} {} from 1/sample_rate = {:.6g} s by more than {}% "
+                                 "(first at index {}: {:.6g} s): dropped or repeated samples",
+                                 gaps, gaps == 1 ? "step differs" : "steps differ", step,
+                                 100 * kStepTolerance, first_gap, t[first_gap] - t[first_gap - 1]));
+    } else if (jitter > 0) {
+      defects_.Warn(e_.label, kTimeItem,
+                    fmt::format("{} {} from 1/sample_rate by more than {}% (jitter)", jitter,
+                                jitter == 1 ? "step differs" : "steps differ", 100 * kStepWarning));
+    }
+    return true;
+  }
+
+  void CheckChannels(bool time_ok) {
+    std::set<std::string_view> seen;
+    for (std::string_view name : kStandardChannels) {
+      const std::string item = ChannelItem(name);
+      if (e_.find_channel(name) == nullptr && !Has(item)) Add(item, "missing");
+    }
+    for (const Channel& c : e_.channels) {
+      const std::string item = ChannelItem(c.name);
+      if (!IsValidName(c.name) || c.name == "time") {
+        Add(item, "invalid channel name (empty, '.', 'time' or containing '/')");
+        continue;
+      }
+      if (!seen.insert(c.name).second) {
+        Add(item, "appears more than once");
+        continue;
+      }
+      CheckUnits(c);
+      CheckReference(c);
+      if (Has(item)) continue;
+      if (time_ok && c.samples.size() != e_.time.size()) {
+        Add(item, fmt::format("{} samples, but 'time' has {}", c.samples.size(), e_.time.size()));
+        continue;
+      }
+      std::size_t first = 0;
+      if (const std::size_t bad = CountNonFinite(c.samples, first); bad > 0) {
+        Add(item, NonFiniteMessage(bad, first));
+      }
+    }
+  }
+
+  void CheckUnits(const Channel& c) {
+    const std::string item = ChannelAttributeItem(c.name, "units");
+    if (Has(item)) return;
+    const std::string_view expected = ExpectedUnits(c.name);
+    if (c.units.empty()) {
+      Add(item, "empty (an SI unit symbol is required)");
+    } else if (!IsKnownUnit(c.units)) {
+      Add(item,
+          fmt::format("unknown units '{}' (accepted: {})", c.units, fmt::join(kKnownUnits, ", ")));
+    } else if (!expected.empty() && c.units != expected) {
+      Add(item, fmt::format("'{}', expected '{}'", c.units, expected));
+    }
+  }
+
+  void CheckReference(const Channel& c) {
+    const std::string item = ChannelAttributeItem(c.name, "reference");
+    if (Has(item)) return;
+    if (c.name == "pressure") {
+      if (c.reference.empty()) {
+        Add(item, "missing (must be \"absolute\" or \"gauge\")");
+      } else if (c.reference != "absolute" && c.reference != "gauge") {
+        Add(item, fmt::format("'{}' is neither \"absolute\" nor \"gauge\"", c.reference));
+      }
+    } else if (!c.reference.empty()) {
+      Add(item, "only the pressure channel has a reference");
+    }
+  }
+
+  // Contract: a periodic recording covers exactly `periods` whole periods.
+  void CheckPeriodCount() {
+    if (!kind_ok_ || e_.kind != ExperimentKind::kPeriodic || !rate_ok_ || !frequency_ok_ ||
+        !periods_ok_)
+      return;
+    if (e_.periods == 0 || Has(kSamplesItem)) return;
+    const double exact = static_cast<double>(e_.periods) * e_.sample_rate / e_.frequency;
+    const long long expected = std::llround(exact);
+    const long long actual = static_cast<long long>(e_.time.size());
+    if (std::llabs(actual - expected) > 1) {
+      Add(kSamplesItem,
+          fmt::format("{} samples, but periods * sample_rate / frequency = {} * {} / {} "
+                      "= {} (±1 accepted)",
+                      actual, e_.periods, e_.sample_rate, e_.frequency, expected));
+    }
+  }
+
+  const Experiment& e_;
+  DefectList& defects_;
+  bool kind_ok_ = false;
+  bool rate_ok_ = false;
+  bool frequency_ok_ = false;
+  bool periods_ok_ = false;
+};
+
+}  // namespace
+
+void DefectList::Add(std::string_view experiment, std::string_view item, std::string_view what) {
+  messages_.push_back(Prefix(experiment, item) + std::string(what));
+  items_.emplace(std::string(experiment), std::string(item));
+}
+
+bool DefectList::Has(std::string_view experiment, std::string_view item) const {
+  return items_.count({std::string(experiment), std::string(item)}) > 0;
+}
+
+void DefectList::Warn(std::string_view experiment, std::string_view item,
+                      std::string_view what) const {
+  spdlog::warn("{}{}", Prefix(experiment, item), what);
+}
+
+std::string DefectList::Joined() const { return fmt::format("{}", fmt::join(messages_, "\n")); }
+
+std::string DefectList::Prefix(std::string_view experiment, std::string_view item) const {
+  if (experiment.empty()) return fmt::format("{}: {}: ", file_, item);
+  return fmt::format("{}: experiment '{}': {}: ", file_, experiment, item);
+}
+
+std::string AttributeItem(std::string_view name) { return fmt::format("attribute '{}'", name); }
+
+std::string ChannelItem(std::string_view name) { return fmt::format("channel '{}'", name); }
+
+std::string ChannelAttributeItem(std::string_view channel, std::string_view attribute) {
+  return fmt::format("channel '{}': attribute '{}'", channel, attribute);
+}
+
+std::string_view ExpectedUnits(std::string_view channel) {
+  if (channel == "time") return "s";
+  if (channel == "stroke") return "m";
+  if (channel == "force") return "N";
+  if (channel == "pressure") return "Pa";
+  return {};
+}
+
+bool IsKnownUnit(std::string_view units) {
+  return std::find(kKnownUnits.begin(), kKnownUnits.end(), units) != kKnownUnits.end();
+}
+
+bool IsContractAttribute(ExperimentKind kind, std::string_view name) {
+  if (name == "kind" || name == "status" || name == "sample_rate") return true;
+  if (kind == ExperimentKind::kPeriodic) {
+    return name == "frequency" || name == "amplitude" || name == "static_position" ||
+           name == "waveform" || name == "periods" || name == "group";
+  }
+  if (kind == ExperimentKind::kDrop) return name == "drop_mass" || name == "impact_velocity";
+  return false;
+}
+
+void SortChannels(std::vector<Channel>& channels) {
+  auto rank = [](const Channel& c) {
+    const auto* it = std::find(std::begin(kStandardChannels), std::end(kStandardChannels), c.name);
+    return static_cast<int>(it - std::begin(kStandardChannels));
+  };
+  std::stable_sort(channels.begin(), channels.end(), [&](const Channel& a, const Channel& b) {
+    const int ra = rank(a), rb = rank(b);
+    return ra != rb ? ra < rb : a.name < b.name;
+  });
+}
+
+void CheckSession(const Session& session, DefectList& defects) {
+  const std::string version_item = AttributeItem("format_version");
+  if (!defects.Has("", version_item) && session.format_version != 1) {
+    defects.Add(
+        "", version_item,
+        fmt::format("unsupported version {} (strut reads version 1)", session.format_version));
+  }
+  const std::pair<std::string_view, const std::string*> texts[] = {
+      {"created_utc", &session.created_utc},
+      {"damper_serial", &session.damper_serial},
+      {"rig", &session.rig}};
+  for (const auto& [name, value] : texts) {
+    const std::string item = AttributeItem(name);
+    if (!defects.Has("", item) && value->empty()) defects.Add("", item, "empty");
+  }
+  if (!session.created_utc.empty() && !StartsWithDate(session.created_utc)) {
+    defects.Warn("", AttributeItem("created_utc"),
+                 fmt::format("'{}' does not look like an ISO 8601 time", session.created_utc));
+  }
+  if (session.experiments.empty() && !defects.Has("", kExperimentsItem)) {
+    defects.Warn("", kExperimentsItem, "no experiments");
+  }
+
+  std::set<std::string_view> labels;
+  for (const Experiment& e : session.experiments) {
+    if (!IsValidName(e.label)) {
+      defects.Add("", "experiment label",
+                  fmt::format("'{}' is empty, '.' or contains '/'", e.label));
+      continue;
+    }
+    if (!labels.insert(e.label).second) {
+      defects.Add(e.label, "label", "used by more than one experiment");
+      continue;
+    }
+    ExperimentChecker(e, defects).Run();
+  }
+}
+
+}  // namespace detail
+}  // namespace strut::daq

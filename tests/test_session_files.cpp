@@ -1,0 +1,1158 @@
+// Session files: round trips, files from other writers (h5py, MATLAB-style), one test per defect
+// the reader must name, the writer's crash safety, and `strut info`.
+#include <gtest/gtest.h>
+#include <hdf5.h>
+#include <spdlog/sinks/ringbuffer_sink.h>
+#include <spdlog/spdlog.h>
+#include <sys/resource.h>
+#include <sys/wait.h>
+
+#include <algorithm>
+#include <cmath>
+#include <csignal>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <initializer_list>
+#include <limits>
+#include <nlohmann/json.hpp>
+#include <numbers>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "strut/daq/session.h"
+#include "test_support.h"
+
+namespace {
+
+using strut::daq::Channel;
+using strut::daq::Experiment;
+using strut::daq::ExperimentKind;
+using strut::daq::ReadSession;
+using strut::daq::Session;
+using strut::daq::SessionError;
+using strut::daq::WriteOptions;
+using strut::daq::WriteSession;
+using strut::test::TempDir;
+
+constexpr double kTwoPi = 2 * std::numbers::pi;
+
+// ---------------------------------------------------------------------------------------------
+// Sessions in memory
+
+std::vector<double> TimeAxis(std::size_t n, double sample_rate) {
+  std::vector<double> t(n);
+  for (std::size_t i = 0; i < n; ++i) t[i] = static_cast<double>(i) / sample_rate;
+  return t;
+}
+
+Channel MakeChannel(std::string name, std::string units, const std::vector<double>& t, double mean,
+                    double swing, double frequency, std::string reference = "") {
+  Channel c{std::move(name), std::move(units), std::move(reference), {}};
+  for (double ti : t) c.samples.push_back(mean + swing * std::sin(kTwoPi * frequency * ti));
+  return c;
+}
+
+// Periodic: 200 Hz, 2 Hz, 3 periods = 300 samples, with a further `temperature` channel.
+Experiment MakePeriodic(std::string label) {
+  Experiment e;
+  e.label = std::move(label);
+  e.kind = ExperimentKind::kPeriodic;
+  e.sample_rate = 200;
+  e.frequency = 2;
+  e.amplitude = 0.01;
+  e.static_position = 0.1;
+  e.periods = 3;
+  e.group = "high";
+  e.time = TimeAxis(300, e.sample_rate);
+  e.channels = {MakeChannel("stroke", "m", e.time, 0.1, 0.01, 2),
+                MakeChannel("force", "N", e.time, 5000, 2000, 2),
+                MakeChannel("pressure", "Pa", e.time, 2e6, 1e5, 2, "absolute"),
+                MakeChannel("temperature", "K", e.time, 293.15, 0.5, 0.1)};
+  e.extra_attributes = {{"operator", "jd"}, {"shaker", "MTS-1"}};
+  return e;
+}
+
+Experiment MakeDrop(std::string label) {
+  Experiment e;
+  e.label = std::move(label);
+  e.kind = ExperimentKind::kDrop;
+  e.sample_rate = 1000;
+  e.drop_mass = 500;
+  e.impact_velocity = 2.5;
+  e.time = TimeAxis(250, e.sample_rate);
+  e.channels = {MakeChannel("stroke", "m", e.time, 0.05, 0.05, 1),
+                MakeChannel("force", "N", e.time, 1e4, 1e4, 1),
+                MakeChannel("pressure", "Pa", e.time, 1e5, 5e4, 1, "gauge")};
+  return e;
+}
+
+Experiment MakeStatic(std::string label) {
+  Experiment e;
+  e.label = std::move(label);
+  e.kind = ExperimentKind::kStatic;
+  e.status = "aborted";
+  e.sample_rate = 10;
+  e.time = TimeAxis(50, e.sample_rate);
+  e.channels = {MakeChannel("stroke", "m", e.time, 0.2, 0.001, 0.1),
+                MakeChannel("force", "N", e.time, 3e4, 10, 0.1),
+                MakeChannel("pressure", "Pa", e.time, 3e6, 1e3, 0.1, "absolute")};
+  return e;
+}
+
+Session MakeSession() {
+  Session s;
+  s.created_utc = "2026-11-22T05:32:50Z";
+  s.damper_serial = "MLG-0042";
+  s.rig = "shaker-2";
+  s.experiments = {MakePeriodic("a"), MakeDrop("b"), MakeStatic("c")};
+  return s;
+}
+
+void ExpectSameExperiment(const Experiment& expected, const Experiment& actual) {
+  SCOPED_TRACE("experiment " + expected.label);
+  EXPECT_EQ(actual.label, expected.label);
+  EXPECT_EQ(actual.kind, expected.kind);
+  EXPECT_EQ(actual.status, expected.status);
+  EXPECT_EQ(actual.sample_rate, expected.sample_rate);
+  EXPECT_EQ(actual.frequency, expected.frequency);
+  EXPECT_EQ(actual.amplitude, expected.amplitude);
+  EXPECT_EQ(actual.static_position, expected.static_position);
+  EXPECT_EQ(actual.waveform, expected.waveform);
+  EXPECT_EQ(actual.periods, expected.periods);
+  EXPECT_EQ(actual.group, expected.group);
+  EXPECT_EQ(actual.drop_mass, expected.drop_mass);
+  EXPECT_EQ(actual.impact_velocity, expected.impact_velocity);
+  EXPECT_EQ(actual.time, expected.time);
+  EXPECT_EQ(actual.extra_attributes, expected.extra_attributes);
+  ASSERT_EQ(actual.channels.size(), expected.channels.size());
+  for (std::size_t i = 0; i < expected.channels.size(); ++i) {
+    EXPECT_EQ(actual.channels[i].name, expected.channels[i].name);
+    EXPECT_EQ(actual.channels[i].units, expected.channels[i].units);
+    EXPECT_EQ(actual.channels[i].reference, expected.channels[i].reference);
+    EXPECT_EQ(actual.channels[i].samples, expected.channels[i].samples);
+  }
+}
+
+void ExpectSameSession(const Session& expected, const Session& actual) {
+  EXPECT_EQ(actual.format_version, expected.format_version);
+  EXPECT_EQ(actual.created_utc, expected.created_utc);
+  EXPECT_EQ(actual.damper_serial, expected.damper_serial);
+  EXPECT_EQ(actual.rig, expected.rig);
+  ASSERT_EQ(actual.experiments.size(), expected.experiments.size());
+  for (std::size_t i = 0; i < expected.experiments.size(); ++i) {
+    ExpectSameExperiment(expected.experiments[i], actual.experiments[i]);
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Files
+
+std::string WriteGoodFile(const TempDir& dir, const std::string& name = "session.h5") {
+  const std::string path = dir.file(name);
+  WriteSession(path, MakeSession());
+  return path;
+}
+
+// The message of the SessionError ReadSession throws (a test failure when it does not throw).
+std::string ReadError(const std::string& path) {
+  try {
+    ReadSession(path);
+  } catch (const SessionError& e) {
+    return e.what();
+  }
+  ADD_FAILURE() << "ReadSession(" << path << ") accepted a defective file";
+  return {};
+}
+
+void ExpectMentions(const std::string& message, std::initializer_list<std::string> parts) {
+  for (const std::string& part : parts) {
+    EXPECT_NE(message.find(part), std::string::npos)
+        << "message does not mention \"" << part << "\":\n"
+        << message;
+  }
+}
+
+std::size_t LineCount(const std::string& text) {
+  return text.empty() ? 0
+                      : static_cast<std::size_t>(std::count(text.begin(), text.end(), '\n')) + 1;
+}
+
+void Require(long long status, const char* what) {
+  if (status < 0) throw std::runtime_error(std::string("HDF5 call failed in test: ") + what);
+}
+
+// Opens a file for surgery with the HDF5 C API: the defect tests break a good file in one place.
+class FileEditor {
+ public:
+  explicit FileEditor(const std::string& path)
+      : file_(H5Fopen(path.c_str(), H5F_ACC_RDWR, H5P_DEFAULT)) {
+    Require(file_, "H5Fopen");
+  }
+  ~FileEditor() { H5Fclose(file_); }
+  FileEditor(const FileEditor&) = delete;
+  FileEditor& operator=(const FileEditor&) = delete;
+
+  void RemoveAttribute(const std::string& object, const std::string& name) {
+    Require(H5Adelete_by_name(file_, object.c_str(), name.c_str(), H5P_DEFAULT), "H5Adelete");
+  }
+
+  //! A string attribute, variable-length (as h5py writes str) or fixed-length with `pad`.
+  void SetString(const std::string& object, const std::string& name, const std::string& value,
+                 bool variable = false, H5T_str_t pad = H5T_STR_NULLTERM) {
+    const hid_t type = H5Tcopy(H5T_C_S1);
+    if (variable) {
+      H5Tset_size(type, H5T_VARIABLE);
+      H5Tset_cset(type, H5T_CSET_UTF8);
+    } else {
+      H5Tset_size(type, std::max<std::size_t>(value.size(), 1));
+      H5Tset_strpad(type, pad);
+    }
+    const hid_t space = H5Screate(H5S_SCALAR);
+    const hid_t attribute = Recreate(object, name, type, space);
+    const char* text = value.c_str();
+    std::string fixed = value;
+    fixed.resize(std::max<std::size_t>(value.size(), 1), '\0');
+    Require(variable ? H5Awrite(attribute, type, &text) : H5Awrite(attribute, type, fixed.data()),
+            "H5Awrite");
+    H5Aclose(attribute);
+    H5Sclose(space);
+    H5Tclose(type);
+  }
+
+  //! A numeric attribute of `file_type`, scalar or (as MATLAB writes) of shape `dims`.
+  void SetNumber(const std::string& object, const std::string& name, double value,
+                 hid_t file_type = H5T_IEEE_F64LE, std::vector<hsize_t> dims = {}) {
+    const hid_t space = dims.empty()
+                            ? H5Screate(H5S_SCALAR)
+                            : H5Screate_simple(static_cast<int>(dims.size()), dims.data(), nullptr);
+    const hid_t attribute = Recreate(object, name, file_type, space);
+    Require(H5Awrite(attribute, H5T_NATIVE_DOUBLE, &value), "H5Awrite");
+    H5Aclose(attribute);
+    H5Sclose(space);
+  }
+
+  void Remove(const std::string& link) {
+    Require(H5Ldelete(file_, link.c_str(), H5P_DEFAULT), "H5Ldelete");
+  }
+
+  //! Replaces (or creates) a dataset with `values` in shape `dims` and optional units/reference.
+  void SetDataset(const std::string& path, const std::vector<double>& values,
+                  std::vector<hsize_t> dims, const char* units, const char* reference = nullptr,
+                  hid_t file_type = H5T_IEEE_F64LE) {
+    if (H5Lexists(file_, path.c_str(), H5P_DEFAULT) > 0) Remove(path);
+    const hid_t space = H5Screate_simple(static_cast<int>(dims.size()), dims.data(), nullptr);
+    const hid_t dataset =
+        H5Dcreate2(file_, path.c_str(), file_type, space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+    Require(dataset, "H5Dcreate2");
+    if (!values.empty()) {
+      Require(H5Dwrite(dataset, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, values.data()),
+              "H5Dwrite");
+    }
+    H5Dclose(dataset);
+    H5Sclose(space);
+    if (units != nullptr) SetString(path, "units", units);
+    if (reference != nullptr) SetString(path, "reference", reference);
+  }
+
+  //! Overwrites the samples of an existing dataset (same length).
+  void Overwrite(const std::string& path, const std::vector<double>& values) {
+    const hid_t dataset = H5Dopen2(file_, path.c_str(), H5P_DEFAULT);
+    Require(dataset, "H5Dopen2");
+    Require(H5Dwrite(dataset, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, values.data()),
+            "H5Dwrite");
+    H5Dclose(dataset);
+  }
+
+  //! Rewrites the four contract datasets of an experiment with `n` samples.
+  void Resize(const std::string& experiment, std::size_t n, double sample_rate,
+              const char* reference) {
+    const std::vector<double> t = TimeAxis(n, sample_rate);
+    const std::vector<double> ones(n, 1.0);
+    const std::vector<hsize_t> dims = {n};
+    SetDataset(experiment + "/time", t, dims, "s");
+    SetDataset(experiment + "/stroke", ones, dims, "m");
+    SetDataset(experiment + "/force", ones, dims, "N");
+    SetDataset(experiment + "/pressure", ones, dims, "Pa", reference);
+  }
+
+  hid_t get() const { return file_; }
+
+ private:
+  hid_t Recreate(const std::string& object, const std::string& name, hid_t type, hid_t space) {
+    if (H5Aexists_by_name(file_, object.c_str(), name.c_str(), H5P_DEFAULT) > 0) {
+      RemoveAttribute(object, name);
+    }
+    const hid_t attribute = H5Acreate_by_name(file_, object.c_str(), name.c_str(), type, space,
+                                              H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+    Require(attribute, "H5Acreate_by_name");
+    return attribute;
+  }
+
+  hid_t file_;
+};
+
+// A python3 that imports h5py and numpy, or empty (the PATH one may be a bare pyenv).
+std::string PythonWithH5py() {
+  for (const char* candidate : {"python3", "/usr/bin/python3"}) {
+    const std::string probe = std::string(candidate) + " -c 'import h5py, numpy' >/dev/null 2>&1";
+    if (std::system(probe.c_str()) == 0) return candidate;
+  }
+  return {};
+}
+
+int RunPython(const std::string& python, const TempDir& dir, const std::string& script,
+              const std::string& argument) {
+  const std::string script_path = dir.file("script.py");
+  std::ofstream(script_path) << script;
+  const std::string command = python + " " + script_path + " " + argument;
+  const int status = std::system(command.c_str());
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+// Replaces the default logger while alive and keeps what was logged.
+class CapturedLog {
+ public:
+  CapturedLog()
+      : previous_(spdlog::default_logger()),
+        sink_(std::make_shared<spdlog::sinks::ringbuffer_sink_mt>(64)) {
+    auto logger = std::make_shared<spdlog::logger>("captured", sink_);
+    logger->set_level(spdlog::level::warn);
+    spdlog::set_default_logger(logger);
+  }
+  ~CapturedLog() { spdlog::set_default_logger(previous_); }
+  std::string Text() const {
+    std::string text;
+    for (const std::string& line : sink_->last_formatted()) text += line;
+    return text;
+  }
+
+ private:
+  std::shared_ptr<spdlog::logger> previous_;
+  std::shared_ptr<spdlog::sinks::ringbuffer_sink_mt> sink_;
+};
+
+// ---------------------------------------------------------------------------------------------
+// Round trips
+
+TEST(SessionFiles, RoundTripKeepsAllFieldsAndSamples) {
+  TempDir dir;
+  const Session written = MakeSession();
+  WriteSession(dir.file("s.h5"), written);
+  const Session read = ReadSession(dir.file("s.h5"));
+  EXPECT_EQ(read.source_path, dir.file("s.h5"));
+  ExpectSameSession(written, read);
+  EXPECT_FALSE(std::filesystem::exists(dir.file("s.h5.partial")));
+}
+
+std::vector<hsize_t> ChunkOf(const std::string& path, const std::string& dataset_path,
+                             int* filters) {
+  const hid_t file = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  const hid_t dataset = H5Dopen2(file, dataset_path.c_str(), H5P_DEFAULT);
+  const hid_t create = H5Dget_create_plist(dataset);
+  std::vector<hsize_t> chunk;
+  if (H5Pget_layout(create) == H5D_CHUNKED) {
+    chunk.resize(1);
+    H5Pget_chunk(create, 1, chunk.data());
+  }
+  *filters = H5Pget_nfilters(create);
+  H5Pclose(create);
+  H5Dclose(dataset);
+  H5Fclose(file);
+  return chunk;
+}
+
+TEST(SessionFiles, RoundTripWithoutCompressionWritesContiguousDatasets) {
+  TempDir dir;
+  const Session written = MakeSession();
+  WriteSession(dir.file("s.h5"), written, WriteOptions{.gzip_level = 0, .chunk_samples = 0});
+  ExpectSameSession(written, ReadSession(dir.file("s.h5")));
+  int filters = -1;
+  EXPECT_TRUE(ChunkOf(dir.file("s.h5"), "/experiments/a/force", &filters).empty());
+  EXPECT_EQ(filters, 0);
+}
+
+TEST(SessionFiles, RoundTripWithGzipUsesRequestedOrAutomaticChunks) {
+  TempDir dir;
+  const Session written = MakeSession();
+  WriteSession(dir.file("auto.h5"), written, WriteOptions{.gzip_level = 9, .chunk_samples = 0});
+  WriteSession(dir.file("small.h5"), written, WriteOptions{.gzip_level = 1, .chunk_samples = 64});
+  WriteSession(dir.file("plain.h5"), written, WriteOptions{.gzip_level = 0, .chunk_samples = 100});
+  for (const char* name : {"auto.h5", "small.h5", "plain.h5"}) {
+    SCOPED_TRACE(name);
+    ExpectSameSession(written, ReadSession(dir.file(name)));
+  }
+  int filters = 0;
+  EXPECT_EQ(ChunkOf(dir.file("auto.h5"), "/experiments/a/force", &filters),
+            std::vector<hsize_t>{300});  // whole dataset: shorter than the automatic chunk
+  EXPECT_EQ(filters, 2);                 // shuffle + deflate
+  EXPECT_EQ(ChunkOf(dir.file("small.h5"), "/experiments/a/force", &filters),
+            std::vector<hsize_t>{64});
+  EXPECT_EQ(filters, 2);
+  EXPECT_EQ(ChunkOf(dir.file("plain.h5"), "/experiments/a/force", &filters),
+            std::vector<hsize_t>{100});
+  EXPECT_EQ(filters, 0);
+}
+
+TEST(SessionFiles, KeepsExperimentsInRecordingOrder) {
+  TempDir dir;
+  Session s = MakeSession();
+  s.experiments = {MakePeriodic("z1"), MakeStatic("a2"), MakeDrop("m3")};
+  WriteSession(dir.file("s.h5"), s);
+  const Session read = ReadSession(dir.file("s.h5"));
+  ASSERT_EQ(read.experiments.size(), 3u);
+  EXPECT_EQ(read.experiments[0].label, "z1");
+  EXPECT_EQ(read.experiments[1].label, "a2");
+  EXPECT_EQ(read.experiments[2].label, "m3");
+}
+
+TEST(SessionFiles, WriteReplacesAnExistingFileAndLeavesNoPartialFile) {
+  TempDir dir;
+  const std::string path = dir.file("s.h5");
+  std::ofstream(path) << "old contents";
+  WriteSession(path, MakeSession());
+  EXPECT_EQ(ReadSession(path).damper_serial, "MLG-0042");
+  EXPECT_FALSE(std::filesystem::exists(path + ".partial"));
+}
+
+TEST(SessionFiles, WriteRefusesAnInvalidSessionAndCreatesNoFile) {
+  TempDir dir;
+  Session s = MakeSession();
+  s.experiments[0].frequency = 0;
+  const std::string path = dir.file("s.h5");
+  try {
+    WriteSession(path, s);
+    FAIL() << "an invalid session was written";
+  } catch (const SessionError& e) {
+    ExpectMentions(e.what(), {path, "not written", "experiment 'a'", "attribute 'frequency'"});
+  }
+  EXPECT_FALSE(std::filesystem::exists(path));
+  EXPECT_FALSE(std::filesystem::exists(path + ".partial"));
+}
+
+TEST(SessionFiles, WriteFailureNamesThePathAndRemovesThePartialFile) {
+  TempDir dir;
+  const std::string path = dir.file("no-such-directory/s.h5");
+  try {
+    WriteSession(path, MakeSession());
+    FAIL() << "writing into a missing directory succeeded";
+  } catch (const SessionError& e) {
+    ExpectMentions(e.what(), {path, "cannot write"});
+  }
+  EXPECT_TRUE(std::filesystem::is_empty(dir.path()));
+}
+
+// Lowers the file size limit while alive, so that writes fail half-way (EFBIG, not a signal).
+class FileSizeLimit {
+ public:
+  explicit FileSizeLimit(rlim_t bytes) {
+    getrlimit(RLIMIT_FSIZE, &previous_);
+    previous_handler_ = std::signal(SIGXFSZ, SIG_IGN);
+    rlimit limit = previous_;
+    limit.rlim_cur = bytes;
+    setrlimit(RLIMIT_FSIZE, &limit);
+  }
+  ~FileSizeLimit() {
+    setrlimit(RLIMIT_FSIZE, &previous_);
+    std::signal(SIGXFSZ, previous_handler_);
+  }
+
+ private:
+  rlimit previous_{};
+  void (*previous_handler_)(int) = nullptr;
+};
+
+TEST(SessionFiles, WriteFailingHalfWayNamesThePathAndRemovesThePartialFile) {
+  TempDir dir;
+  const std::string path = dir.file("s.h5");
+  std::string message;
+  {
+    const FileSizeLimit limit(16 * 1024);  // the session needs about 50 KiB
+    try {
+      WriteSession(path, MakeSession(), WriteOptions{.gzip_level = 0});
+    } catch (const SessionError& e) {
+      message = e.what();
+    }
+  }
+  ExpectMentions(message, {path, "cannot write"});
+  EXPECT_TRUE(std::filesystem::is_empty(dir.path()));
+}
+
+TEST(SessionFiles, WriteRejectsAGzipLevelOutsideZeroToNine) {
+  TempDir dir;
+  EXPECT_THROW(WriteSession(dir.file("s.h5"), MakeSession(), WriteOptions{.gzip_level = 12}),
+               SessionError);
+  EXPECT_TRUE(std::filesystem::is_empty(dir.path()));
+}
+
+// ---------------------------------------------------------------------------------------------
+// Files from other writers
+
+TEST(SessionFiles, ReadsAFileWrittenByH5py) {
+  const std::string python = PythonWithH5py();
+  if (python.empty()) GTEST_SKIP() << "python3 with h5py and numpy not found";
+  TempDir dir;
+  const std::string path = dir.file("h5py.h5");
+  const char* script = R"(
+import sys, h5py, numpy as np
+sr, f, periods = 400.0, 4.0, 4
+n = int(periods * sr / f)
+t = np.arange(n) / sr
+w = 2 * np.pi * f * t
+with h5py.File(sys.argv[1], "w") as h:
+    h.attrs["format"] = "damper-session"            # str: variable-length UTF-8
+    h.attrs["format_version"] = np.int64(1)
+    h.attrs["created_utc"] = "2024-05-01T12:00:00Z"
+    h.attrs["damper_serial"] = "SN-\u00fc42"
+    h.attrs["rig"] = "h5py-rig"
+    g = h.create_group("experiments/920713b")
+    g.attrs["kind"] = "periodic"
+    g.attrs["status"] = "complete"
+    g.attrs["sample_rate"] = np.float32(sr)
+    g.attrs["frequency"] = f
+    g.attrs["amplitude"] = 0.02
+    g.attrs["static_position"] = 0.1
+    g.attrs["waveform"] = "sine"
+    g.attrs["periods"] = np.int16(periods)
+    g.attrs["group"] = "low"
+    g.attrs["operator"] = "x"
+    g.attrs["calibrated"] = True
+    g.attrs["gains"] = np.array([1.5, 2.0])
+    g.create_dataset("time", data=t).attrs["units"] = "s"
+    g.create_dataset("stroke", data=0.1 + 0.02 * np.sin(w), compression="gzip", chunks=(64,)).attrs["units"] = "m"
+    g.create_dataset("force", data=(1000 * np.cos(w)).reshape(-1, 1)).attrs["units"] = "N"
+    p = g.create_dataset("pressure", data=(2e5 + 1e4 * np.sin(w)).astype(np.float32))
+    p.attrs["units"] = "Pa"
+    p.attrs["reference"] = "gauge"
+    g.create_dataset("temperature", data=np.full(n, 293.15)).attrs["units"] = "K"
+    g.create_dataset("notes", data=np.arange(3.0))
+)";
+  ASSERT_EQ(RunPython(python, dir, script, path), 0);
+
+  const Session s = ReadSession(path);
+  EXPECT_EQ(s.format_version, 1);
+  EXPECT_EQ(s.damper_serial, "SN-\u00fc42");
+  EXPECT_EQ(s.rig, "h5py-rig");
+  ASSERT_EQ(s.experiments.size(), 1u);
+  const Experiment& e = s.experiment("920713b");
+  EXPECT_EQ(e.kind, ExperimentKind::kPeriodic);
+  EXPECT_EQ(e.sample_rate, 400.0);
+  EXPECT_EQ(e.periods, 4);
+  EXPECT_EQ(e.group, "low");
+  EXPECT_EQ(e.sample_count(), 400u);
+  EXPECT_EQ(e.extra_attributes.at("operator"), "x");
+  EXPECT_EQ(e.extra_attributes.at("calibrated"), "TRUE");
+  EXPECT_EQ(e.extra_attributes.at("gains"), "[1.5, 2]");
+  ASSERT_EQ(e.channels.size(), 4u);  // `notes` has no units and another length: not a channel
+  EXPECT_EQ(e.channels[0].name, "stroke");
+  EXPECT_EQ(e.channels[1].name, "force");
+  EXPECT_EQ(e.channels[2].name, "pressure");
+  EXPECT_EQ(e.channels[3].name, "temperature");
+  EXPECT_EQ(e.channel("temperature").units, "K");
+  const Channel& force = e.channel("force");
+  ASSERT_EQ(force.samples.size(), 400u);
+  EXPECT_NEAR(force.samples[10], 1000 * std::cos(kTwoPi * 4.0 * 10 / 400.0), 1e-9);
+  const Channel& pressure = e.channel("pressure");
+  EXPECT_EQ(pressure.reference, "gauge");
+  EXPECT_NEAR(pressure.samples[5], 2e5 + 1e4 * std::sin(kTwoPi * 4.0 * 5 / 400.0), 0.05);
+  EXPECT_NEAR(e.absolute_pressure()[5], pressure.samples[5] + 101325.0, 1e-9);
+}
+
+TEST(SessionFiles, ReadsAMatlabStyleFile) {
+  // MATLAB's h5create/h5writeatt: space-padded fixed strings, doubles for every number,
+  // attributes of shape [1], vectors of shape (1,N) in float32.
+  TempDir dir;
+  const std::string path = WriteGoodFile(dir);
+  {
+    FileEditor edit(path);
+    edit.SetString("/", "format", "damper-session", false, H5T_STR_SPACEPAD);
+    edit.SetString("/", "rig", "matlab rig   ", false, H5T_STR_SPACEPAD);
+    edit.SetNumber("/", "format_version", 1.0, H5T_IEEE_F64LE, {1});
+    edit.SetNumber("/experiments/a", "periods", 3.0, H5T_IEEE_F64LE, {1, 1});
+    edit.SetNumber("/experiments/a", "sample_rate", 200, H5T_STD_U16LE);
+    const Experiment a = MakePeriodic("a");
+    edit.SetDataset("/experiments/a/stroke", a.channel("stroke").samples, {1, 300}, "m", nullptr,
+                    H5T_IEEE_F32LE);
+  }
+  const Session s = ReadSession(path);
+  EXPECT_EQ(s.rig, "matlab rig");
+  const Experiment& a = s.experiment("a");
+  EXPECT_EQ(a.periods, 3);
+  EXPECT_EQ(a.sample_rate, 200.0);
+  const Experiment original = MakePeriodic("a");
+  const std::vector<double>& expected = original.channel("stroke").samples;
+  ASSERT_EQ(a.channel("stroke").samples.size(), expected.size());
+  for (std::size_t i = 0; i < expected.size(); ++i) {
+    EXPECT_NEAR(a.channel("stroke").samples[i], expected[i], 1e-7);
+  }
+}
+
+TEST(SessionFiles, H5pyReadsWhatStrutWrote) {
+  const std::string python = PythonWithH5py();
+  if (python.empty()) GTEST_SKIP() << "python3 with h5py and numpy not found";
+  TempDir dir;
+  const std::string path = WriteGoodFile(dir);
+  const char* script = R"(
+import sys, h5py, numpy as np
+def text(v):
+    return v.decode() if isinstance(v, bytes) else str(v)
+with h5py.File(sys.argv[1], "r") as h:
+    assert text(h.attrs["format"]) == "damper-session"
+    assert h.attrs["format_version"] == 1 and h.attrs["format_version"].dtype.kind == "i"
+    assert text(h.attrs["created_utc"]) == "2026-11-22T05:32:50Z"
+    assert text(h.attrs["damper_serial"]) == "MLG-0042"
+    assert text(h.attrs["rig"]) == "shaker-2"
+    assert sorted(h["experiments"].keys()) == ["a", "b", "c"]
+    a = h["experiments/a"]
+    assert text(a.attrs["kind"]) == "periodic" and text(a.attrs["status"]) == "complete"
+    assert a.attrs["sample_rate"] == 200.0 and a.attrs["frequency"] == 2.0
+    assert a.attrs["amplitude"] == 0.01 and a.attrs["static_position"] == 0.1
+    assert a.attrs["periods"] == 3 and a.attrs["periods"].dtype.kind == "i"
+    assert text(a.attrs["waveform"]) == "sine" and text(a.attrs["group"]) == "high"
+    assert text(a.attrs["operator"]) == "jd"
+    t = a["time"][:]
+    assert a["time"].dtype == np.float64 and t.shape == (300,) and t[0] == 0.0
+    assert np.allclose(t, np.arange(300) / 200.0, rtol=0, atol=1e-12)
+    w = 2 * np.pi * 2.0 * t
+    assert a["stroke"].compression == "gzip"
+    assert text(a["stroke"].attrs["units"]) == "m"
+    assert np.allclose(a["stroke"][:], 0.1 + 0.01 * np.sin(w), rtol=0, atol=1e-12)
+    assert np.allclose(a["force"][:], 5000 + 2000 * np.sin(w), rtol=0, atol=1e-9)
+    assert text(a["pressure"].attrs["reference"]) == "absolute"
+    assert text(a["temperature"].attrs["units"]) == "K"
+    b = h["experiments/b"]
+    assert text(b.attrs["kind"]) == "drop" and b.attrs["drop_mass"] == 500.0
+    assert text(b["pressure"].attrs["reference"]) == "gauge"
+    assert "frequency" not in b.attrs
+print("h5py peer check passed")
+)";
+  EXPECT_EQ(RunPython(python, dir, script, path), 0);
+}
+
+TEST(SessionFiles, AcceptsAnAbortedPeriodicExperimentWithoutWholePeriods) {
+  TempDir dir;
+  Session s = MakeSession();
+  Experiment& a = s.experiments[0];
+  a.status = "aborted";
+  a.periods = 0;
+  a.time.resize(123);
+  for (Channel& c : a.channels) c.samples.resize(123);
+  WriteSession(dir.file("s.h5"), s);
+  EXPECT_EQ(ReadSession(dir.file("s.h5")).experiment("a").sample_count(), 123u);
+}
+
+TEST(SessionFiles, AcceptsASampleCountOneOffThePeriods) {
+  TempDir dir;
+  const std::string path = WriteGoodFile(dir);
+  FileEditor(path).Resize("/experiments/a", 301, 200, "absolute");
+  EXPECT_EQ(ReadSession(path).experiment("a").sample_count(), 301u);
+}
+
+TEST(SessionFiles, WarnsButAcceptsATimeAxisSlightlyOffTheSampleRate) {
+  TempDir dir;
+  const std::string path = WriteGoodFile(dir);
+  std::vector<double> t = TimeAxis(300, 200);
+  for (double& ti : t) ti *= 1.005;  // a DAQ clock 0.5 % slow
+  FileEditor(path).Overwrite("/experiments/a/time", t);
+  CapturedLog log;
+  EXPECT_NO_THROW(ReadSession(path));
+  ExpectMentions(log.Text(), {path, "experiment 'a'", "dataset 'time'", "+0.500%"});
+}
+
+// ---------------------------------------------------------------------------------------------
+// Files that are not session files at all
+
+TEST(SessionFiles, RejectsAMissingFile) {
+  TempDir dir;
+  ExpectMentions(ReadError(dir.file("absent.h5")), {dir.file("absent.h5"), "no such file"});
+}
+
+TEST(SessionFiles, RejectsAnEmptyFile) {
+  TempDir dir;
+  std::ofstream(dir.file("empty.h5")).close();
+  ExpectMentions(ReadError(dir.file("empty.h5")), {dir.file("empty.h5"), "empty file"});
+}
+
+TEST(SessionFiles, RejectsAFileThatIsNotHdf5) {
+  TempDir dir;
+  std::ofstream(dir.file("notes.h5")) << "time,stroke,force\n0,0.1,5000\n";
+  ExpectMentions(ReadError(dir.file("notes.h5")), {dir.file("notes.h5"), "not an HDF5 file"});
+}
+
+TEST(SessionFiles, RejectsATruncatedFile) {
+  TempDir dir;
+  const std::string path = WriteGoodFile(dir);
+  std::filesystem::resize_file(path, std::filesystem::file_size(path) / 2);
+  ExpectMentions(ReadError(path), {path, "truncated"});
+}
+
+// ---------------------------------------------------------------------------------------------
+// One test per defect: the message names the file, the experiment and the item
+
+TEST(SessionFiles, RejectsAWrongFormatName) {
+  TempDir dir;
+  const std::string path = WriteGoodFile(dir);
+  FileEditor(path).SetString("/", "format", "other-format");
+  ExpectMentions(ReadError(path), {path, "attribute 'format'", "other-format", "damper-session"});
+}
+
+TEST(SessionFiles, RejectsAnUnsupportedFormatVersion) {
+  TempDir dir;
+  const std::string path = WriteGoodFile(dir);
+  FileEditor(path).SetNumber("/", "format_version", 2, H5T_STD_I32LE);
+  ExpectMentions(ReadError(path), {path, "attribute 'format_version'", "unsupported version 2"});
+}
+
+TEST(SessionFiles, RejectsAMissingRootAttribute) {
+  TempDir dir;
+  const std::string path = WriteGoodFile(dir);
+  FileEditor(path).RemoveAttribute("/", "damper_serial");
+  EXPECT_EQ(ReadError(path), path + ": attribute 'damper_serial': missing");
+}
+
+TEST(SessionFiles, RejectsAFileWithoutExperimentsGroup) {
+  TempDir dir;
+  const std::string path = WriteGoodFile(dir);
+  FileEditor(path).Remove("/experiments");
+  EXPECT_EQ(ReadError(path), path + ": group '/experiments': missing");
+}
+
+TEST(SessionFiles, RejectsAMissingExperimentAttribute) {
+  TempDir dir;
+  const std::string path = WriteGoodFile(dir);
+  FileEditor(path).RemoveAttribute("/experiments/b", "sample_rate");
+  EXPECT_EQ(ReadError(path), path + ": experiment 'b': attribute 'sample_rate': missing");
+}
+
+TEST(SessionFiles, RejectsAStringWhereANumberIsRequired) {
+  TempDir dir;
+  const std::string path = WriteGoodFile(dir);
+  FileEditor(path).SetString("/experiments/a", "frequency", "2.0", true);
+  EXPECT_EQ(ReadError(path), path +
+                                 ": experiment 'a': attribute 'frequency': expected a number, "
+                                 "found a string (\"2.0\")");
+}
+
+TEST(SessionFiles, RejectsANumberWhereAStringIsRequired) {
+  TempDir dir;
+  const std::string path = WriteGoodFile(dir);
+  FileEditor(path).SetNumber("/experiments/c", "kind", 1, H5T_STD_I8LE);
+  EXPECT_EQ(ReadError(path),
+            path + ": experiment 'c': attribute 'kind': expected a string, found an integer");
+}
+
+TEST(SessionFiles, RejectsAnUnknownKind) {
+  TempDir dir;
+  const std::string path = WriteGoodFile(dir);
+  FileEditor(path).SetString("/experiments/c", "kind", "ramp");
+  EXPECT_EQ(ReadError(path), path +
+                                 ": experiment 'c': attribute 'kind': 'ramp' is not "
+                                 "\"periodic\", \"drop\" or \"static\"");
+}
+
+TEST(SessionFiles, RejectsAnUnknownStatus) {
+  TempDir dir;
+  const std::string path = WriteGoodFile(dir);
+  FileEditor(path).SetString("/experiments/b", "status", "running");
+  ExpectMentions(ReadError(path), {path, "experiment 'b'", "attribute 'status'", "'running'"});
+}
+
+TEST(SessionFiles, RejectsANonPositiveSampleRate) {
+  TempDir dir;
+  const std::string path = WriteGoodFile(dir);
+  FileEditor(path).SetNumber("/experiments/c", "sample_rate", -10);
+  EXPECT_EQ(ReadError(path),
+            path + ": experiment 'c': attribute 'sample_rate': must be > 0, found -10");
+}
+
+TEST(SessionFiles, RejectsANonPositiveFrequency) {
+  TempDir dir;
+  const std::string path = WriteGoodFile(dir);
+  FileEditor(path).SetNumber("/experiments/a", "frequency", 0);
+  EXPECT_EQ(ReadError(path),
+            path + ": experiment 'a': attribute 'frequency': must be > 0, found 0");
+}
+
+TEST(SessionFiles, RejectsANonPositiveAmplitude) {
+  TempDir dir;
+  const std::string path = WriteGoodFile(dir);
+  FileEditor(path).SetNumber("/experiments/a", "amplitude", -0.01);
+  ExpectMentions(ReadError(path), {path, "experiment 'a'", "attribute 'amplitude'", "must be > 0"});
+}
+
+TEST(SessionFiles, RejectsAMissingStaticPosition) {
+  TempDir dir;
+  const std::string path = WriteGoodFile(dir);
+  FileEditor(path).RemoveAttribute("/experiments/a", "static_position");
+  EXPECT_EQ(ReadError(path), path + ": experiment 'a': attribute 'static_position': missing");
+}
+
+TEST(SessionFiles, RejectsANegativeStaticPosition) {
+  TempDir dir;
+  const std::string path = WriteGoodFile(dir);
+  FileEditor(path).SetNumber("/experiments/a", "static_position", -0.1);
+  ExpectMentions(ReadError(path), {path, "experiment 'a'", "attribute 'static_position'", ">= 0"});
+}
+
+TEST(SessionFiles, RejectsAMissingWaveform) {
+  TempDir dir;
+  const std::string path = WriteGoodFile(dir);
+  FileEditor(path).RemoveAttribute("/experiments/a", "waveform");
+  EXPECT_EQ(ReadError(path), path + ": experiment 'a': attribute 'waveform': missing");
+}
+
+TEST(SessionFiles, RejectsFractionalPeriods) {
+  TempDir dir;
+  const std::string path = WriteGoodFile(dir);
+  FileEditor(path).SetNumber("/experiments/a", "periods", 2.5);
+  EXPECT_EQ(ReadError(path),
+            path + ": experiment 'a': attribute 'periods': must be a whole number, found 2.5");
+}
+
+TEST(SessionFiles, RejectsZeroPeriodsInACompleteExperiment) {
+  TempDir dir;
+  const std::string path = WriteGoodFile(dir);
+  FileEditor(path).SetNumber("/experiments/a", "periods", 0, H5T_STD_I64LE);
+  EXPECT_EQ(ReadError(path), path + ": experiment 'a': attribute 'periods': must be >= 1, found 0");
+}
+
+TEST(SessionFiles, RejectsASampleCountThatDoesNotMatchThePeriods) {
+  TempDir dir;
+  const std::string path = WriteGoodFile(dir);
+  FileEditor(path).Resize("/experiments/a", 310, 200, "absolute");
+  EXPECT_EQ(ReadError(path), path +
+                                 ": experiment 'a': samples: 310 samples, but periods * "
+                                 "sample_rate / frequency = 3 * 200 / 2 = 300 (±1 accepted)");
+}
+
+TEST(SessionFiles, RejectsAMissingDropMass) {
+  TempDir dir;
+  const std::string path = WriteGoodFile(dir);
+  FileEditor(path).RemoveAttribute("/experiments/b", "drop_mass");
+  EXPECT_EQ(ReadError(path), path + ": experiment 'b': attribute 'drop_mass': missing");
+}
+
+TEST(SessionFiles, RejectsANonPositiveImpactVelocity) {
+  TempDir dir;
+  const std::string path = WriteGoodFile(dir);
+  FileEditor(path).SetNumber("/experiments/b", "impact_velocity", 0);
+  EXPECT_EQ(ReadError(path),
+            path + ": experiment 'b': attribute 'impact_velocity': must be > 0, found 0");
+}
+
+TEST(SessionFiles, RejectsAMissingChannelDataset) {
+  TempDir dir;
+  const std::string path = WriteGoodFile(dir);
+  FileEditor(path).Remove("/experiments/b/pressure");
+  EXPECT_EQ(ReadError(path), path + ": experiment 'b': channel 'pressure': missing dataset");
+}
+
+TEST(SessionFiles, RejectsAMissingTimeDataset) {
+  TempDir dir;
+  const std::string path = WriteGoodFile(dir);
+  FileEditor(path).Remove("/experiments/c/time");
+  EXPECT_EQ(ReadError(path), path + ": experiment 'c': dataset 'time': missing dataset");
+}
+
+TEST(SessionFiles, RejectsAChannelWithoutUnits) {
+  TempDir dir;
+  const std::string path = WriteGoodFile(dir);
+  FileEditor(path).RemoveAttribute("/experiments/a/force", "units");
+  EXPECT_EQ(ReadError(path),
+            path + ": experiment 'a': channel 'force': attribute 'units': missing");
+}
+
+TEST(SessionFiles, RejectsUnknownUnits) {
+  TempDir dir;
+  const std::string path = WriteGoodFile(dir);
+  FileEditor(path).SetString("/experiments/a/stroke", "units", "mm");
+  ExpectMentions(ReadError(path), {path, "experiment 'a'", "channel 'stroke': attribute 'units'",
+                                   "unknown units 'mm'"});
+}
+
+TEST(SessionFiles, RejectsUnknownUnitsOnAFurtherChannel) {
+  TempDir dir;
+  const std::string path = WriteGoodFile(dir);
+  FileEditor(path).SetString("/experiments/a/temperature", "units", "degC");
+  ExpectMentions(
+      ReadError(path),
+      {path, "experiment 'a'", "channel 'temperature': attribute 'units'", "unknown units 'degC'"});
+}
+
+TEST(SessionFiles, RejectsEmptyUnits) {
+  TempDir dir;
+  const std::string path = WriteGoodFile(dir);
+  FileEditor(path).SetString("/experiments/b/force", "units", "");
+  ExpectMentions(ReadError(path),
+                 {path, "experiment 'b'", "channel 'force': attribute 'units'", "empty"});
+}
+
+TEST(SessionFiles, RejectsUnitsOfTheWrongQuantity) {
+  TempDir dir;
+  const std::string path = WriteGoodFile(dir);
+  FileEditor(path).SetString("/experiments/a/pressure", "units", "N");
+  EXPECT_EQ(ReadError(path),
+            path + ": experiment 'a': channel 'pressure': attribute 'units': 'N', expected 'Pa'");
+}
+
+TEST(SessionFiles, RejectsTimeUnitsOtherThanSeconds) {
+  TempDir dir;
+  const std::string path = WriteGoodFile(dir);
+  FileEditor(path).SetString("/experiments/a/time", "units", "ms");
+  ExpectMentions(ReadError(path),
+                 {path, "experiment 'a'", "dataset 'time': attribute 'units'", "'ms'"});
+}
+
+TEST(SessionFiles, RejectsPressureWithoutReference) {
+  TempDir dir;
+  const std::string path = WriteGoodFile(dir);
+  FileEditor(path).RemoveAttribute("/experiments/c/pressure", "reference");
+  EXPECT_EQ(ReadError(path),
+            path + ": experiment 'c': channel 'pressure': attribute 'reference': missing");
+}
+
+TEST(SessionFiles, RejectsAnUnknownPressureReference) {
+  TempDir dir;
+  const std::string path = WriteGoodFile(dir);
+  FileEditor(path).SetString("/experiments/c/pressure", "reference", "sealed");
+  EXPECT_EQ(ReadError(path), path +
+                                 ": experiment 'c': channel 'pressure': attribute 'reference': "
+                                 "'sealed' is neither \"absolute\" nor \"gauge\"");
+}
+
+TEST(SessionFiles, RejectsDatasetsOfDifferentLengths) {
+  TempDir dir;
+  const std::string path = WriteGoodFile(dir);
+  FileEditor(path).SetDataset("/experiments/a/force", std::vector<double>(299, 1.0), {299}, "N");
+  EXPECT_EQ(ReadError(path),
+            path + ": experiment 'a': channel 'force': 299 samples, but 'time' has 300");
+}
+
+TEST(SessionFiles, RejectsNaNAndInfSamples) {
+  TempDir dir;
+  const std::string path = WriteGoodFile(dir);
+  std::vector<double> force = MakePeriodic("a").channel("force").samples;
+  force[120] = std::numeric_limits<double>::quiet_NaN();
+  force[121] = std::numeric_limits<double>::infinity();
+  force[200] = std::numeric_limits<double>::quiet_NaN();
+  FileEditor(path).Overwrite("/experiments/a/force", force);
+  EXPECT_EQ(ReadError(path),
+            path + ": experiment 'a': channel 'force': 3 NaN/Inf samples (first at index 120)");
+}
+
+TEST(SessionFiles, RejectsTimeThatDoesNotStartAtZero) {
+  TempDir dir;
+  const std::string path = WriteGoodFile(dir);
+  std::vector<double> t = TimeAxis(300, 200);
+  for (double& ti : t) ti += 0.25;
+  FileEditor(path).Overwrite("/experiments/a/time", t);
+  EXPECT_EQ(ReadError(path), path +
+                                 ": experiment 'a': dataset 'time': starts at 0.25 s, not at 0 "
+                                 "(the first recorded sample)");
+}
+
+TEST(SessionFiles, RejectsTimeThatDoesNotIncrease) {
+  TempDir dir;
+  const std::string path = WriteGoodFile(dir);
+  std::vector<double> t = TimeAxis(300, 200);
+  std::swap(t[10], t[11]);
+  FileEditor(path).Overwrite("/experiments/a/time", t);
+  EXPECT_EQ(
+      ReadError(path),
+      path + ": experiment 'a': dataset 'time': not increasing at index 11 (0.05 s after 0.055 s)");
+}
+
+TEST(SessionFiles, RejectsTimeInconsistentWithTheSampleRate) {
+  TempDir dir;
+  const std::string path = WriteGoodFile(dir);
+  std::vector<double> t = TimeAxis(300, 200);
+  for (double& ti : t) ti *= 1.03;
+  FileEditor(path).Overwrite("/experiments/a/time", t);
+  ExpectMentions(ReadError(path),
+                 {path, "experiment 'a'", "dataset 'time'", "+3.00% off 1/sample_rate"});
+}
+
+TEST(SessionFiles, RejectsTimeWithDroppedSamples) {
+  TempDir dir;
+  const std::string path = WriteGoodFile(dir);
+  std::vector<double> t = TimeAxis(300, 200);
+  for (std::size_t i = 150; i < t.size(); ++i) t[i] += 1.0 / 200;  // sample 150 was lost
+  FileEditor(path).Overwrite("/experiments/a/time", t);
+  EXPECT_EQ(ReadError(path), path +
+                                 ": experiment 'a': dataset 'time': 1 step differs from "
+                                 "1/sample_rate = 0.005 s by more than 50% (first at index 150: "
+                                 "0.01 s): dropped or repeated samples");
+}
+
+TEST(SessionFiles, RejectsADatasetThatIsNotOneDimensional) {
+  TempDir dir;
+  const std::string path = WriteGoodFile(dir);
+  FileEditor(path).SetDataset("/experiments/b/stroke", std::vector<double>(500, 0.1), {2, 250},
+                              "m");
+  EXPECT_EQ(ReadError(path),
+            path + ": experiment 'b': channel 'stroke': not one-dimensional (shape 2 x 250)");
+}
+
+TEST(SessionFiles, RejectsAnEmptyExperiment) {
+  TempDir dir;
+  const std::string path = WriteGoodFile(dir);
+  FileEditor(path).Resize("/experiments/c", 0, 10, "absolute");
+  EXPECT_EQ(ReadError(path), path + ": experiment 'c': samples: no samples (empty experiment)");
+}
+
+TEST(SessionFiles, ListsEveryDefectOnItsOwnLine) {
+  TempDir dir;
+  const std::string path = WriteGoodFile(dir);
+  {
+    FileEditor edit(path);
+    edit.RemoveAttribute("/", "rig");
+    edit.RemoveAttribute("/experiments/a", "frequency");
+    edit.SetString("/experiments/b/force", "units", "kN");
+  }
+  const std::string message = ReadError(path);
+  EXPECT_EQ(message, path + ": attribute 'rig': missing\n" + path +
+                         ": experiment 'a': attribute 'frequency': missing\n" + path +
+                         ": experiment 'b': channel 'force': attribute 'units': unknown "
+                         "units 'kN' (accepted: m, N, Pa, K, s, V, A, m/s, m/s^2, m/s2, kg, 1)");
+  EXPECT_EQ(LineCount(message), 3u);
+}
+
+// ---------------------------------------------------------------------------------------------
+// In memory
+
+TEST(SessionFiles, ValidateAcceptsAGoodSession) {
+  EXPECT_TRUE(strut::daq::Validate(MakeSession()).empty());
+}
+
+TEST(SessionFiles, ValidateNamesTheSameDefectsForAnInMemorySession) {
+  Session s = MakeSession();
+  s.experiments[0].frequency = 0;
+  s.experiments[1].channels[1].samples.pop_back();
+  s.experiments[2].channels[2].reference = "";
+  const std::vector<std::string> defects = strut::daq::Validate(s);
+  EXPECT_EQ(defects,
+            (std::vector<std::string>{
+                "<memory>: experiment 'a': attribute 'frequency': must be > 0, found 0",
+                "<memory>: experiment 'b': channel 'force': 249 samples, but 'time' has 250",
+                "<memory>: experiment 'c': channel 'pressure': attribute 'reference': "
+                "missing (must be \"absolute\" or \"gauge\")"}));
+  s.source_path = "rig.h5";
+  EXPECT_EQ(strut::daq::Validate(s).front().rfind("rig.h5: experiment 'a'", 0), 0u);
+}
+
+TEST(SessionFiles, ValidateRejectsDuplicateLabelsAndChannels) {
+  Session s = MakeSession();
+  s.experiments.push_back(MakeStatic("c"));
+  s.experiments[0].channels.push_back(s.experiments[0].channels[0]);
+  const std::vector<std::string> defects = strut::daq::Validate(s);
+  ASSERT_EQ(defects.size(), 2u);
+  EXPECT_EQ(defects[0], "<memory>: experiment 'a': channel 'stroke': appears more than once");
+  EXPECT_EQ(defects[1], "<memory>: experiment 'c': label: used by more than one experiment");
+}
+
+TEST(SessionFiles, AbsolutePressureAddsTheAmbientToGaugeReadings) {
+  const Session s = MakeSession();
+  const Experiment& drop = s.experiment("b");  // gauge
+  EXPECT_DOUBLE_EQ(drop.absolute_pressure()[7], drop.channel("pressure").samples[7] + 101325.0);
+  const Experiment& periodic = s.experiment("a");  // absolute
+  EXPECT_EQ(periodic.absolute_pressure(), periodic.channel("pressure").samples);
+}
+
+TEST(SessionFiles, LookupsNameTheMissingExperimentOrChannel) {
+  Session s = MakeSession();
+  EXPECT_EQ(s.find_experiment("zz"), nullptr);
+  EXPECT_EQ(s.experiment("a").find_channel("voltage"), nullptr);
+  s.source_path = "rig.h5";
+  try {
+    s.experiment("zz");
+    FAIL();
+  } catch (const SessionError& e) {
+    ExpectMentions(e.what(), {"rig.h5", "'zz'"});
+  }
+  try {
+    s.experiment("a").channel("voltage");
+    FAIL();
+  } catch (const SessionError& e) {
+    ExpectMentions(e.what(), {"experiment 'a'", "channel 'voltage'"});
+  }
+  EXPECT_EQ(strut::daq::ToString(ExperimentKind::kDrop), "drop");
+  EXPECT_EQ(s.experiment("a").samples_per_period(), 100.0);
+}
+
+TEST(SessionFiles, UtcNowIsIso8601WithZuluSuffix) {
+  const std::string now = strut::daq::UtcNowIso8601();
+  ASSERT_EQ(now.size(), 20u);
+  EXPECT_EQ(now[4], '-');
+  EXPECT_EQ(now[10], 'T');
+  EXPECT_EQ(now.back(), 'Z');
+}
+
+// ---------------------------------------------------------------------------------------------
+// strut info
+
+TEST(SessionFiles, InfoJsonListsTheSessionInSiUnits) {
+  TempDir dir;
+  const std::string path = WriteGoodFile(dir);
+  const auto result = strut::test::RunStrut("info " + path + " --json");
+  ASSERT_EQ(result.exit_code, 0) << result.output;
+  const nlohmann::json j = nlohmann::json::parse(result.output);
+  EXPECT_EQ(j["file"], path);
+  EXPECT_EQ(j["format_version"], 1);
+  EXPECT_EQ(j["created_utc"], "2026-11-22T05:32:50Z");
+  EXPECT_EQ(j["damper_serial"], "MLG-0042");
+  EXPECT_EQ(j["rig"], "shaker-2");
+  EXPECT_EQ(j["valid"], true);
+  ASSERT_EQ(j["experiments"].size(), 3u);
+  const nlohmann::json& a = j["experiments"][0];
+  EXPECT_EQ(a["label"], "a");
+  EXPECT_EQ(a["kind"], "periodic");
+  EXPECT_EQ(a["status"], "complete");
+  EXPECT_EQ(a["group"], "high");
+  EXPECT_EQ(a["frequency"], 2.0);
+  EXPECT_EQ(a["amplitude"], 0.01);
+  EXPECT_EQ(a["static_position"], 0.1);
+  EXPECT_EQ(a["periods"], 3);
+  EXPECT_EQ(a["samples"], 300);
+  EXPECT_EQ(a["sample_rate"], 200.0);
+  ASSERT_EQ(a["channels"].size(), 4u);
+  EXPECT_EQ(a["channels"][2]["name"], "pressure");
+  EXPECT_EQ(a["channels"][2]["units"], "Pa");
+  EXPECT_EQ(a["channels"][2]["reference"], "absolute");
+  EXPECT_FALSE(a["channels"][0].contains("reference"));
+  const nlohmann::json& b = j["experiments"][1];
+  EXPECT_EQ(b["kind"], "drop");
+  EXPECT_TRUE(b["frequency"].is_null());
+  EXPECT_EQ(b["channels"][2]["reference"], "gauge");
+}
+
+TEST(SessionFiles, InfoPrintsAnAlignedTable) {
+  TempDir dir;
+  const std::string path = WriteGoodFile(dir);
+  const auto result = strut::test::RunStrut("info " + path);
+  ASSERT_EQ(result.exit_code, 0) << result.output;
+  ExpectMentions(result.output,
+                 {path, "MLG-0042", "ampl [mm]", "periodic", "pressure[Pa, absolute]",
+                  "pressure[Pa, gauge]", "temperature[K]"});
+}
+
+TEST(SessionFiles, InfoOnADefectiveFileExitsWithOneAndNamesTheFile) {
+  TempDir dir;
+  const std::string path = WriteGoodFile(dir);
+  {
+    FileEditor edit(path);
+    edit.RemoveAttribute("/experiments/a", "periods");
+    edit.SetString("/experiments/b/stroke", "units", "mm");
+  }
+  const auto result = strut::test::RunStrut("info " + path);
+  EXPECT_EQ(result.exit_code, 1);
+  ExpectMentions(result.output, {path + ": experiment 'a': attribute 'periods': missing",
+                                 path + ": experiment 'b': channel 'stroke'"});
+  const auto json = strut::test::RunStrut("info " + path + " --json");
+  EXPECT_EQ(json.exit_code, 1);
+  const nlohmann::json j = nlohmann::json::parse(json.output);
+  EXPECT_EQ(j["valid"], false);
+  EXPECT_EQ(j["errors"].size(), 2u);
+}
+
+}  // namespace

@@ -263,8 +263,12 @@ std::vector<double> Model::StaticEquilibrium(double input, std::span<const doubl
     res = evaluate(x, &jac);
   }
   if (res.allFinite() && res.lpNorm<Eigen::Infinity>() < 1e3) return x;  // close enough for a guess
+  if (!res.allFinite())
+    throw ModelError(fmt::format("model '{}': no static equilibrium for input {:.6g}: the model has no finite state "
+                                 "there (beyond full compression?)",
+                                 composition_, input));
   throw ModelError(fmt::format("model '{}': no static equilibrium found for input {:.6g} (scaled residual {:.3g})",
-                               composition_, input, res.allFinite() ? res.lpNorm<Eigen::Infinity>() : NAN));
+                               composition_, input, res.lpNorm<Eigen::Infinity>()));
 }
 
 template void Model::Residual<double>(std::span<const double>, std::span<const double>, std::span<const double>,

@@ -357,7 +357,7 @@ PeriodicSolution PeriodicSolver::Solve(const PeriodicInput& input, std::span<con
     try {
       z = MarchGuess(QuasiStaticGuess(input, theta), input, theta, options_.start_up_periods);
     } catch (const ModelError& e) {
-      throw PeriodicSolverError(fmt::format("no static-equilibrium guess: {}", e.what()), NAN, 0);
+      throw PeriodicSolverError(fmt::format("periodic solver: no static-equilibrium guess: {}", e.what()), NAN, 0);
     }
   }
   Eigen::VectorXd step_scale(m);

@@ -1,0 +1,225 @@
+// Damper models: composition, parameters, and exact derivatives against central finite differences.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <fstream>
+
+#include "strut/ident/model.h"
+#include "test_support.h"
+
+namespace strut::ident {
+namespace {
+
+struct Case {
+  std::string composition;
+  Causality causality;
+};
+
+std::vector<Case> AllCases() {
+  std::vector<Case> cases;
+  for (const char* c : {"1dof", "2dof", "1dof+heat-exchange"})
+    for (Causality k : {Causality::kForceInput, Causality::kStrokeInput}) cases.push_back({c, k});
+  return cases;
+}
+
+// A realistic instant in mid-stroke, moving: every term is active.
+struct Instant {
+  std::vector<double> x, xd, xdd;
+  double u, ud, udd;
+};
+
+Instant MakeInstant(const Model& model) {
+  Instant p;
+  const int m = model.unknown_count();
+  for (int j = 0; j < m; ++j) {
+    const StateSpec s = model.unknown_spec(j);
+    double value = s.typical_value;
+    if (s.name == "pressure") value = 1.3e6;
+    if (s.name == "temperature") value = 301.0;
+    if (s.name == "stroke") value = 0.131;
+    if (s.name == "force") value = 6500.0;
+    p.x.push_back(value);
+    p.xd.push_back(s.name == "stroke" ? 0.031 : (s.name == "temperature" ? 0.7 : 0.0));
+    p.xdd.push_back(s.name == "stroke" ? -0.21 : 0.0);
+  }
+  if (model.causality() == Causality::kForceInput) {
+    p.u = 6500.0, p.ud = 300.0, p.udd = -20.0;
+  } else {
+    p.u = 0.131, p.ud = 0.031, p.udd = -0.21;
+  }
+  return p;
+}
+
+std::vector<double> ResidualAt(const Model& model, const Instant& p, const std::vector<double>& theta) {
+  std::vector<double> r(model.unknown_count());
+  model.Residual<double>(p.x, p.xd, p.xdd, p.u, p.ud, p.udd, theta, r);
+  return r;
+}
+
+TEST(Model, ComposesBasesAndTermsCanonically) {
+  EXPECT_EQ(Model::Build("2dof", Causality::kForceInput).composition(), "2dof");
+  EXPECT_EQ(Model::Build("1dof+heat-exchange+gas-solubility", Causality::kForceInput).composition(), "2dof");
+  EXPECT_EQ(Model::Build("1dof+heat-exchange", Causality::kForceInput).composition(), "1dof+heat-exchange");
+  const Model one = Model::Build("1dof", Causality::kForceInput);
+  EXPECT_EQ(one.output_channels(), (std::vector<std::string>{"stroke", "force", "pressure"}));
+  const Model two = Model::Build("2dof", Causality::kStrokeInput);
+  EXPECT_EQ(two.output_channels(), (std::vector<std::string>{"stroke", "force", "pressure", "temperature"}));
+  EXPECT_EQ(two.unknown_spec(0).name, "force");
+}
+
+TEST(Model, ParametersFollowThePaperNumbering) {
+  const Model one = Model::Build("1dof", Causality::kForceInput);
+  const Model two = Model::Build("2dof", Causality::kForceInput);
+  EXPECT_EQ(one.defaults().spec(one.defaults().position("theta7")).name, "polytropic_exponent");
+  EXPECT_EQ(two.defaults().spec(two.defaults().position("theta7")).name, "gas_solubility");
+  EXPECT_EQ(two.defaults().spec(two.defaults().position("theta5")).unit, "Pa/K");
+  EXPECT_EQ(two.defaults().position("gas_area"), two.defaults().position("theta4"));
+  EXPECT_EQ(two.defaults().position_of_index(16), two.defaults().position("wall_heat_conductance"));
+  EXPECT_FALSE(one.defaults().find("theta16").has_value());
+}
+
+TEST(Model, RejectsUnknownTermsAndDuplicates) {
+  EXPECT_THROW(Model::Build("3dof", Causality::kForceInput), ModelError);
+  try {
+    Model::Build("1dof+warp-drive", Causality::kForceInput);
+    FAIL();
+  } catch (const ModelError& e) {
+    EXPECT_NE(std::string(e.what()).find("warp-drive"), std::string::npos);
+    EXPECT_NE(std::string(e.what()).find("heat-exchange"), std::string::npos);  // lists the catalogue
+  }
+  EXPECT_THROW(Model::Build("2dof+heat-exchange", Causality::kForceInput), ModelError);
+  EXPECT_THROW(Model::Build("1dof+gas-solubility", Causality::kForceInput), ModelError);
+}
+
+TEST(Model, SetAssignmentsAcceptIndexAndName) {
+  ParameterSet p = Model::Build("2dof", Causality::kForceInput).defaults();
+  p.apply_assignments("theta4=0.006, wall_heat_conductance=3.5,16=4");
+  EXPECT_DOUBLE_EQ(p.get("gas_area"), 0.006);
+  EXPECT_DOUBLE_EQ(p.get("theta16"), 4.0);
+  EXPECT_THROW(p.apply_assignments("theta99=1"), ParameterError);
+  EXPECT_THROW(p.apply_assignments("theta4=abc"), ParameterError);
+  EXPECT_THROW(p.apply_assignments("theta4"), ParameterError);
+}
+
+TEST(Model, ParameterFileErrorsNameTheLine) {
+  test::TempDir dir;
+  const std::string path = dir.file("p.txt");
+  std::ofstream(path) << "# lab charge\ntheta4 = 0.0052 estimate sd=1e-4\ngas_area_typo = 3\n";
+  ParameterSet p = Model::Build("2dof", Causality::kForceInput).defaults();
+  try {
+    p.apply_file(path);
+    FAIL();
+  } catch (const ParameterError& e) {
+    EXPECT_NE(std::string(e.what()).find(path + ":3"), std::string::npos) << e.what();
+  }
+  std::ofstream(path) << "theta4 = 0.0052 estimate sd=1e-4\ntheta16 = 2.5 fixed\n";
+  p.apply_file(path);
+  EXPECT_DOUBLE_EQ(p.get("theta4"), 0.0052);
+  const auto entries = ReadParameterFile(path);
+  ASSERT_EQ(entries.size(), 2u);
+  EXPECT_TRUE(*entries[0].estimate);
+  EXPECT_DOUBLE_EQ(*entries[0].prior_sd, 1e-4);
+  EXPECT_FALSE(*entries[1].estimate);
+  std::ofstream(path) << "theta4 = 0.0052 maybe\n";
+  EXPECT_THROW(ReadParameterFile(path), ParameterError);
+}
+
+TEST(Model, ResidualMatchesTheEquationsOfTheMethod) {
+  // 2 dof, force input: g1, the gas law and g2 written out by hand (method.md eqs. 23, 24).
+  const Model model = Model::Build("2dof", Causality::kForceInput);
+  const ParameterSet& d = model.defaults();
+  const auto t = [&](int i) { return d.value(d.position_of_index(i)); };
+  const double q = 0.12, qd = 0.05, qdd = 0.3, p = 1.5e6, T = 305.0, Td = 0.4, F = 8000.0;
+  std::vector<double> r(3);
+  model.Residual<double>(std::vector<double>{q, p, T}, std::vector<double>{qd, 0.0, Td},
+                         std::vector<double>{qdd, 0.0, 0.0}, F, 0.0, 0.0, d.values(), r);
+  const double g1 = t(1) * (qdd + t(2)) + t(3) * qd * std::abs(qd) + t(4) * p +
+                    (t(8) + t(9) * p) * std::atan(t(10) * qd) + t(11) - F;
+  // p V = theta5 T N with the free gas N = 1 - theta7 p / theta5.
+  const double gas = p - (t(5) * T - t(7) * p * T) / (1.0 + t(6) * q);
+  const double g2 = t(15) * Td + t(16) * (1 + t(6) * q) * (T + t(17)) - (t(4) * p + t(11)) * qd;
+  EXPECT_NEAR(r[0], g1, 1e-9 * std::abs(F));
+  EXPECT_NEAR(r[1], gas, 1e-9 * p);
+  EXPECT_NEAR(r[2], g2, 1e-9);
+  // The gas law root is the paper's p = theta5 T / (1 + theta6 q + theta7 T).
+  const double p_paper = t(5) * T / (1 + t(6) * q + t(7) * T);
+  model.Residual<double>(std::vector<double>{q, p_paper, T}, std::vector<double>{qd, 0.0, Td},
+                         std::vector<double>{qdd, 0.0, 0.0}, F, 0.0, 0.0, d.values(), r);
+  EXPECT_NEAR(r[1], 0.0, 1e-8 * p_paper);
+}
+
+TEST(Model, JetDerivativesMatchCentralFiniteDifferences) {
+  for (const Case& c : AllCases()) {
+    SCOPED_TRACE(c.composition + " " + std::string(ToString(c.causality)));
+    const Model model = Model::Build(c.composition, c.causality);
+    const int m = model.unknown_count();
+    const int np = model.parameter_count();
+    const std::vector<double> theta = model.defaults().values();
+    const Instant p = MakeInstant(model);
+    // Directions: x, xd, xdd of every unknown, the input and its rates, every parameter.
+    const int nd = 3 * m + 3 + np;
+    ASSERT_LE(nd, kMaxDerivatives);
+    std::vector<Jet> x(m), xd(m), xdd(m), th(np), r(m);
+    for (int j = 0; j < m; ++j) {
+      x[j] = MakeVariable(p.x[j], nd, j);
+      xd[j] = MakeVariable(p.xd[j], nd, m + j);
+      xdd[j] = MakeVariable(p.xdd[j], nd, 2 * m + j);
+    }
+    const Jet u = MakeVariable(p.u, nd, 3 * m), ud = MakeVariable(p.ud, nd, 3 * m + 1),
+              udd = MakeVariable(p.udd, nd, 3 * m + 2);
+    for (int i = 0; i < np; ++i) th[i] = MakeVariable(theta[i], nd, 3 * m + 3 + i);
+    model.Residual<Jet>(x, xd, xdd, u, ud, udd, th, r);
+
+    const auto fd = [&](auto&& perturb, double base) {
+      const double h = 1e-6 * std::max(std::abs(base), 1e-3);
+      Instant plus = p, minus = p;
+      std::vector<double> tp = theta, tm = theta;
+      perturb(plus, tp, +h);
+      perturb(minus, tm, -h);
+      const auto rp = ResidualAt(model, plus, tp), rm = ResidualAt(model, minus, tm);
+      std::vector<double> d(m);
+      for (int i = 0; i < m; ++i) d[i] = (rp[i] - rm[i]) / (2 * h);
+      return d;
+    };
+    const auto check = [&](int direction, const std::vector<double>& numeric, const std::string& what) {
+      for (int i = 0; i < m; ++i) {
+        const double exact = r[i].derivatives()[direction];
+        EXPECT_NEAR(exact, numeric[i], 1e-6 * std::max(1.0, std::abs(exact)) + 1e-7 * model.equation_scale(i) * 1e6)
+            << "equation " << i << " w.r.t. " << what;
+      }
+    };
+    for (int j = 0; j < m; ++j) {
+      check(j, fd([&](Instant& q, std::vector<double>&, double h) { q.x[j] += h; }, p.x[j]), "x" + std::to_string(j));
+      check(m + j, fd([&](Instant& q, std::vector<double>&, double h) { q.xd[j] += h; }, p.xd[j]),
+            "xd" + std::to_string(j));
+      check(2 * m + j, fd([&](Instant& q, std::vector<double>&, double h) { q.xdd[j] += h; }, p.xdd[j]),
+            "xdd" + std::to_string(j));
+    }
+    check(3 * m, fd([&](Instant& q, std::vector<double>&, double h) { q.u += h; }, p.u), "u");
+    check(3 * m + 1, fd([&](Instant& q, std::vector<double>&, double h) { q.ud += h; }, p.ud), "ud");
+    check(3 * m + 2, fd([&](Instant& q, std::vector<double>&, double h) { q.udd += h; }, p.udd), "udd");
+    for (int i = 0; i < np; ++i)
+      check(3 * m + 3 + i, fd([&](Instant&, std::vector<double>& t, double h) { t[i] += h; }, theta[i]),
+            model.defaults().spec(i).key());
+  }
+}
+
+TEST(Model, StaticEquilibriumBalancesTheGasForce) {
+  const Model model = Model::Build("1dof", Causality::kForceInput);
+  const ParameterSet& d = model.defaults();
+  for (double force : {3000.0, 8000.0, 20000.0}) {
+    const auto x = model.StaticEquilibrium(force, d.values());
+    const double q = x[0], p = x[1];
+    const auto t = [&](int i) { return d.value(d.position_of_index(i)); };
+    EXPECT_NEAR(p, t(5) / std::pow(1 + t(6) * q, t(7)), 1e-6 * p);
+    EXPECT_NEAR(t(1) * t(2) + t(4) * p + t(11), force, 1e-6);
+    EXPECT_GT(q, -0.1);
+    EXPECT_LT(q, 0.3);
+  }
+  const Model two = Model::Build("2dof", Causality::kForceInput);
+  const auto x = two.StaticEquilibrium(15000.0, two.defaults().values());
+  EXPECT_NEAR(x[2], 293.15, 1e-9);  // at rest the gas is at ambient temperature
+}
+
+}  // namespace
+}  // namespace strut::ident

@@ -1,0 +1,218 @@
+// The periodic equilibrium solver: consistency, convergence order, sensitivities, errors.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <numbers>
+#include <random>
+
+#include "strut/ident/periodic.h"
+#include "test_support.h"
+
+namespace strut::ident {
+namespace {
+
+// Experiment h of the standard matrix: middle position, 0.5 Hz, 34 mm.
+PeriodicInput StrokeH(int n) { return PeriodicInput::Sine(0.5, 0.133, 0.034, n); }
+
+PeriodicInput ForceOf(const PeriodicSolution& s) {
+  PeriodicInput in{s.frequency, {}};
+  const Eigen::VectorXd f = s.channel("force");
+  in.values.assign(f.data(), f.data() + f.size());
+  return in;
+}
+
+TEST(PeriodicSolver, ForceDrivenRunReproducesTheStrokeDrivenSolution) {
+  for (const char* composition : {"1dof", "2dof"}) {
+    SCOPED_TRACE(composition);
+    const Model stroke_model = Model::Build(composition, Causality::kStrokeInput);
+    const std::vector<double> theta = stroke_model.defaults().values();
+    PeriodicSolver stroke_solver(stroke_model);
+    const PeriodicSolution by_stroke = stroke_solver.Solve(StrokeH(400), theta);
+    PeriodicSolver force_solver(Model::Build(composition, Causality::kForceInput));
+    const PeriodicSolution by_force = force_solver.Solve(ForceOf(by_stroke), theta);
+    EXPECT_LT((by_force.channel("stroke") - by_stroke.channel("stroke")).cwiseAbs().maxCoeff(), 1e-9);
+    EXPECT_LT((by_force.channel("pressure") - by_stroke.channel("pressure")).cwiseAbs().maxCoeff(), 1e-3);
+    EXPECT_LT(by_force.residual_norm, 1.0);
+  }
+}
+
+TEST(PeriodicSolver, SolutionSatisfiesTheDiscretisedEquations) {
+  const Model model = Model::Build("2dof", Causality::kStrokeInput);
+  PeriodicSolver solver(model);
+  const auto theta = model.defaults().values();
+  const PeriodicSolution s = solver.Solve(StrokeH(800), theta);
+  EXPECT_LT(solver.Residual(s.unknowns, s.input, theta).cwiseAbs().maxCoeff(), 1.0);  // below the scales
+  ASSERT_EQ(s.time().size(), 800u);
+  EXPECT_DOUBLE_EQ(s.time()[0], 0.0);
+  EXPECT_NEAR(s.time()[1], 1.0 / (800 * 0.5), 1e-15);
+  // Physics sanity: the gas heats on compression and the cycle is around ambient.
+  const Eigen::VectorXd T = s.channel("temperature");
+  EXPECT_GT(T.maxCoeff(), 293.15);
+  EXPECT_LT(T.minCoeff(), 293.15 + 30);
+}
+
+TEST(PeriodicSolver, WarmStartConvergesFasterToTheSameSolution) {
+  const Model model = Model::Build("2dof", Causality::kForceInput);
+  auto theta = model.defaults().values();
+  PeriodicSolver stroke_solver(Model::Build("2dof", Causality::kStrokeInput));
+  const PeriodicInput force = ForceOf(stroke_solver.Solve(StrokeH(800), theta));
+  PeriodicSolver solver(model);
+  const PeriodicSolution base = solver.Solve(force, theta);
+  theta[model.defaults().position("theta4")] *= 1.01;
+  const PeriodicSolution cold = solver.Solve(force, theta);
+  const PeriodicSolution warm = solver.Solve(force, theta, &base);
+  EXPECT_LT(warm.newton_iterations, cold.newton_iterations);
+  EXPECT_LT((warm.unknowns - cold.unknowns).row(0).cwiseAbs().maxCoeff(), 1e-9);
+}
+
+// Max stroke error of a force-driven solution against a fine central4 reference.
+double StrokeError(Scheme scheme, int n, const PeriodicInput& fine, const Eigen::VectorXd& reference, int fine_n) {
+  PeriodicSolverOptions options;
+  options.scheme = scheme;
+  PeriodicSolver solver(Model::Build("2dof", Causality::kForceInput), options);
+  PeriodicInput coarse{fine.frequency, {}};
+  for (int mu = 0; mu < n; ++mu) coarse.values.push_back(fine.values[mu * (fine_n / n)]);
+  const PeriodicSolution s = solver.Solve(coarse, Model::Build("2dof", Causality::kForceInput).defaults().values());
+  const Eigen::VectorXd stroke = s.channel("stroke");
+  double error = 0.0;
+  for (int mu = 0; mu < n; ++mu) error = std::max(error, std::abs(stroke[mu] - reference[mu * (fine_n / n)]));
+  return error;
+}
+
+TEST(PeriodicSolver, SchemesConvergeAtTheirOrder) {
+  const int fine_n = 12800;
+  const auto theta = Model::Build("2dof", Causality::kForceInput).defaults().values();
+  PeriodicSolver stroke_solver(Model::Build("2dof", Causality::kStrokeInput));
+  const PeriodicInput fine = ForceOf(stroke_solver.Solve(StrokeH(fine_n), theta));
+  PeriodicSolverOptions options;
+  options.scheme = Scheme::kCentral4;
+  PeriodicSolver reference_solver(Model::Build("2dof", Causality::kForceInput), options);
+  const Eigen::VectorXd reference = reference_solver.Solve(fine, theta).channel("stroke");
+  const auto order = [&](Scheme scheme, int n) {
+    return std::log2(StrokeError(scheme, n, fine, reference, fine_n) / StrokeError(scheme, 2 * n, fine, reference, fine_n));
+  };
+  EXPECT_NEAR(order(Scheme::kBackward2, 200), 2.0, 0.35);
+  EXPECT_NEAR(order(Scheme::kCentral2, 200), 2.0, 0.35);
+  EXPECT_NEAR(order(Scheme::kCentral4, 100), 4.0, 0.5);
+  // Spectral: far beyond every difference scheme at a fraction of the points.
+  const double spectral32 = StrokeError(Scheme::kSpectral, 32, fine, reference, fine_n);
+  const double central4_100 = StrokeError(Scheme::kCentral4, 100, fine, reference, fine_n);
+  EXPECT_LT(spectral32, 0.1 * central4_100);
+}
+
+TEST(PeriodicSolver, SensitivitiesMatchFiniteDifferencesOfTheSolver) {
+  for (Causality causality : {Causality::kForceInput, Causality::kStrokeInput}) {
+    SCOPED_TRACE(std::string(ToString(causality)));
+    const Model model = Model::Build("2dof", causality);
+    const auto theta = model.defaults().values();
+    PeriodicInput input = StrokeH(200);
+    if (causality == Causality::kForceInput) {
+      PeriodicSolver s(Model::Build("2dof", Causality::kStrokeInput));
+      input = ForceOf(s.Solve(input, theta));
+    }
+    PeriodicSolver solver(model);
+    const PeriodicSolution base = solver.Solve(input, theta);
+    const auto sens = solver.OutputSensitivities(base, theta);
+    ASSERT_EQ(sens.size(), base.channels.size());
+    for (int i = 0; i < model.parameter_count(); ++i) {
+      const double h = 1e-5 * std::max(std::abs(theta[i]), 1e-6);
+      auto plus = theta, minus = theta;
+      plus[i] += h;
+      minus[i] -= h;
+      PeriodicSolver fd_solver(model);
+      const PeriodicSolution sp = fd_solver.Solve(input, plus, &base);
+      const PeriodicSolution sm = fd_solver.Solve(input, minus, &base);
+      for (std::size_t c = 0; c < base.channels.size(); ++c) {
+        const Eigen::VectorXd numeric =
+            (sp.outputs.row(static_cast<int>(c)) - sm.outputs.row(static_cast<int>(c))).transpose() / (2 * h);
+        const Eigen::VectorXd exact = sens[c].col(i);
+        const double size = std::max(exact.cwiseAbs().maxCoeff(), 1e-30);
+        EXPECT_LT((numeric - exact).cwiseAbs().maxCoeff(), 2e-4 * size + 1e-12)
+            << base.channels[c] << " w.r.t. " << model.defaults().spec(i).key();
+      }
+    }
+  }
+}
+
+TEST(PeriodicSolver, NoPeriodicSolutionEndsWithAClearError) {
+  // A stroke beyond full compression (1 + theta6 q < 0): no physical gas state exists.
+  PeriodicSolver solver(Model::Build("1dof", Causality::kStrokeInput));
+  const auto theta = Model::Build("1dof", Causality::kStrokeInput).defaults().values();
+  try {
+    solver.Solve(PeriodicInput::Sine(0.5, 0.33, 0.05, 200), theta);
+    FAIL() << "expected PeriodicSolverError";
+  } catch (const PeriodicSolverError& e) {
+    EXPECT_NE(std::string(e.what()).find("periodic solver"), std::string::npos) << e.what();
+  } catch (const std::exception& e) {
+    FAIL() << "wrong exception: " << e.what();
+  }
+  // Too few iterations: the message gives the residual reached.
+  PeriodicSolverOptions options;
+  options.max_iterations = 1;
+  options.start_up_periods = 0;
+  PeriodicSolver hurried(Model::Build("2dof", Causality::kForceInput), options);
+  PeriodicSolver stroke_solver(Model::Build("2dof", Causality::kStrokeInput));
+  const auto theta2 = Model::Build("2dof", Causality::kForceInput).defaults().values();
+  const PeriodicInput force = ForceOf(stroke_solver.Solve(PeriodicInput::Sine(0.1, 0.133, 0.127, 400), theta2));
+  try {
+    hurried.Solve(force, theta2);
+    FAIL() << "expected PeriodicSolverError";
+  } catch (const PeriodicSolverError& e) {
+    EXPECT_NE(std::string(e.what()).find("residual"), std::string::npos) << e.what();
+    EXPECT_TRUE(std::isfinite(e.residual_norm));
+  }
+  // Bad inputs are refused before any work.
+  PeriodicInput nan_input = PeriodicInput::Sine(0.5, 0.1, 0.01, 100);
+  nan_input.values[7] = NAN;
+  EXPECT_THROW(solver.Solve(nan_input, theta), std::invalid_argument);
+  EXPECT_THROW(solver.Solve(PeriodicInput::Sine(0.0, 0.1, 0.01, 100), theta), std::invalid_argument);
+  EXPECT_THROW(solver.Solve(PeriodicInput::Sine(0.5, 0.1, 0.01, 100), std::vector<double>{1.0}), std::invalid_argument);
+}
+
+TEST(PeriodicInput, PeriodAveragingRecoversTheWaveformFromANoisyRecord) {
+  // 500 Hz sampling of a 0.3 Hz sine: a non-integer 1666.7 samples per period, 3 periods.
+  const double fs = 500.0, f = 0.3;
+  const long periods = 3;
+  const int count = static_cast<int>(std::lround(periods * fs / f));
+  std::mt19937 rng(3);
+  std::normal_distribution<double> noise(0.0, 1e-4);
+  std::vector<double> record(count);
+  const double phase = 0.7;  // recording starts at an arbitrary phase
+  for (int i = 0; i < count; ++i) record[i] = 0.1 + 0.02 * std::sin(2 * std::numbers::pi * f * i / fs + phase) + noise(rng);
+  const PeriodicInput in = PeriodicInput::FromRecord(record, fs, f, periods, 100);
+  ASSERT_EQ(in.values.size(), 100u);
+  for (int mu = 0; mu < 100; ++mu) {
+    const double expected = 0.1 + 0.02 * std::sin(2 * std::numbers::pi * mu / 100.0 + phase);
+    EXPECT_NEAR(in.values[mu], expected, 4e-4);
+  }
+  EXPECT_THROW(PeriodicInput::FromRecord(std::vector<double>(10, 0.0), fs, f, periods, 100), std::invalid_argument);
+}
+
+TEST(PeriodicCommand, WritesOnePeriodAsJson) {
+  test::TempDir dir;
+  const auto r = test::RunStrut("periodic --model 2dof --input stroke --frequency 0.5 --amplitude 0.034 --static 0.133 "
+                                "--n 200 --scheme central4 --set theta16=3 --json " + dir.file("p.json"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  std::ifstream in(dir.file("p.json"));
+  const nlohmann::json j = nlohmann::json::parse(in);
+  for (const char* key : {"time", "stroke", "force", "pressure", "temperature"}) {
+    ASSERT_TRUE(j.contains(key)) << key;
+    EXPECT_EQ(j[key].size(), 200u) << key;
+  }
+  EXPECT_DOUBLE_EQ(j["time"][0].get<double>(), 0.0);
+  EXPECT_GT(j["newton_iterations"].get<int>(), 0);
+  EXPECT_LT(j["residual_norm"].get<double>(), 1.0);
+  EXPECT_NEAR(j["stroke"][50].get<double>(), 0.133 + 0.034, 1e-12);  // quarter period: the sine's crest
+  bool found = false;
+  for (const auto& p : j["parameters"])
+    if (p["index"] == "theta16") found = p["value"].get<double>() == 3.0;
+  EXPECT_TRUE(found);
+  const auto bad = test::RunStrut("periodic --model 2dof+nonsense --frequency 1");
+  EXPECT_NE(bad.exit_code, 0);
+  EXPECT_NE(bad.output.find("nonsense"), std::string::npos) << bad.output;
+}
+
+}  // namespace
+}  // namespace strut::ident

@@ -88,31 +88,31 @@ PeriodicInput PeriodicInput::Sine(double frequency, double mean, double amplitud
   return in;
 }
 
-PeriodicInput PeriodicInput::FromRecord(std::span<const double> samples, double sample_rate, double frequency,
-                                        long periods, int n) {
-  if (periods < 1 || sample_rate <= 0 || frequency <= 0 || n < 4)
+Eigen::MatrixXd PeriodSynchronousSamples(std::span<const double> samples, double sample_rate, double frequency,
+                                         long periods, int n) {
+  if (periods < 1 || !(sample_rate > 0) || !(frequency > 0) || n < 4)
     throw std::invalid_argument("period averaging needs periods >= 1, positive rates and n >= 4");
   const double per_period = sample_rate / frequency;
   const double total = per_period * periods;
-  if (samples.size() + 1 < static_cast<std::size_t>(std::floor(total)))
-    throw std::invalid_argument(fmt::format("record has {} samples, {} periods need {:.0f}", samples.size(), periods, total));
+  if (samples.size() + 1 < static_cast<std::size_t>(std::floor(total)) || samples.empty())
+    throw std::invalid_argument(
+        fmt::format("record has {} samples, {} periods need {:.0f}", samples.size(), periods, total));
   const long count = static_cast<long>(samples.size());
-  PeriodicInput in;
-  in.frequency = frequency;
-  in.values.assign(n, 0.0);
-  for (int mu = 0; mu < n; ++mu) {
-    double sum = 0.0;
-    for (long k = 0; k < periods; ++k) {
+  Eigen::MatrixXd values(n, periods);
+  for (long k = 0; k < periods; ++k)
+    for (int mu = 0; mu < n; ++mu) {
       const double position = (k + static_cast<double>(mu) / n) * per_period;
       const long i0 = static_cast<long>(std::floor(position));
       const double w = position - i0;
-      // The record is whole periods, so the sample after the last one is the first one.
-      const double a = samples[i0 % count], b = samples[(i0 + 1) % count];
-      sum += (1.0 - w) * a + w * b;
+      values(mu, k) = (1.0 - w) * samples[i0 % count] + w * samples[(i0 + 1) % count];
     }
-    in.values[mu] = sum / periods;
-  }
-  return in;
+  return values;
+}
+
+PeriodicInput PeriodicInput::FromRecord(std::span<const double> samples, double sample_rate, double frequency,
+                                        long periods, int n) {
+  const Eigen::VectorXd mean = PeriodSynchronousSamples(samples, sample_rate, frequency, periods, n).rowwise().mean();
+  return PeriodicInput{frequency, std::vector<double>(mean.data(), mean.data() + n)};
 }
 
 bool PeriodicSolverOptions::IsValid(std::string* error) const {
@@ -423,6 +423,7 @@ PeriodicSolution PeriodicSolver::Solve(const PeriodicInput& input, std::span<con
                                           iteration, norm),
                               norm, iteration);
 
+  last_unknowns_ = z;
   PeriodicSolution solution;
   solution.scheme = options_.scheme;
   solution.frequency = input.frequency;
@@ -448,8 +449,15 @@ std::vector<Eigen::MatrixXd> PeriodicSolver::OutputSensitivities(const PeriodicS
   const int m = model_.unknown_count();
   const int n = solution.n;
   const int np = model_.parameter_count();
-  if (!lu_valid_ || n != prepared_n_)
-    throw std::logic_error("OutputSensitivities needs the factorisation of the last Solve");
+  Prepare(n);
+  if (!lu_valid_ || last_unknowns_.cols() != n || last_unknowns_ != solution.unknowns) {
+    // Not the solution of the last Solve (a caller restored an older one): factorise at it.
+    AssembleJacobian(solution.unknowns, solution.input, theta);
+    if (!lu_.Factorize(jacobian_))
+      throw PeriodicSolverError("periodic solver: singular Jacobian at the solution (sensitivities)", 0.0, 0);
+    lu_valid_ = true;
+    last_unknowns_ = solution.unknowns;
+  }
   const PeriodicInput& input = solution.input;
   const auto input_rates = InputRates(stencil_, input);
   std::vector<Jet> theta_jet(np);

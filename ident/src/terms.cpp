@@ -44,7 +44,7 @@ class GasForce final : public Term {
  public:
   std::string_view name() const override { return "gas-force"; }
   void Declare(ModelBuilder& b) override {
-    b.add_parameter({4, "gas_area", "m^2", 5.0e-3, "pneumatic piston area"});
+    b.add_parameter({4, "gas_area", "m^2", 5.0e-3, "pneumatic piston area", true});
   }
   void Bind(const ModelBuilder& b) override {
     area_ = b.parameter_position(4);
@@ -113,7 +113,7 @@ class ForceOffset final : public Term {
  public:
   std::string_view name() const override { return "force-offset"; }
   void Declare(ModelBuilder& b) override {
-    b.add_parameter({11, "force_offset", "N", -507.0, "constant force offset (-p_atm A plus load-cell zero)"});
+    b.add_parameter({11, "force_offset", "N", -507.0, "constant force offset (-p_atm A plus load-cell zero)", true});
   }
   void Bind(const ModelBuilder& b) override { offset_ = b.parameter_position(11); }
   template <class S>
@@ -131,7 +131,7 @@ class StrokeOffset final : public Term {
  public:
   std::string_view name() const override { return "stroke-offset"; }
   void Declare(ModelBuilder& b) override {
-    b.add_parameter({12, "stroke_offset", "m", 0.0, "stroke sensor offset: measured = true + offset"});
+    b.add_parameter({12, "stroke_offset", "m", 0.0, "stroke sensor offset: measured = true + offset", true, 1e-3});
   }
   void Bind(const ModelBuilder&) override {}
   template <class S>
@@ -144,7 +144,7 @@ class GasVolume final : public Term {
  public:
   std::string_view name() const override { return "gas-volume"; }
   void Declare(ModelBuilder& b) override {
-    b.add_parameter({6, "volume_per_stroke", "1/m", -1.0 / 0.3, "relative gas-volume change per stroke, -A/V0"});
+    b.add_parameter({6, "volume_per_stroke", "1/m", -1.0 / 0.3, "relative gas-volume change per stroke, -A/V0", true});
   }
   void Bind(const ModelBuilder& b) override { per_stroke_ = b.parameter_position(6); }
   template <class S>
@@ -163,7 +163,7 @@ class PolytropicGas final : public Term {
   std::string_view name() const override { return "polytropic-gas"; }
   void Declare(ModelBuilder& b) override {
     b.add_parameter({5, "extended_pressure", "Pa", 7.0e5, "absolute gas pressure at full extension"});
-    b.add_parameter({7, "polytropic_exponent", "-", 1.2, "polytropic exponent of the gas"});
+    b.add_parameter({7, "polytropic_exponent", "-", 1.2, "polytropic exponent of the gas", true});
     b.add_state(kPressureState);
   }
   void Bind(const ModelBuilder& b) override {
@@ -197,7 +197,7 @@ class HeatExchange final : public Term {
     b.add_parameter({5, "pressure_per_temperature", "Pa/K", 7.0e5 * (1.0 + 2.0e-5 * kAmbientK) / kAmbientK,
                      "gas pressure per temperature at full extension (m R / V0)"});
     b.add_parameter({15, "gas_heat_capacity", "J/K", 17.9, "effective heat capacity of the gas"});
-    b.add_parameter({16, "wall_heat_conductance", "W/K", 2.24, "heat conductance through the wall at full extension"});
+    b.add_parameter({16, "wall_heat_conductance", "W/K", 2.24, "heat conductance through the wall at full extension", true});
     b.add_parameter({17, "minus_ambient_temperature", "K", -kAmbientK, "minus the ambient (wall) temperature"});
     b.add_state(kPressureState);
     b.add_state(kTemperatureState);

@@ -2,6 +2,7 @@
 // name, a unit and a default value; and the value sets the commands and the estimator work on.
 #pragma once
 
+#include <cmath>
 #include <map>
 #include <optional>
 #include <stdexcept>
@@ -24,6 +25,10 @@ struct ParameterSpec {
   std::string unit;           //!< SI unit, e.g. "m^2"
   double default_value = 0.0; //!< physically consistent default (damper-physics.md, lab charge)
   std::string description;    //!< one line for tables and reports
+  bool estimate_by_default = false;  //!< estimated when the user names no parameters (paper's set, offsets)
+  double typical = 0.0;              //!< size of a meaningful value (0: |default_value|); scales the estimator
+
+  double typical_size() const { return typical > 0 ? typical : std::abs(default_value); }
 
   std::string key() const { return "theta" + std::to_string(index); }
 };

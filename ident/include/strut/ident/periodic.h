@@ -44,6 +44,12 @@ struct Stencil {
   static Stencil For(Scheme scheme, int n);
 };
 
+//! The record at grid time t_mu of every period: an n x periods matrix, linearly interpolated from
+//! `periods` whole recorded periods starting at sample 0 (the sample after the last one is the
+//! first one). Throws std::invalid_argument when the record is too short or the sizes are bad.
+Eigen::MatrixXd PeriodSynchronousSamples(std::span<const double> samples, double sample_rate, double frequency,
+                                         long periods, int n);
+
 //! One period of the input (force or measured stroke) on the grid t_mu = mu / (n f).
 struct PeriodicInput {
   double frequency = 0.0;      //!< Hz
@@ -100,7 +106,8 @@ class PeriodicSolver {
   PeriodicSolution Solve(const PeriodicInput& input, std::span<const double> theta,
                          const PeriodicSolution* warm_start = nullptr);
 
-  //! d outputs / d theta at the last solution (eqs. 14, 15): one (n x parameters) matrix per channel.
+  //! d outputs / d theta at a solution (eqs. 14, 15): one (n x parameters) matrix per channel. Reuses
+  //! the last Newton factorisation when `solution` is the last one solved, else factorises anew.
   std::vector<Eigen::MatrixXd> OutputSensitivities(const PeriodicSolution& solution, std::span<const double> theta);
 
   //! The scaled residual G(z) of the discretised equations (m x n), for tests.
@@ -123,6 +130,7 @@ class PeriodicSolver {
   CyclicBlockBanded jacobian_;
   CyclicBandedLU lu_;
   bool lu_valid_ = false;
+  Eigen::MatrixXd last_unknowns_;  //!< the solution the factorisation belongs to
 };
 
 }  // namespace strut::ident

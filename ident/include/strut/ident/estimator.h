@@ -1,0 +1,130 @@
+// The multi-experiment modified Bayesian (Bard) estimator on periodic equilibrium states
+// (paper section 2.2, method.md): one parameter vector, all experiments fitted at once.
+#pragma once
+
+#include <Eigen/Dense>
+#include <functional>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "strut/ident/experiment_data.h"
+#include "strut/ident/model.h"
+#include "strut/ident/parameters.h"
+#include "strut/ident/periodic.h"
+
+namespace strut::ident {
+
+//! How one parameter takes part in the fit.
+struct ParameterChoice {
+  bool estimate = false;
+  std::optional<double> prior_sd;  //!< a normal prior (mean: the initial value) on an estimated parameter
+};
+
+struct EstimatorOptions {
+  //! Grid points per period (paper: 800) and difference scheme of the periodic solver.
+  int n = 800;
+  Scheme scheme = Scheme::kBackward2;
+  //! Gauss-Newton iterations before giving up.
+  int max_iterations = 40;
+  //! Converged when every parameter step is below this fraction of its posterior sd.
+  double step_tolerance = 1e-3;
+  //! The paper's prior reset to the current iterate (eq. 20, unreadable in the OCR; our choice):
+  //! sd = damping_relative_sd * |theta_i|. It damps like Levenberg-Marquardt; it is widened after
+  //! a full step and narrowed after a halved one. Never part of the reported uncertainty.
+  double damping_relative_sd = 0.3;
+  //! Step halvings per iteration when the objective does not improve.
+  int max_halvings = 12;
+  //! Output channels to fit; empty: the outputs of the causality (stroke and pressure for force
+  //! input, force and pressure for stroke input).
+  std::vector<std::string> channels;
+  bool IsValid(std::string* error) const;
+};
+
+//! Residual statistics of one channel of one experiment (paper Figs. 8 and 11).
+struct ChannelStatistics {
+  std::string channel;
+  double mean = 0.0;         //!< mean residual (measured - predicted)
+  double sd = 0.0;           //!< standard deviation of the residual
+  double rms = 0.0;
+  double noise_ratio = NAN;  //!< residual mean square / noise variance of the averaged data (about 1: fits to the noise)
+  bool fitted = true;        //!< false when excluded for a data defect
+};
+
+struct ExperimentFit {
+  std::string label, group, session;
+  double frequency = 0.0, amplitude = 0.0, static_position = 0.0;
+  bool converged = false;     //!< the periodic solution exists at the final parameters
+  std::string error;          //!< why not
+  std::vector<ChannelStatistics> channels;
+  PeriodicSolution solution;  //!< at the final parameters (empty when not converged)
+  std::vector<double> phases;                       //!< cyclic phases of the measured values
+  std::map<std::string, Eigen::VectorXd> measured;  //!< the averaged measured outputs at `phases`
+};
+
+struct FitChannel {
+  std::string name;
+  double variance = 0.0;             //!< bias-corrected residual variance v_b = M_bb / (nN - l)
+  double noise_floor_variance = NAN; //!< mean noise variance of the averaged data over the experiments
+  double rms = 0.0;
+};
+
+struct FitIteration {
+  int iteration = 0;
+  double objective = 0.0;  //!< log-likelihood at this iterate (channel variances at their estimates)
+  double step = 1.0;       //!< step fraction accepted
+  std::vector<double> values;
+};
+
+//! Everything a fit found; BriefReport()/FullReport() for people, the fields for JSON and reports.
+struct FitSummary {
+  std::string model;
+  bool converged = false;
+  int iterations = 0;
+  ParameterSet parameters;           //!< final values
+  std::vector<bool> estimated;       //!< per parameter
+  std::vector<double> sd;            //!< posterior sd (NaN when fixed)
+  std::vector<int> estimated_positions;
+  Eigen::MatrixXd correlation;       //!< among the estimated parameters
+  std::vector<FitChannel> channels;
+  std::vector<ExperimentFit> experiments;
+  double loglik = 0.0, aic = 0.0, bic = 0.0;
+  long observations = 0;
+  std::vector<std::string> warnings;
+  std::vector<FitIteration> history;
+
+  std::string BriefReport() const;
+  std::string FullReport() const;
+  bool IsSolutionUsable() const;
+};
+
+struct FitProgress {
+  int iteration = 0;
+  int experiment = 0, experiments = 0;  //!< experiment i of N being solved
+  double objective = NAN;
+};
+
+//! The parameters the paper estimated for the model's base plus the sensor offsets, and the
+//! main parameter of each extra term.
+std::vector<ParameterChoice> DefaultChoices(const Model& model);
+
+//! Applies "--estimate theta4,theta6" (estimate these, fix the rest).
+std::vector<ParameterChoice> ChoicesFromList(const ParameterSet& parameters, const std::string& list);
+
+class Estimator {
+ public:
+  Estimator(Model model, EstimatorOptions options = {});
+  const Model& model() const { return model_; }
+
+  //! Fits all experiments at once from `initial`. Experiments whose periodic solution fails at the
+  //! start are reported by name and left out; the others still fit.
+  FitSummary Fit(const std::vector<ExperimentData>& data, const ParameterSet& initial,
+                 const std::vector<ParameterChoice>& choices, const std::vector<DataIssue>& issues = {},
+                 const std::function<void(const FitProgress&)>& progress = {}) const;
+
+ private:
+  Model model_;
+  EstimatorOptions options_;
+};
+
+}  // namespace strut::ident

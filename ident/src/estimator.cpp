@@ -1,0 +1,471 @@
+#include "strut/ident/estimator.h"
+
+#include <algorithm>
+#include <cmath>
+#include <fmt/format.h>
+#include <numbers>
+#include <numeric>
+#include <set>
+#include <spdlog/spdlog.h>
+
+namespace strut::ident {
+namespace {
+
+std::vector<std::string> DefaultChannels(const Model& model) {
+  if (model.causality() == Causality::kForceInput) return {"stroke", "pressure"};
+  return {"force", "pressure"};
+}
+
+// Everything one iterate of the fit needs per experiment.
+struct ExperimentState {
+  const ExperimentData* data = nullptr;
+  PeriodicSolver solver;
+  PeriodicSolution solution;
+  bool active = true;
+  std::vector<bool> channel_fitted;  // per fitted channel: false when the channel has a data defect
+  std::string error;
+  bool dropped_at_start = false;      // no solution at the starting values; retried as the fit moves
+  // Linear interpolation from the n-point grid to the data phases: grid points j0, j0 + 1 (mod n).
+  std::vector<int> j0;
+  std::vector<double> w;
+
+  void MapPhases(int n) {
+    j0.resize(data->phases.size());
+    w.resize(data->phases.size());
+    for (std::size_t i = 0; i < data->phases.size(); ++i) {
+      const double position = data->phases[i] * n;
+      j0[i] = static_cast<int>(std::floor(position)) % n;
+      w[i] = position - std::floor(position);
+    }
+  }
+  //! A grid function (n values, any stride) at the data phases.
+  template <class Grid>
+  Eigen::VectorXd AtPhases(const Grid& grid) const {
+    const int n = static_cast<int>(grid.size());
+    Eigen::VectorXd out(j0.size());
+    for (std::size_t i = 0; i < j0.size(); ++i)
+      out[i] = (1.0 - w[i]) * grid(j0[i]) + w[i] * grid((j0[i] + 1) % n);
+    return out;
+  }
+  Eigen::VectorXd Residual(const std::string& channel, int row) const {
+    return data->channels.at(channel).mean - AtPhases(solution.outputs.row(row));
+  }
+};
+
+struct Evaluation {
+  bool ok = true;
+  std::vector<double> sum_squares;  // per channel, over active experiments
+  std::vector<long> counts;         // residuals per channel
+};
+
+}  // namespace
+
+bool EstimatorOptions::IsValid(std::string* error) const {
+  const auto fail = [&](const std::string& m) {
+    if (error) *error = m;
+    return false;
+  };
+  if (n < 8) return fail("n must be at least 8");
+  if (max_iterations < 1) return fail("max_iterations must be at least 1");
+  if (!(step_tolerance > 0)) return fail("step_tolerance must be positive");
+  if (!(damping_relative_sd > 0)) return fail("damping_relative_sd must be positive");
+  if (max_halvings < 0) return fail("max_halvings must not be negative");
+  return true;
+}
+
+std::vector<ParameterChoice> DefaultChoices(const Model& model) {
+  std::vector<ParameterChoice> choices(model.parameter_count());
+  for (int i = 0; i < model.parameter_count(); ++i) choices[i].estimate = model.defaults().spec(i).estimate_by_default;
+  return choices;
+}
+
+std::vector<ParameterChoice> ChoicesFromList(const ParameterSet& parameters, const std::string& list) {
+  std::vector<ParameterChoice> choices(parameters.size());
+  std::size_t start = 0;
+  while (start <= list.size()) {
+    const std::size_t comma = list.find(',', start);
+    std::string item = list.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
+    item.erase(0, item.find_first_not_of(" \t"));
+    item.erase(item.find_last_not_of(" \t") + 1);
+    if (!item.empty()) choices[parameters.position(item)].estimate = true;
+    if (comma == std::string::npos) break;
+    start = comma + 1;
+  }
+  return choices;
+}
+
+Estimator::Estimator(Model model, EstimatorOptions options) : model_(std::move(model)), options_(std::move(options)) {
+  std::string error;
+  if (!options_.IsValid(&error)) throw std::invalid_argument("estimator options: " + error);
+}
+
+FitSummary Estimator::Fit(const std::vector<ExperimentData>& data, const ParameterSet& initial,
+                          const std::vector<ParameterChoice>& choices, const std::vector<DataIssue>& issues,
+                          const std::function<void(const FitProgress&)>& progress) const {
+  const int np = model_.parameter_count();
+  if (initial.size() != np || static_cast<int>(choices.size()) != np)
+    throw std::invalid_argument("estimator: parameter set and choices must match the model");
+  const std::vector<std::string> channels = options_.channels.empty() ? DefaultChannels(model_) : options_.channels;
+  const std::vector<std::string> outputs = model_.output_channels();
+  std::vector<int> output_row;
+  for (const auto& c : channels) {
+    const auto it = std::find(outputs.begin(), outputs.end(), c);
+    if (it == outputs.end())
+      throw std::invalid_argument(fmt::format("estimator: model {} has no output '{}'", model_.composition(), c));
+    output_row.push_back(static_cast<int>(it - outputs.begin()));
+  }
+  const int nc = static_cast<int>(channels.size());
+  std::vector<int> est;
+  for (int i = 0; i < np; ++i)
+    if (choices[i].estimate) est.push_back(i);
+  const int l = static_cast<int>(est.size());
+  const int n = options_.n;
+
+  FitSummary summary;
+  summary.model = model_.composition();
+  summary.parameters = initial;
+  summary.estimated.assign(np, false);
+  for (int i : est) summary.estimated[i] = true;
+  summary.estimated_positions = est;
+
+  // Experiments: solvers, defects, starting solutions.
+  PeriodicSolverOptions solver_options;
+  solver_options.scheme = options_.scheme;
+  std::vector<ExperimentState> states;
+  states.reserve(data.size());
+  for (const ExperimentData& d : data) {
+    ExperimentState s{&d, PeriodicSolver(model_, solver_options), {}, true, std::vector<bool>(nc, true), {}};
+    if (static_cast<int>(d.input.values.size()) != n)
+      throw std::invalid_argument(fmt::format("estimator: experiment '{}' has {} grid points, the fit uses n = {}",
+                                              d.label, d.input.values.size(), n));
+    s.MapPhases(n);
+    for (int b = 0; b < nc; ++b) {
+      if (!d.channels.count(channels[b])) {
+        s.channel_fitted[b] = false;
+        summary.warnings.push_back(
+            fmt::format("{}: experiment '{}' has no '{}' channel; left out of that channel", d.session, d.label, channels[b]));
+      }
+      for (const DataIssue& issue : issues)
+        if (issue.experiment == d.label && issue.channel == channels[b] && s.channel_fitted[b]) {
+          s.channel_fitted[b] = false;
+          summary.warnings.push_back(fmt::format("experiment '{}', channel '{}': {} ({}); not fitted", d.label,
+                                                 channels[b], issue.kind, issue.detail));
+        }
+    }
+    states.push_back(std::move(s));
+  }
+  for (const DataIssue& issue : issues)
+    if (std::find(channels.begin(), channels.end(), issue.channel) == channels.end())
+      summary.warnings.push_back(fmt::format("experiment '{}', channel '{}': {} ({})", issue.experiment, issue.channel,
+                                             issue.kind, issue.detail));
+
+  std::vector<double> theta = initial.values();
+  // Solves every active experiment at `values`; warm starts from `from` (the accepted iterate).
+  const auto solve_all = [&](const std::vector<double>& values, bool allow_drop, int iteration) {
+    bool ok = true;
+    for (std::size_t a = 0; a < states.size(); ++a) {
+      ExperimentState& s = states[a];
+      if (!s.active) continue;
+      if (progress) progress({iteration, static_cast<int>(a) + 1, static_cast<int>(states.size()), NAN});
+      try {
+        PeriodicSolution next = s.solver.Solve(s.data->input, values, s.solution.n == n ? &s.solution : nullptr);
+        s.solution = std::move(next);
+      } catch (const PeriodicSolverError& e) {
+        if (!allow_drop) return false;
+        s.active = false;
+        s.dropped_at_start = true;
+        s.error = e.what();
+        spdlog::warn("experiment '{}': no periodic solution at the starting values ({}); left out until the "
+                     "parameters improve",
+                     s.data->label, e.what());
+        ok = false;
+      }
+    }
+    return ok || allow_drop;
+  };
+  const auto evaluate = [&]() {
+    Evaluation e;
+    e.sum_squares.assign(nc, 0.0);
+    e.counts.assign(nc, 0);
+    for (const ExperimentState& s : states) {
+      if (!s.active) continue;
+      for (int b = 0; b < nc; ++b) {
+        if (!s.channel_fitted[b]) continue;
+        const Eigen::VectorXd r = s.Residual(channels[b], output_row[b]);
+        e.sum_squares[b] += r.squaredNorm();
+        e.counts[b] += r.size();
+      }
+    }
+    for (double v : e.sum_squares) e.ok = e.ok && std::isfinite(v);
+    return e;
+  };
+  // Log-likelihood with the channel variances at their maximum-likelihood values.
+  const auto loglik = [&](const Evaluation& e) {
+    double value = 0.0;
+    for (int b = 0; b < nc; ++b)
+      if (e.counts[b] > 0)
+        value -= 0.5 * e.counts[b] * (std::log(2 * std::numbers::pi * std::max(e.sum_squares[b] / e.counts[b], 1e-300)) + 1.0);
+    return value;
+  };
+  // Prior term of the user's priors (mean: the initial value).
+  const auto prior_term = [&](const std::vector<double>& values) {
+    double value = 0.0;
+    for (int i : est)
+      if (choices[i].prior_sd) value -= 0.5 * std::pow((values[i] - initial.value(i)) / *choices[i].prior_sd, 2);
+    return value;
+  };
+
+  solve_all(theta, true, 0);
+  if (std::none_of(states.begin(), states.end(), [](const ExperimentState& s) { return s.active; }))
+    throw std::runtime_error("estimator: no experiment has a periodic solution at the starting values");
+  Evaluation current = evaluate();
+  double objective = loglik(current) + prior_term(theta);
+  summary.history.push_back({0, objective, 0.0, theta});
+
+  // Scales: work in theta_i / scale_i so the normal equations are well conditioned.
+  std::vector<double> scale(np);
+  for (int i = 0; i < np; ++i) scale[i] = std::max({std::abs(theta[i]), initial.spec(i).typical_size(), 1e-300});
+  double damping_sd = options_.damping_relative_sd;
+  Eigen::MatrixXd information(l, l);
+  Eigen::VectorXd step_sd = Eigen::VectorXd::Constant(l, INFINITY);
+
+  // The staged Gauss-Newton iteration of eqs. 18, 19.
+  const auto normal_equations = [&](const std::vector<double>& variance, Eigen::MatrixXd& h, Eigen::VectorXd& g) {
+    h.setZero(l, l);
+    g.setZero(l);
+    for (ExperimentState& s : states) {
+      if (!s.active) continue;
+      const auto sens = s.solver.OutputSensitivities(s.solution, theta);
+      for (int b = 0; b < nc; ++b) {
+        if (!s.channel_fitted[b]) continue;
+        Eigen::MatrixXd j(s.j0.size(), l);
+        for (int k = 0; k < l; ++k) j.col(k) = s.AtPhases(sens[output_row[b]].col(est[k])) * scale[est[k]];
+        const Eigen::VectorXd r = s.Residual(channels[b], output_row[b]);
+        h.noalias() += j.transpose() * j / variance[b];
+        g.noalias() += j.transpose() * r / variance[b];
+      }
+    }
+    for (int k = 0; k < l; ++k) {
+      const int i = est[k];
+      if (choices[i].prior_sd) {
+        const double w = std::pow(*choices[i].prior_sd / scale[i], 2);
+        h(k, k) += 1.0 / w;
+        g[k] -= (theta[i] - initial.value(i)) / scale[i] / w;
+      }
+    }
+  };
+
+  std::vector<double> variance(nc);
+  int iteration = 0;
+  bool converged = l == 0;
+  for (; iteration < options_.max_iterations && !converged; ++iteration) {
+    // Stage 1 (eq. 18): channel variances with bias correction.
+    for (int b = 0; b < nc; ++b)
+      variance[b] = std::max(current.sum_squares[b] / std::max(1.0, double(current.counts[b] - l)), 1e-300);
+    // Stage 2 (eq. 19): parameter update with the prior reset to the current iterate.
+    Eigen::VectorXd g;
+    normal_equations(variance, information, g);
+    Eigen::MatrixXd damped = information;
+    for (int k = 0; k < l; ++k) damped(k, k) += 1.0 / (damping_sd * damping_sd);
+    const Eigen::VectorXd step = damped.ldlt().solve(g);
+    if (!step.allFinite()) {
+      summary.warnings.push_back("estimator: the normal equations became singular; stopped");
+      break;
+    }
+    const Eigen::MatrixXd covariance = information.ldlt().solve(Eigen::MatrixXd::Identity(l, l));
+    for (int k = 0; k < l; ++k) step_sd[k] = std::sqrt(std::max(covariance(k, k), 0.0));
+
+    // Line search: halve until the objective improves.
+    double lambda = 1.0;
+    bool accepted = false;
+    std::vector<double> trial(theta);
+    for (int halving = 0; halving <= options_.max_halvings; ++halving, lambda *= 0.5) {
+      for (int k = 0; k < l; ++k) trial[est[k]] = theta[est[k]] + lambda * step[k] * scale[est[k]];
+      const std::vector<PeriodicSolution> saved = [&] {
+        std::vector<PeriodicSolution> v;
+        for (const auto& s : states) v.push_back(s.solution);
+        return v;
+      }();
+      if (solve_all(trial, false, iteration + 1)) {
+        const Evaluation e = evaluate();
+        const double value = loglik(e) + prior_term(trial);
+        if (e.ok && value >= objective - 1e-12 * std::abs(objective)) {
+          theta = trial;
+          current = e;
+          const double gain = value - objective;
+          objective = value;
+          accepted = true;
+          spdlog::debug("fit iteration {}: loglik {:.6g} (+{:.3g}), step {}", iteration + 1, objective, gain, lambda);
+          break;
+        }
+      }
+      for (std::size_t a = 0; a < states.size(); ++a) states[a].solution = saved[a];
+    }
+    if (progress) progress({iteration + 1, 0, static_cast<int>(states.size()), objective});
+    summary.history.push_back({iteration + 1, objective, accepted ? lambda : 0.0, theta});
+    if (!accepted) {
+      // No improvement along the damped step: at the optimum to the accuracy the solutions allow.
+      converged = (step.array().abs() / step_sd.array()).maxCoeff() < 0.1;
+      if (!converged) summary.warnings.push_back("estimator: no improvement along the Gauss-Newton step; stopped");
+      break;
+    }
+    // Experiments without a solution at the start may have one now: bring them back in.
+    bool readmitted = false;
+    for (ExperimentState& s : states) {
+      if (s.active || !s.dropped_at_start) continue;
+      try {
+        s.solution = s.solver.Solve(s.data->input, theta);
+        s.active = true;
+        s.error.clear();
+        readmitted = true;
+        spdlog::info("experiment '{}' has a periodic solution again; back in the fit", s.data->label);
+      } catch (const PeriodicSolverError&) {
+      }
+    }
+    if (readmitted) {
+      current = evaluate();
+      objective = loglik(current) + prior_term(theta);
+      summary.history.back().objective = objective;
+      converged = false;
+      damping_sd = std::max(damping_sd * 0.25, 1e-6);
+      continue;
+    }
+    damping_sd = lambda == 1.0 ? std::min(damping_sd * 2.0, 1e3) : std::max(damping_sd * 0.25, 1e-6);
+    converged = (lambda * step.array().abs() / step_sd.array()).maxCoeff() < options_.step_tolerance;
+  }
+  summary.converged = converged;
+  summary.iterations = iteration;
+  summary.parameters.values() = theta;
+
+  // Uncertainty at the final iterate: posterior covariance without the damping prior.
+  const long total = std::accumulate(current.counts.begin(), current.counts.end(), 0L);
+  for (int b = 0; b < nc; ++b)
+    variance[b] = std::max(current.sum_squares[b] / std::max(1.0, double(current.counts[b] - l)), 1e-300);
+  summary.sd.assign(np, NAN);
+  if (l > 0) {
+    Eigen::VectorXd g;
+    normal_equations(variance, information, g);
+    Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(information);
+    const double largest = eig.eigenvalues().maxCoeff();
+    const Eigen::MatrixXd covariance = information.completeOrthogonalDecomposition().pseudoInverse();
+    summary.correlation.resize(l, l);
+    for (int a = 0; a < l; ++a) {
+      summary.sd[est[a]] = std::sqrt(std::max(covariance(a, a), 0.0)) * scale[est[a]];
+      for (int b = 0; b < l; ++b)
+        summary.correlation(a, b) = covariance(a, b) / std::sqrt(std::max(covariance(a, a) * covariance(b, b), 1e-300));
+    }
+    // Parameters the data cannot determine: a near-null direction of the information matrix.
+    for (int k = 0; k < l; ++k) {
+      if (eig.eigenvalues()[k] > 1e-10 * largest) continue;
+      std::string names;
+      for (int a = 0; a < l; ++a)
+        if (std::abs(eig.eigenvectors()(a, k)) > 0.3) names += " " + initial.spec(est[a]).key();
+      summary.warnings.push_back(fmt::format("the data cannot determine{} (near-singular information matrix); fix "
+                                             "one of them or add experiments",
+                                             names));
+    }
+    for (int a = 0; a < l; ++a)
+      for (int b = a + 1; b < l; ++b)
+        if (std::abs(summary.correlation(a, b)) > 0.99)
+          summary.warnings.push_back(fmt::format("{} and {} are correlated {:.3f}: the data barely tell them apart",
+                                                 initial.spec(est[a]).key(), initial.spec(est[b]).key(),
+                                                 summary.correlation(a, b)));
+  }
+
+  // Statistics per channel and per experiment.
+  summary.observations = total;
+  summary.loglik = loglik(current);
+  summary.aic = -2.0 * summary.loglik + 2.0 * l;
+  summary.bic = -2.0 * summary.loglik + l * std::log(static_cast<double>(std::max(1L, total)));
+  for (int b = 0; b < nc; ++b) {
+    FitChannel c;
+    c.name = channels[b];
+    c.variance = variance[b];
+    c.rms = current.counts[b] > 0 ? std::sqrt(current.sum_squares[b] / current.counts[b]) : NAN;
+    double noise = 0.0;
+    int count = 0;
+    for (const ExperimentState& s : states) {
+      const auto it = s.data->channels.find(channels[b]);
+      if (s.active && s.channel_fitted[b] && it != s.data->channels.end() && std::isfinite(it->second.mean_noise_variance)) {
+        noise += it->second.mean_noise_variance;
+        ++count;
+      }
+    }
+    c.noise_floor_variance = count > 0 ? noise / count : NAN;
+    summary.channels.push_back(c);
+  }
+  for (ExperimentState& s : states) {
+    ExperimentFit f;
+    f.label = s.data->label;
+    f.group = s.data->group;
+    f.session = s.data->session;
+    f.frequency = s.data->frequency;
+    f.amplitude = s.data->amplitude;
+    f.static_position = s.data->static_position;
+    f.converged = s.active;
+    f.error = s.error;
+    f.phases = s.data->phases;
+    if (!s.active)
+      summary.warnings.push_back(fmt::format("experiment '{}': no periodic solution ({}); left out of the fit",
+                                             s.data->label, s.error));
+    for (int b = 0; b < nc; ++b) {
+      ChannelStatistics st;
+      st.channel = channels[b];
+      st.fitted = s.channel_fitted[b] && s.active;
+      const auto it = s.data->channels.find(channels[b]);
+      if (it != s.data->channels.end()) f.measured[channels[b]] = it->second.mean;
+      if (s.active && it != s.data->channels.end()) {
+        const Eigen::VectorXd r = s.Residual(channels[b], output_row[b]);
+        st.mean = r.mean();
+        st.sd = std::sqrt((r.array() - st.mean).square().sum() / std::max<Eigen::Index>(1, r.size() - 1));
+        st.rms = std::sqrt(r.squaredNorm() / r.size());
+        st.noise_ratio = st.rms * st.rms / it->second.mean_noise_variance;
+      }
+      f.channels.push_back(st);
+    }
+    if (s.active) f.solution = std::move(s.solution);
+    summary.experiments.push_back(std::move(f));
+  }
+  if (!summary.converged && summary.warnings.empty())
+    summary.warnings.push_back(fmt::format("estimator: not converged after {} iterations", iteration));
+  return summary;
+}
+
+bool FitSummary::IsSolutionUsable() const {
+  return std::any_of(experiments.begin(), experiments.end(), [](const ExperimentFit& e) { return e.converged; }) &&
+         std::isfinite(loglik);
+}
+
+std::string FitSummary::BriefReport() const {
+  return fmt::format("{}: {} after {} iterations, loglik {:.6g}, BIC {:.6g}, {} warnings", model,
+                     converged ? "converged" : "NOT converged", iterations, loglik, bic, warnings.size());
+}
+
+std::string FitSummary::FullReport() const {
+  std::string out = BriefReport() + "\n\nparameters:\n";
+  for (int i = 0; i < parameters.size(); ++i) {
+    const auto& spec = parameters.spec(i);
+    out += fmt::format("  {:<8} {:<28} {:>14.7g} {:<10} {}\n", spec.key(), spec.name, parameters.value(i), spec.unit,
+                       estimated[i] ? fmt::format("+- {:.3g} (estimated)", sd[i]) : std::string("(fixed)"));
+  }
+  out += "\nchannels:\n";
+  for (const auto& c : channels)
+    out += fmt::format("  {:<12} rms {:.4g}  variance {:.4g}  noise floor {:.4g}\n", c.name, c.rms, c.variance,
+                       c.noise_floor_variance);
+  out += "\nexperiments (residual mean / 2 sd / noise ratio per channel):\n";
+  for (const auto& e : experiments) {
+    out += fmt::format("  {:<6} {:<7} {:5.2f} Hz", e.label, e.group, e.frequency);
+    if (!e.converged) {
+      out += "  no periodic solution: " + e.error + "\n";
+      continue;
+    }
+    for (const auto& c : e.channels)
+      out += fmt::format("  {}: {:+.3g} / {:.3g} / {:.3g}{}", c.channel, c.mean, 2 * c.sd, c.noise_ratio,
+                         c.fitted ? "" : " (not fitted)");
+    out += "\n";
+  }
+  for (const auto& w : warnings) out += "warning: " + w + "\n";
+  return out;
+}
+
+}  // namespace strut::ident

@@ -1,0 +1,196 @@
+#include "strut/ident/experiment_data.h"
+
+#include <algorithm>
+#include <cmath>
+#include <complex>
+#include <numbers>
+#include <unsupported/Eigen/FFT>
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+namespace strut::ident {
+namespace {
+
+// Runs of samples equal to `value` (exactly): lengths of every run.
+std::vector<long> RunsAt(const std::vector<double>& x, double value) {
+  std::vector<long> runs;
+  long run = 0;
+  for (double v : x) {
+    if (v == value) {
+      ++run;
+    } else if (run > 0) {
+      runs.push_back(run);
+      run = 0;
+    }
+  }
+  if (run > 0) runs.push_back(run);
+  return runs;
+}
+
+// The measured input drives the model, a stroke even through its first and second derivatives,
+// and differentiating sample noise would swamp the friction and inertia terms. Keep only the
+// harmonics that stand clear of the noise (6 times the median amplitude of the upper half of the
+// spectrum, which holds noise only) and evaluate that Fourier series on the solver grid.
+PeriodicInput SmoothInput(const Eigen::VectorXd& period, double frequency, int n, int* kept) {
+  const int count = static_cast<int>(period.size());
+  Eigen::FFT<double> fft;
+  std::vector<std::complex<double>> spectrum;
+  const std::vector<double> samples(period.data(), period.data() + count);
+  fft.fwd(spectrum, samples);
+  const int harmonics = count / 2;
+  std::vector<double> upper;
+  for (int h = harmonics / 2 + 1; h < harmonics; ++h) upper.push_back(std::abs(spectrum[h]));
+  double threshold = 0.0;
+  if (upper.size() >= 8) {
+    std::nth_element(upper.begin(), upper.begin() + upper.size() / 2, upper.end());
+    threshold = 6.0 * upper[upper.size() / 2];
+  }
+  // Zero-padded (or truncated) spectrum of length n: the series evaluated on the solver grid.
+  std::vector<std::complex<double>> grid(n, 0.0);
+  grid[0] = spectrum[0] * (static_cast<double>(n) / count);
+  *kept = 0;
+  for (int h = 1; h < std::min(harmonics, (n - 1) / 2 + 1); ++h) {
+    if (std::abs(spectrum[h]) <= threshold) continue;
+    ++*kept;
+    grid[h] = spectrum[h] * (static_cast<double>(n) / count);
+    grid[n - h] = std::conj(grid[h]);
+  }
+  std::vector<double> values;
+  fft.inv(values, grid);
+  return PeriodicInput{frequency, values};
+}
+
+}  // namespace
+
+std::vector<DataIssue> InspectChannel(const daq::Experiment& e, const daq::Channel& channel) {
+  std::vector<DataIssue> issues;
+  const std::vector<double>& x = channel.samples;
+  const long count = static_cast<long>(x.size());
+  if (count < 8) return issues;
+  const auto add = [&](const char* kind, std::string detail) {
+    issues.push_back({e.label, channel.name, kind, std::move(detail)});
+  };
+
+  // Clipping: a large share of samples sitting exactly on the extreme value. A quantised sine
+  // peak also repeats its top code, but for well under 1.5 % of the samples.
+  for (const bool top : {true, false}) {
+    const double extreme = top ? *std::max_element(x.begin(), x.end()) : *std::min_element(x.begin(), x.end());
+    const auto runs = RunsAt(x, extreme);
+    long at = 0, longest = 0;
+    for (long r : runs) at += r, longest = std::max(longest, r);
+    if (at > 0.015 * count && longest >= 5)
+      add("clipped", fmt::format("{} samples ({:.1f} %) flat at the {} value {:.6g} {}", at, 100.0 * at / count,
+                                 top ? "highest" : "lowest", extreme, channel.units));
+  }
+
+  // Dropouts and stuck values: long runs of one repeated value that is not an extreme.
+  const double samples_per_period = e.frequency > 0 ? e.sample_rate / e.frequency : count;
+  const long stuck_limit = std::max<long>(20, static_cast<long>(0.02 * samples_per_period));
+  const double lo = *std::min_element(x.begin(), x.end()), hi = *std::max_element(x.begin(), x.end());
+  long run = 1, worst = 0, worst_at = 0;
+  double worst_value = 0.0;
+  for (long i = 1; i <= count; ++i) {
+    if (i < count && x[i] == x[i - 1]) {
+      ++run;
+      continue;
+    }
+    if (run > worst && x[i - 1] != lo && x[i - 1] != hi) worst = run, worst_at = i - run, worst_value = x[i - 1];
+    run = 1;
+  }
+  if (worst >= stuck_limit)
+    add(worst_value == 0.0 ? "dropout" : "stuck",
+        fmt::format("{} samples from index {} stuck at {:.6g} {}", worst, worst_at, worst_value, channel.units));
+
+  // Outliers: far from the period-synchronous mean, in units of a robust spread.
+  if (e.kind == daq::ExperimentKind::kPeriodic && e.periods >= 2 && e.frequency > 0) {
+    const int n = std::max(16, static_cast<int>(std::min(samples_per_period, 4000.0)));
+    try {
+      const Eigen::VectorXd mean = PeriodSynchronousSamples(x, e.sample_rate, e.frequency, e.periods, n).rowwise().mean();
+      std::vector<double> deviation(count);
+      for (long i = 0; i < count; ++i) {
+        const double phase = std::fmod(i / samples_per_period, 1.0) * n;
+        const long j0 = static_cast<long>(std::floor(phase)) % n;
+        const double w = phase - std::floor(phase);
+        deviation[i] = x[i] - ((1 - w) * mean[j0] + w * mean[(j0 + 1) % n]);
+      }
+      std::vector<double> absolute(count);
+      for (long i = 0; i < count; ++i) absolute[i] = std::abs(deviation[i]);
+      std::nth_element(absolute.begin(), absolute.begin() + count / 2, absolute.end());
+      const double robust_sigma = 1.4826 * absolute[count / 2];
+      const double range = hi - lo;
+      const double limit = std::max(10.0 * robust_sigma, 1e-6 * range);
+      long outliers = 0, first = -1;
+      for (long i = 0; i < count; ++i)
+        if (std::abs(deviation[i]) > limit && range > 0) {
+          if (first < 0) first = i;
+          ++outliers;
+        }
+      // A few isolated spikes; a wholesale shift is a different defect (and shows elsewhere).
+      if (outliers > 0 && outliers < 0.01 * count)
+        add("outliers", fmt::format("{} samples more than {:.3g} {} (10 robust sigma) off the period mean, first at index {}",
+                                    outliers, limit, channel.units, first));
+    } catch (const std::invalid_argument&) {
+      // Sizes are checked by the session validator; nothing to add here.
+    }
+  }
+  return issues;
+}
+
+std::vector<ExperimentData> PrepareExperiments(const daq::Session& session, Causality causality, int n,
+                                               std::vector<DataIssue>* issues) {
+  std::vector<ExperimentData> prepared;
+  const std::string file = session.source_path.empty() ? "<memory>" : session.source_path;
+  const std::string input_channel = causality == Causality::kForceInput ? "force" : "stroke";
+  for (const daq::Experiment& e : session.experiments) {
+    if (e.kind != daq::ExperimentKind::kPeriodic || e.status != "complete") {
+      spdlog::info("{}: experiment '{}' skipped ({} {})", file, e.label, daq::ToString(e.kind), e.status);
+      continue;
+    }
+    if (e.periods < 1)
+      throw std::invalid_argument(fmt::format("{}: experiment '{}': no whole period recorded", file, e.label));
+    ExperimentData d;
+    d.session = file;
+    d.label = e.label;
+    d.group = e.group;
+    d.frequency = e.frequency;
+    d.amplitude = e.amplitude;
+    d.static_position = e.static_position;
+    d.periods = e.periods;
+    // Whole samples per period: average the recorded samples themselves, phase by phase.
+    const double per_period = e.sample_rate / e.frequency;
+    const long native = std::lround(per_period);
+    const bool whole = std::abs(per_period - native) < 1e-6 * per_period && native >= 4;
+    const int points = whole ? static_cast<int>(native) : n;
+    d.phases.resize(points);
+    for (int i = 0; i < points; ++i) d.phases[i] = static_cast<double>(i) / points;
+    for (const daq::Channel& c : e.channels) {
+      if (issues) {
+        auto found = InspectChannel(e, c);
+        issues->insert(issues->end(), found.begin(), found.end());
+      }
+      const std::vector<double> samples = c.name == "pressure" ? e.absolute_pressure() : c.samples;
+      const Eigen::MatrixXd per_phase = PeriodSynchronousSamples(samples, e.sample_rate, e.frequency, e.periods, points);
+      GridChannel g;
+      g.mean = per_phase.rowwise().mean();
+      if (e.periods >= 2) {
+        g.noise_variance =
+            (per_phase.colwise() - g.mean).squaredNorm() / (static_cast<double>(points) * (e.periods - 1));
+        g.mean_noise_variance = g.noise_variance / e.periods;
+      }
+      if (c.name == input_channel) {
+        int kept = 0;
+        d.input = SmoothInput(g.mean, e.frequency, n, &kept);
+        spdlog::debug("{}: experiment '{}': {} input from {} harmonics", file, e.label, input_channel, kept);
+      }
+      d.channels[c.name] = std::move(g);
+    }
+    const auto input = d.channels.find(input_channel);
+    if (input == d.channels.end())
+      throw std::invalid_argument(
+          fmt::format("{}: experiment '{}': no '{}' channel for the {} input", file, e.label, input_channel, input_channel));
+    prepared.push_back(std::move(d));
+  }
+  return prepared;
+}
+
+}  // namespace strut::ident

@@ -13,6 +13,7 @@
 #include <fmt/format.h>
 #include <limits>
 #include <numbers>
+#include <spdlog/spdlog.h>
 #include <type_traits>
 
 namespace strut::sim {
@@ -305,10 +306,11 @@ int JacobianCallback(double t, double cj, N_Vector y, N_Vector yp, N_Vector, SUN
   }
 }
 
-void ErrorHandler(int, const char* module, const char* function, char* message, void* user) {
-  // Kept for the exception text instead of printed to stderr.
-  static_cast<UserData*>(user)->ida_message = fmt::format("{}/{}: {}", module ? module : "IDA",
-                                                          function ? function : "?", message ? message : "");
+void ErrorHandler(int code, const char* module, const char* function, char* message, void* user) {
+  // Kept for the exception text instead of printed to stderr; warnings only go to the debug log.
+  auto& text = static_cast<UserData*>(user)->ida_message;
+  text = fmt::format("{}/{}: {}", module ? module : "IDA", function ? function : "?", message ? message : "");
+  if (code > 0) spdlog::debug("transient: {}", text);
 }
 
 // One IDA run: memory, vectors, dense matrix and solver, freed together.
@@ -365,11 +367,7 @@ class Integrator {
   //! Integrates to `tout` without passing `tstop` (>= tout); y() and yp() then hold the solution there.
   void AdvanceTo(double tout, double tstop) {
     const long remaining = max_steps_ - steps();
-    if (remaining <= 0)
-      throw TransientError(fmt::format("transient: step budget of {} internal steps used up at t = {:.9g} s "
-                                       "(raise TransientOptions::max_steps or loosen rtol)",
-                                       max_steps_, t_),
-                           t_, IDA_TOO_MUCH_WORK);
+    if (remaining <= 0) BudgetExceeded();
     Check(IDASetMaxNumSteps(mem_, remaining), "IDASetMaxNumSteps");
     if (tstop != tstop_) {
       Check(IDASetStopTime(mem_, tstop), "IDASetStopTime");
@@ -379,11 +377,7 @@ class Integrator {
     const int flag = IDASolve(mem_, tout, &reached, y_, yp_, IDA_NORMAL);
     IDAGetCurrentTime(mem_, &t_);
     if (flag < 0) {
-      if (flag == IDA_TOO_MUCH_WORK)
-        throw TransientError(fmt::format("transient: step budget of {} internal steps used up at t = {:.9g} s "
-                                         "(raise TransientOptions::max_steps or loosen rtol)",
-                                         max_steps_, t_),
-                             t_, flag);
+      if (flag == IDA_TOO_MUCH_WORK) BudgetExceeded();
       Fail(flag, fmt::format("IDASolve towards t = {:.9g} s", tout));
     }
     t_ = reached;
@@ -404,6 +398,12 @@ class Integrator {
   }
   void Check(int flag, const char* what) {
     if (flag < 0) Fail(flag, what);
+  }
+  [[noreturn]] void BudgetExceeded() const {
+    throw TransientError(fmt::format("transient: step budget of {} internal steps used up at t = {:.9g} s with {} "
+                                     "(raise TransientOptions::max_steps or loosen rtol)",
+                                     max_steps_, t_, FlagName(IDA_TOO_MUCH_WORK)),
+                         t_, IDA_TOO_MUCH_WORK);
   }
   [[noreturn]] void Fail(int flag, const std::string& what) {
     std::string detail = !data_.failure.empty() ? data_.failure : data_.ida_message;

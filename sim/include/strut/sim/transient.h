@@ -12,7 +12,6 @@
 #include <Eigen/Core>
 #include <functional>
 #include <memory>
-#include <optional>
 #include <span>
 #include <stdexcept>
 #include <string>
@@ -104,7 +103,7 @@ struct TransientResult {
   std::vector<double> time;                //!< output times, s
   std::vector<std::string> unknown_names;  //!< [stroke or force, states...]
   Eigen::MatrixXd unknowns;                //!< m x k, unknowns at the output times
-  Eigen::MatrixXd rates;                   //!< m x k, their time derivatives (stroke rate under force input)
+  Eigen::MatrixXd rates;                   //!< m x k, time derivatives (stroke: the state v; algebraic ones: IDA's BDF estimate)
   Eigen::VectorXd input;                   //!< k: u at the output times (drop: M (g - q''))
   std::vector<std::string> channels;       //!< output channel names (Model::output_channels)
   Eigen::MatrixXd outputs;                 //!< channels x k (Model::Outputs)

@@ -10,5 +10,6 @@ void RegisterInfoCommand(CLI::App& app);
 void RegisterPeriodicCommand(CLI::App& app);
 void RegisterDemoCommand(CLI::App& app);
 void RegisterBenchCommand(CLI::App& app);
+void RegisterIdentifyCommand(CLI::App& app);
 
 }  // namespace strut::tools

@@ -33,6 +33,7 @@ int main(int argc, char** argv) {
   strut::tools::RegisterInfoCommand(app);
   strut::tools::RegisterPeriodicCommand(app);
   strut::tools::RegisterDemoCommand(app);
+  strut::tools::RegisterIdentifyCommand(app);
   strut::tools::RegisterBenchCommand(app);
 
   try {

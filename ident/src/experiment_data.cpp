@@ -71,10 +71,21 @@ std::vector<DataIssue> InspectChannel(const daq::Experiment& e, const daq::Chann
     issues.push_back({e.label, channel.name, kind, std::move(detail)});
   };
 
+  // Dropout: a run of exact zeros in a channel that is not near zero (a lost connection reads 0).
+  const auto zero_runs = RunsAt(x, 0.0);
+  const long longest_zero = zero_runs.empty() ? 0 : *std::max_element(zero_runs.begin(), zero_runs.end());
+  const bool dropout = longest_zero >= 5;
+  if (dropout) {
+    long total = 0;
+    for (long r : zero_runs) total += r;
+    add("dropout", fmt::format("{} samples read exactly 0 (longest run {})", total, longest_zero));
+  }
+
   // Clipping: a large share of samples sitting exactly on the extreme value. A quantised sine
   // peak also repeats its top code, but for well under 1.5 % of the samples.
   for (const bool top : {true, false}) {
     const double extreme = top ? *std::max_element(x.begin(), x.end()) : *std::min_element(x.begin(), x.end());
+    if (dropout && extreme == 0.0) continue;
     const auto runs = RunsAt(x, extreme);
     long at = 0, longest = 0;
     for (long r : runs) at += r, longest = std::max(longest, r);
@@ -97,8 +108,8 @@ std::vector<DataIssue> InspectChannel(const daq::Experiment& e, const daq::Chann
     if (run > worst && x[i - 1] != lo && x[i - 1] != hi) worst = run, worst_at = i - run, worst_value = x[i - 1];
     run = 1;
   }
-  if (worst >= stuck_limit)
-    add(worst_value == 0.0 ? "dropout" : "stuck",
+  if (worst >= stuck_limit && worst_value != 0.0)
+    add("stuck",
         fmt::format("{} samples from index {} stuck at {:.6g} {}", worst, worst_at, worst_value, channel.units));
 
   // Outliers: far from the period-synchronous mean, in units of a robust spread.

@@ -59,7 +59,7 @@ struct ExperimentFit {
   std::vector<ChannelStatistics> channels;
   PeriodicSolution solution;  //!< at the final parameters (empty when not converged)
   std::vector<double> phases;                       //!< cyclic phases of the measured values
-  std::map<std::string, Eigen::VectorXd> measured;  //!< the averaged measured outputs at `phases`
+  std::map<std::string, Eigen::VectorXd> measured;  //!< every averaged measured channel at `phases`
 };
 
 struct FitChannel {

@@ -1,0 +1,244 @@
+// The multi-experiment Bayesian estimator on simulated sessions with known truth.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <map>
+#include <numeric>
+#include <random>
+
+#include "strut/ident/estimator.h"
+#include "strut/sim/periodic_session.h"
+#include "test_support.h"
+
+namespace strut::ident {
+namespace {
+
+std::vector<rig::MatrixEntry> Pick(const std::string& labels) {
+  std::vector<rig::MatrixEntry> out;
+  for (const auto& e : rig::StandardMatrix())
+    if (labels.find(e.label) != std::string::npos) out.push_back(e);
+  return out;
+}
+
+ParameterSet Truth(const std::string& composition) {
+  ParameterSet truth = Model::Build(composition, Causality::kStrokeInput).defaults();
+  truth.set("theta12", 0.002);  // a stroke sensor offset the fit must find
+  return truth;
+}
+
+void ExpectRecovered(const FitSummary& fit, const ParameterSet& truth, double within_sd) {
+  ASSERT_TRUE(fit.converged) << fit.FullReport();
+  for (int i : fit.estimated_positions) {
+    const double z = (fit.parameters.value(i) - truth.value(i)) / fit.sd[i];
+    EXPECT_LT(std::abs(z), within_sd) << truth.spec(i).key() << " truth " << truth.value(i) << " estimate "
+                                      << fit.parameters.value(i) << " sd " << fit.sd[i];
+  }
+}
+
+TEST(Estimator, RecoversThePaperParametersFromTwentyPercentOff) {
+  for (const char* composition : {"1dof", "2dof"}) {
+    SCOPED_TRACE(composition);
+    const ParameterSet truth = Truth(composition);
+    sim::PeriodicSessionOptions options;
+    options.seed = 11;
+    const daq::Session session =
+        sim::SimulatePeriodicSession(composition, truth.values(), rig::StandardMatrix(), options);
+    const Model model = Model::Build(composition, Causality::kStrokeInput);
+    std::vector<DataIssue> issues;
+    const auto data = PrepareExperiments(session, model.causality(), 800, &issues);
+    EXPECT_TRUE(issues.empty());
+    // The paper's set (1 dof: theta4, theta6, theta7; 2 dof: theta4, theta6, theta16) plus offsets.
+    const auto choices = DefaultChoices(model);
+    ParameterSet initial = model.defaults();
+    for (int i = 0; i < initial.size(); ++i) {
+      const int index = initial.spec(i).index;
+      if (choices[i].estimate && index != 11 && index != 12) initial.values()[i] = truth.value(i) * 1.2;
+    }
+    const FitSummary fit = Estimator(model).Fit(data, initial, choices, issues);
+    ExpectRecovered(fit, truth, 2.0);
+    // With the truth's physics the model explains the data to the noise floor.
+    for (const auto& e : fit.experiments)
+      for (const auto& c : e.channels) EXPECT_LT(c.noise_ratio, 1.6) << e.label << " " << c.channel;
+    EXPECT_TRUE(fit.experiments.size() == 14u);
+  }
+}
+
+TEST(Estimator, NinetyFivePercentIntervalsHoldTheTruthAtTheirRate) {
+  // 100 noise realisations of a small fast problem (the full run is `strut bench identify`).
+  const ParameterSet truth = Truth("2dof");
+  sim::PeriodicSessionOptions options;
+  options.sample_rate = 100.0;
+  options.periods = 2;
+  options.noise = {0.0, 0.0, 0.0};
+  const daq::Session clean = sim::SimulatePeriodicSession("2dof", truth.values(), Pick("bhk"), options);
+  const Model model = Model::Build("2dof", Causality::kStrokeInput);
+  const std::vector<ParameterChoice> choices = ChoicesFromList(model.defaults(), "theta4,theta6,theta16");
+  // central4 at n = 400: its discretisation error (1e-9) is far below the parameter uncertainty,
+  // so the test measures the uncertainty machinery, not the scheme.
+  EstimatorOptions estimator_options;
+  estimator_options.n = 400;
+  estimator_options.scheme = Scheme::kCentral4;
+  const Estimator estimator(model, estimator_options);
+  std::mt19937_64 rng(2024);
+  std::normal_distribution<double> unit(0.0, 1.0);
+  int inside = 0, total = 0;
+  for (int realisation = 0; realisation < 100; ++realisation) {
+    daq::Session noisy = clean;
+    for (auto& e : noisy.experiments)
+      for (auto& c : e.channels) {
+        const double sd = c.name == "stroke" ? 3e-5 : c.name == "force" ? 20.0 : 2e3;
+        for (double& v : c.samples) v += sd * unit(rng);
+      }
+    const auto data = PrepareExperiments(noisy, model.causality(), 400);
+    const FitSummary fit = estimator.Fit(data, truth, choices);
+    ASSERT_TRUE(fit.converged);
+    for (int i : fit.estimated_positions) {
+      inside += std::abs(fit.parameters.value(i) - truth.value(i)) <= 1.96 * fit.sd[i];
+      ++total;
+    }
+  }
+  const double coverage = static_cast<double>(inside) / total;
+  RecordProperty("coverage", std::to_string(coverage));
+  EXPECT_GE(coverage, 0.90);
+  EXPECT_LE(coverage, 0.98);
+}
+
+TEST(Estimator, ReproducesThePapersFindingsOnTwoDofData) {
+  const ParameterSet truth = Truth("2dof");
+  sim::PeriodicSessionOptions options;
+  options.seed = 5;
+  const daq::Session session = sim::SimulatePeriodicSession("2dof", truth.values(), rig::StandardMatrix(), options);
+  const auto fit_with = [&](const char* composition) {
+    const Model model = Model::Build(composition, Causality::kStrokeInput);
+    return Estimator(model).Fit(PrepareExperiments(session, model.causality(), 800), model.defaults(),
+                                DefaultChoices(model));
+  };
+  const FitSummary one = fit_with("1dof");
+  const FitSummary two = fit_with("2dof");
+  // 1 dof on all 14: the mean force residual depends on the static-position group.
+  std::map<std::string, std::vector<double>> by_group;
+  for (const auto& e : one.experiments) by_group[e.group].push_back(e.channels[0].mean);
+  const auto mean = [](const std::vector<double>& v) { return std::accumulate(v.begin(), v.end(), 0.0) / v.size(); };
+  const double spread = std::max({mean(by_group["high"]), mean(by_group["middle"]), mean(by_group["low"])}) -
+                        std::min({mean(by_group["high"]), mean(by_group["middle"]), mean(by_group["low"])});
+  EXPECT_GT(spread, 10 * 20.0 / std::sqrt(3.0)) << one.FullReport();  // far beyond the averaged force noise
+  // 2 dof: the large-amplitude residuals shrink by half or better.
+  for (std::size_t a = 0; a < one.experiments.size(); ++a) {
+    if (one.experiments[a].amplitude < 0.07) continue;
+    EXPECT_LT(two.experiments[a].channels[0].rms, 0.5 * one.experiments[a].channels[0].rms)
+        << one.experiments[a].label;
+  }
+  EXPECT_LT(two.bic, one.bic);
+}
+
+TEST(Estimator, ReportsBadDataAndStillFitsTheRest) {
+  const ParameterSet truth = Truth("2dof");
+  sim::PeriodicSessionOptions options;
+  options.seed = 9;
+  daq::Session session = sim::SimulatePeriodicSession("2dof", truth.values(), Pick("bdghl"), options);
+  // d: force clipped by a saturated ADC; g: pressure spikes; h: a stroke dropout.
+  for (auto& e : session.experiments) {
+    if (e.label == "d")
+      for (auto& v : e.channels[1].samples) v = std::min(v, 20000.0);
+    if (e.label == "g")
+      for (std::size_t i = 50; i < e.channels[2].samples.size(); i += 400) e.channels[2].samples[i] += 3e5;
+    if (e.label == "h")
+      for (std::size_t i = 100; i < 160; ++i) e.channels[0].samples[i] = 0.0;
+  }
+  const Model model = Model::Build("2dof", Causality::kStrokeInput);
+  std::vector<DataIssue> issues;
+  const auto data = PrepareExperiments(session, model.causality(), 400, &issues);
+  const auto has = [&](const char* label, const char* channel, const char* kind) {
+    return std::any_of(issues.begin(), issues.end(), [&](const DataIssue& i) {
+      return i.experiment == label && i.channel == channel && i.kind == kind;
+    });
+  };
+  EXPECT_TRUE(has("d", "force", "clipped"));
+  EXPECT_TRUE(has("g", "pressure", "outliers"));
+  EXPECT_TRUE(has("h", "stroke", "dropout"));
+  EXPECT_FALSE(has("b", "force", "clipped"));
+  EstimatorOptions estimator_options;
+  estimator_options.n = 400;
+  const FitSummary fit = Estimator(model, estimator_options).Fit(data, model.defaults(), DefaultChoices(model), issues);
+  ASSERT_TRUE(fit.IsSolutionUsable());
+  const auto warned = [&](const std::string& text) {
+    return std::any_of(fit.warnings.begin(), fit.warnings.end(),
+                       [&](const std::string& w) { return w.find(text) != std::string::npos; });
+  };
+  EXPECT_TRUE(warned("experiment 'd', channel 'force': clipped"));
+  EXPECT_TRUE(warned("experiment 'g', channel 'pressure': outliers"));
+  for (const auto& e : fit.experiments)
+    if (e.label == "d") EXPECT_FALSE(e.channels[0].fitted);
+}
+
+TEST(Estimator, AnExperimentWithoutPeriodicSolutionIsNamedAndTheOthersFit) {
+  const ParameterSet truth = Truth("1dof");
+  sim::PeriodicSessionOptions options;
+  const daq::Session session = sim::SimulatePeriodicSession("1dof", truth.values(), Pick("bhl"), options);
+  const Model model = Model::Build("1dof", Causality::kStrokeInput);
+  EstimatorOptions estimator_options;
+  estimator_options.n = 200;
+  auto data = PrepareExperiments(session, model.causality(), 200);
+  // Relabel one experiment's stroke input far beyond full compression: no gas state exists there.
+  for (double& v : data[1].input.values) v += 0.2;
+  const FitSummary fit = Estimator(model, estimator_options).Fit(data, model.defaults(), DefaultChoices(model));
+  EXPECT_TRUE(fit.IsSolutionUsable());
+  EXPECT_FALSE(fit.experiments[1].converged);
+  EXPECT_FALSE(fit.experiments[1].error.empty());
+  EXPECT_TRUE(std::any_of(fit.warnings.begin(), fit.warnings.end(), [&](const std::string& w) {
+    return w.find("experiment '" + data[1].label + "'") != std::string::npos;
+  }));
+  EXPECT_TRUE(fit.experiments[0].converged && fit.experiments[2].converged);
+}
+
+TEST(Estimator, WarnsAboutParametersTheDataCannotDetermine) {
+  // theta1 (moving mass) and theta2 (gravity) enter only as theta1 (q'' + theta2): with gravity
+  // estimated too, a slow test cannot tell them apart.
+  const ParameterSet truth = Truth("1dof");
+  const daq::Session session = sim::SimulatePeriodicSession("1dof", truth.values(), Pick("a"), {});
+  const Model model = Model::Build("1dof", Causality::kStrokeInput);
+  EstimatorOptions estimator_options;
+  estimator_options.n = 200;
+  estimator_options.max_iterations = 5;
+  const FitSummary fit = Estimator(model, estimator_options)
+                             .Fit(PrepareExperiments(session, model.causality(), 200), truth,
+                                  ChoicesFromList(truth, "theta1,theta2,theta11"));
+  EXPECT_TRUE(std::any_of(fit.warnings.begin(), fit.warnings.end(), [](const std::string& w) {
+    return w.find("theta2") != std::string::npos && w.find("theta11") != std::string::npos;
+  })) << fit.FullReport();
+}
+
+TEST(IdentifyCommand, WritesTheFitAsJson) {
+  test::TempDir dir;
+  const ParameterSet truth = Truth("2dof");
+  daq::WriteSession(dir.file("s.h5"),
+                    sim::SimulatePeriodicSession("2dof", truth.values(), Pick("bhl"), sim::PeriodicSessionOptions{}));
+  const auto r = test::RunStrut("identify " + dir.file("s.h5") + " --model 2dof --input stroke --n 400 --json " +
+                                dir.file("fit.json") + " --no-progress");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  std::ifstream in(dir.file("fit.json"));
+  const nlohmann::json j = nlohmann::json::parse(in);
+  for (const char* key : {"model", "converged", "iterations", "parameters", "channels", "experiments", "loglik", "aic",
+                          "bic", "warnings"})
+    EXPECT_TRUE(j.contains(key)) << key;
+  EXPECT_EQ(j["model"], "2dof");
+  EXPECT_TRUE(j["converged"].get<bool>());
+  int estimated = 0;
+  for (const auto& p : j["parameters"]) {
+    for (const char* key : {"index", "name", "unit", "value", "sd", "estimated"}) EXPECT_TRUE(p.contains(key)) << key;
+    estimated += p["estimated"].get<bool>();
+  }
+  EXPECT_EQ(estimated, 5);  // theta4, theta6, theta16 and the two offsets
+  ASSERT_EQ(j["experiments"].size(), 3u);
+  for (const char* key : {"mean", "sd", "rms", "noise_ratio"}) EXPECT_TRUE(j["experiments"][0]["force"].contains(key));
+  for (const auto& c : j["channels"])
+    for (const char* key : {"name", "variance", "noise_floor_variance", "rms"}) EXPECT_TRUE(c.contains(key)) << key;
+  const auto bad = test::RunStrut("identify " + dir.file("s.h5") + " --model 2dof --estimate theta99 --no-progress");
+  EXPECT_NE(bad.exit_code, 0);
+  EXPECT_NE(bad.output.find("theta99"), std::string::npos) << bad.output;
+}
+
+}  // namespace
+}  // namespace strut::ident

@@ -41,14 +41,31 @@ Eigen::MatrixXd CyclicBlockBanded::ToDense() const {
   return a;
 }
 
+// LU of the equilibrated matrix R A C (rows, then columns, scaled to max 1): the pivot ratio is
+// then a singularity test that does not depend on the units of equations and unknowns (N, Pa, W
+// rows; m, Pa, K columns).
+static bool EquilibratedLu(const Eigen::MatrixXd& a, EquilibratedFactors& f, double& pivot_ratio) {
+  if (!a.allFinite()) return false;
+  f.row_scale = a.rowwise().lpNorm<Eigen::Infinity>();
+  if ((f.row_scale.array() == 0.0).any()) return false;  // a zero row: singular
+  f.row_scale = f.row_scale.cwiseInverse();
+  const Eigen::MatrixXd ra = f.row_scale.asDiagonal() * a;
+  f.column_scale = ra.colwise().lpNorm<Eigen::Infinity>().transpose();
+  if ((f.column_scale.array() == 0.0).any()) return false;  // a zero column: singular
+  f.column_scale = f.column_scale.cwiseInverse();
+  f.lu.compute(ra * f.column_scale.asDiagonal());
+  const auto pivots = f.lu.matrixLU().diagonal().cwiseAbs();
+  pivot_ratio = pivots.maxCoeff() > 0 ? pivots.minCoeff() / pivots.maxCoeff() : 0.0;
+  return f.lu.matrixLU().allFinite() && pivot_ratio > 1e-13;
+}
+
+Eigen::MatrixXd EquilibratedFactors::Solve(const Eigen::MatrixXd& b) const {
+  return column_scale.asDiagonal() * lu.solve(row_scale.asDiagonal() * b);
+}
+
 bool CyclicBandedLU::FactorizeDense(const CyclicBlockBanded& a) {
   dense_ = true;
-  dense_lu_.compute(a.ToDense());
-  const Eigen::MatrixXd& lu = dense_lu_.matrixLU();
-  const double max_pivot = lu.diagonal().cwiseAbs().maxCoeff();
-  const double min_pivot = lu.diagonal().cwiseAbs().minCoeff();
-  border_rcond_ = max_pivot > 0 ? min_pivot / max_pivot : 0.0;
-  ok_ = lu.allFinite() && border_rcond_ > 1e-15;
+  ok_ = EquilibratedLu(a.ToDense(), dense_lu_, border_rcond_);
   return ok_;
 }
 
@@ -98,9 +115,55 @@ bool CyclicBandedLU::Factorize(const CyclicBlockBanded& a) {
   upper_ = a.kmax();
   border_ = std::max({lower_, upper_, 1});
   ok_ = false;
+  dense_ = folded_ = false;
   if (n_ < 2 * border_ + 2) return FactorizeDense(a);
-  dense_ = false;
+  // Backward schemes: block forward substitution plus a small border system. Central schemes:
+  // the open (non-periodic) interior has parasitic growing modes that wreck the border system, so
+  // they (and any border failure) go to the folded banded LU, stable by partial pivoting.
+  if (upper_ > 0 || !FactorizeBorder(a)) return FactorizeFolded(a);
+  return true;
+}
 
+bool CyclicBandedLU::FactorizeFolded(const CyclicBlockBanded& a) {
+  // Order the points 0, n-1, 1, n-2, ...: every cyclic coupling is then a short one.
+  folded_ = true;
+  position_.resize(n_);
+  for (int mu = 0; mu < n_; ++mu) position_[mu] = mu < (n_ + 1) / 2 ? 2 * mu : 2 * (n_ - 1 - mu) + 1;
+  int reach = 0;
+  for (int mu = 0; mu < n_; ++mu)
+    for (int k = a.kmin(); k <= a.kmax(); ++k)
+      reach = std::max(reach, std::abs(position_[mu] - position_[((mu + k) % n_ + n_) % n_]));
+  const int rows = n_ * m_;
+  kl_ = ku_ = (reach + 1) * m_ - 1;
+  const int ldab = 2 * kl_ + ku_ + 1;
+  band_.assign(static_cast<std::size_t>(ldab) * rows, 0.0);
+  pivots_.resize(rows);
+  for (int mu = 0; mu < n_; ++mu)
+    for (int k = a.kmin(); k <= a.kmax(); ++k) {
+      const int nu = ((mu + k) % n_ + n_) % n_;
+      const auto blk = a.block(mu, k);
+      for (int c = 0; c < m_; ++c)
+        for (int r = 0; r < m_; ++r) {
+          const int i = position_[mu] * m_ + r, j = position_[nu] * m_ + c;
+          band_[static_cast<std::size_t>(kl_ + ku_ + i - j) + static_cast<std::size_t>(j) * ldab] += blk(r, c);
+        }
+    }
+  int info = 0;
+  dgbtrf_(&rows, &rows, &kl_, &ku_, band_.data(), &ldab, pivots_.data(), &info);
+  if (info != 0) return false;
+  // Singularity hint: smallest over largest |U| diagonal (U's diagonal is row kl + ku of the band).
+  double smallest = INFINITY, largest = 0.0;
+  for (int j = 0; j < rows; ++j) {
+    const double d = std::abs(band_[static_cast<std::size_t>(kl_ + ku_) + static_cast<std::size_t>(j) * ldab]);
+    smallest = std::min(smallest, d);
+    largest = std::max(largest, d);
+  }
+  border_rcond_ = largest > 0 ? smallest / largest : 0.0;
+  ok_ = std::isfinite(largest) && smallest > 0.0;
+  return ok_;
+}
+
+bool CyclicBandedLU::FactorizeBorder(const CyclicBlockBanded& a) {
   const int ni = n_ - border_;  // interior points
   interior_rows_ = ni * m_;
   const int nb = border_ * m_;
@@ -136,24 +199,18 @@ bool CyclicBandedLU::Factorize(const CyclicBlockBanded& a) {
   interior_border_.resize(interior_rows_, static_cast<int>(border_columns_.size()));
   for (std::size_t c = 0; c < border_columns_.size(); ++c) interior_border_.col(c) = interior_border.col(border_columns_[c]);
 
-  if (!FactorizeInterior(a)) return FactorizeDense(a);  // interior singular although the whole may not be
+  if (!FactorizeInterior(a)) return false;  // interior singular although the whole may not be
   SolveInterior(interior_border_);                    // now A_II^-1 A_IB
   const Eigen::MatrixXd coupling = BorderTimes(interior_border_);
   Eigen::MatrixXd schur = border_border;
   for (std::size_t c = 0; c < border_columns_.size(); ++c) schur.col(border_columns_[c]) -= coupling.col(c);
-  schur_.compute(schur);
-  const Eigen::MatrixXd& lu = schur_.matrixLU();
-  const double max_pivot = lu.diagonal().cwiseAbs().maxCoeff();
-  const double min_pivot = lu.diagonal().cwiseAbs().minCoeff();
-  border_rcond_ = max_pivot > 0 ? min_pivot / max_pivot : 0.0;
-  ok_ = schur.allFinite() && interior_border_.allFinite() && border_rcond_ > 1e-15;
+  ok_ = interior_border_.allFinite() && EquilibratedLu(schur, schur_, border_rcond_);
   return ok_;
 }
 
 bool CyclicBandedLU::FactorizeInterior(const CyclicBlockBanded& a) {
   const int ni = n_ - border_;
-  lower_triangular_ = upper_ == 0;
-  if (lower_triangular_) {
+  if (upper_ == 0) {
     const std::size_t mm = static_cast<std::size_t>(m_) * m_;
     band_.resize(ni * mm);
     sub_.resize(ni * lower_ * mm);
@@ -169,30 +226,12 @@ bool CyclicBandedLU::FactorizeInterior(const CyclicBlockBanded& a) {
     }
     return true;
   }
-  kl_ = lower_ * m_ + m_ - 1;
-  ku_ = upper_ * m_ + m_ - 1;
-  const int ldab = 2 * kl_ + ku_ + 1;
-  band_.assign(static_cast<std::size_t>(ldab) * interior_rows_, 0.0);
-  pivots_.resize(interior_rows_);
-  for (int mu = 0; mu < ni; ++mu)
-    for (int k = a.kmin(); k <= a.kmax(); ++k) {
-      const int nu = mu + k;
-      if (nu < 0 || nu >= ni) continue;
-      const auto blk = a.block(mu, k);
-      for (int c = 0; c < m_; ++c)
-        for (int r = 0; r < m_; ++r) {
-          const int i = mu * m_ + r, j = nu * m_ + c;
-          band_[static_cast<std::size_t>(kl_ + ku_ + i - j) + static_cast<std::size_t>(j) * ldab] += blk(r, c);
-        }
-    }
-  int info = 0;
-  dgbtrf_(&interior_rows_, &interior_rows_, &kl_, &ku_, band_.data(), &ldab, pivots_.data(), &info);
-  return info == 0;
+  return false;
 }
 
 void CyclicBandedLU::SolveInterior(Eigen::Ref<Eigen::MatrixXd> b) const {
   const int cols = static_cast<int>(b.cols());
-  if (lower_triangular_) {
+  {
     // Block forward substitution: y_mu = D_mu^-1 (b_mu - sum_k A(mu, k) y_{mu+k}).
     const int ni = n_ - border_;
     const std::size_t mm = static_cast<std::size_t>(m_) * m_;
@@ -216,11 +255,6 @@ void CyclicBandedLU::SolveInterior(Eigen::Ref<Eigen::MatrixXd> b) const {
     }
     return;
   }
-  const int ldab = 2 * kl_ + ku_ + 1;
-  const int ldb = static_cast<int>(b.outerStride());
-  int info = 0;
-  const char trans = 'N';
-  dgbtrs_(&trans, &interior_rows_, &kl_, &ku_, &cols, band_.data(), &ldab, pivots_.data(), b.data(), &ldb, &info, 1);
 }
 
 Eigen::MatrixXd CyclicBandedLU::BorderTimes(const Eigen::MatrixXd& x) const {
@@ -238,13 +272,23 @@ Eigen::MatrixXd CyclicBandedLU::BorderTimes(const Eigen::MatrixXd& x) const {
 void CyclicBandedLU::Solve(Eigen::Ref<Eigen::MatrixXd> b) const {
   assert(ok_);
   if (dense_) {
-    b = dense_lu_.solve(b);
+    b = dense_lu_.Solve(b);  // evaluated into a temporary first: no aliasing
+    return;
+  }
+  if (folded_) {
+    const int rows = n_ * m_, cols = static_cast<int>(b.cols()), ldab = 2 * kl_ + ku_ + 1;
+    Eigen::MatrixXd y(rows, cols);
+    for (int mu = 0; mu < n_; ++mu) y.middleRows(position_[mu] * m_, m_) = b.middleRows(mu * m_, m_);
+    int info = 0;
+    const char trans = 'N';
+    dgbtrs_(&trans, &rows, &kl_, &ku_, &cols, band_.data(), &ldab, pivots_.data(), y.data(), &rows, &info, 1);
+    for (int mu = 0; mu < n_; ++mu) b.middleRows(mu * m_, m_) = y.middleRows(position_[mu] * m_, m_);
     return;
   }
   const int nb = border_ * m_;
   Eigen::MatrixXd w = b.topRows(interior_rows_);
   SolveInterior(w);
-  const Eigen::MatrixXd yb = schur_.solve(b.bottomRows(nb) - BorderTimes(w));
+  const Eigen::MatrixXd yb = schur_.Solve(b.bottomRows(nb) - BorderTimes(w));
   for (std::size_t c = 0; c < border_columns_.size(); ++c)
     w.noalias() -= interior_border_.col(c) * yb.row(border_columns_[c]);
   b.topRows(interior_rows_) = w;

@@ -1,10 +1,13 @@
 // Linear systems with a cyclic block-banded matrix: the Newton Jacobian of a periodic time
 // discretisation. Block row mu couples to block columns mu + k (mod n) for k in [kmin, kmax].
-// Factorised in O(n) work and memory: the interior (no wrap-around) is a plain banded matrix;
-// the wrap-around corners are handled by a small dense Schur complement on the last
-// max(-kmin, kmax) block points. A block lower-triangular interior (backward schemes, kmax = 0)
-// is solved by block forward substitution with LU-factorised diagonal blocks; any other band by
-// LAPACK dgbtrf with partial pivoting.
+// Factorised in O(n) work and memory, two ways:
+// - block lower-triangular bands (backward schemes, kmax = 0): block forward substitution with
+//   LU-factorised diagonal blocks on the interior, and a small dense Schur complement on the last
+//   -kmin block points for the wrap-around corners (only the columns that do wrap);
+// - any other band (central schemes), or when the border system fails: the points are reordered
+//   0, n-1, 1, n-2, ... so that the cyclic matrix becomes banded with about twice the bandwidth,
+//   and LAPACK dgbtrf factorises it with partial pivoting. (A Schur border on central schemes is
+//   unstable: the open interior operator has parasitic growing modes.)
 #pragma once
 
 #include <Eigen/Dense>
@@ -46,6 +49,13 @@ class CyclicBlockBanded {
   std::vector<double> blocks_;
 };
 
+//! Partial-pivoting LU of a small dense matrix after row and column equilibration.
+struct EquilibratedFactors {
+  Eigen::PartialPivLU<Eigen::MatrixXd> lu;
+  Eigen::VectorXd row_scale, column_scale;
+  Eigen::MatrixXd Solve(const Eigen::MatrixXd& b) const;
+};
+
 //! LU factorisation of a CyclicBlockBanded matrix. Work and memory O(n m (kmax - kmin) ^ 2 m^2).
 class CyclicBandedLU {
  public:
@@ -54,11 +64,13 @@ class CyclicBandedLU {
   bool ok() const { return ok_; }
   //! Solves A X = B in place (B: rows() x any number of columns).
   void Solve(Eigen::Ref<Eigen::MatrixXd> b) const;
-  //! Reciprocal condition estimate of the border Schur complement (cheap singularity hint).
+  //! Smallest over largest pivot of the equilibrated border (or dense) LU: a singularity hint.
   double border_rcond() const { return border_rcond_; }
 
  private:
   bool FactorizeDense(const CyclicBlockBanded& a);
+  bool FactorizeFolded(const CyclicBlockBanded& a);
+  bool FactorizeBorder(const CyclicBlockBanded& a);
   bool FactorizeInterior(const CyclicBlockBanded& a);
   void SolveInterior(Eigen::Ref<Eigen::MatrixXd> b) const;
   //! border_interior_ * x, using only its nonzero column ranges.
@@ -67,15 +79,16 @@ class CyclicBandedLU {
   int n_ = 0, m_ = 0, border_ = 0, interior_rows_ = 0, kl_ = 0, ku_ = 0, lower_ = 0, upper_ = 0;
   bool ok_ = false;
   bool dense_ = false;
-  bool lower_triangular_ = false;
-  std::vector<double> band_;   // LAPACK band storage of the interior block, or the LU of its diagonal blocks
-  std::vector<double> sub_;    // lower_triangular_: the blocks below the diagonal, row point major
+  bool folded_ = false;
+  std::vector<double> band_;   // folded: LAPACK band LU of the whole; border: LU of the interior diagonal blocks
+  std::vector<double> sub_;    // border: the interior blocks below the diagonal, row point major
+  std::vector<int> position_;  // folded: row position of each point
   std::vector<int> pivots_;
   Eigen::MatrixXd interior_border_;  // A_II^-1 A_IB, only the columns in border_columns_
   std::vector<int> border_columns_;  // border unknowns that interior rows couple to (others: zero columns)
   Eigen::MatrixXd border_interior_;  // A_BI
-  Eigen::PartialPivLU<Eigen::MatrixXd> schur_;
-  Eigen::PartialPivLU<Eigen::MatrixXd> dense_lu_;
+  EquilibratedFactors schur_;     // of the border Schur complement
+  EquilibratedFactors dense_lu_;  // of the whole matrix (small n, spectral)
   double border_rcond_ = 1.0;
 };
 

@@ -8,6 +8,7 @@ packages=(
   libmodbus-dev libgtest-dev libgmock-dev libsundials-dev liblapack-dev
   nlohmann-json3-dev libtomlplusplus-dev libmatio-dev
   python3-h5py python3-numpy
+  python3-plotly esbuild chromium
 )
 missing=()
 for p in "${packages[@]}"; do

@@ -401,6 +401,11 @@ PeriodicSolution PeriodicSolver::Solve(const PeriodicInput& input, std::span<con
         Eigen::MatrixXd correction = -g_trial;
         lu_.Solve(Eigen::Map<Eigen::VectorXd>(correction.data(), correction.size()));
         descent = scaled_norm(correction) <= (1.0 - 0.25 * lambda) * step_norm;
+        // After a full step the simplified correction is the size of the next Newton step: when it
+        // is below the tolerance already, that step need not be taken.
+        if (descent && lambda == 1.0 &&
+            (correction.array().abs().colwise() / step_scale.array()).maxCoeff() <= 1.0)
+          converged = true;
       }
       if (descent) {
         z = std::move(trial);

@@ -17,7 +17,10 @@ struct Case {
 
 std::vector<Case> AllCases() {
   std::vector<Case> cases;
-  for (const char* c : {"1dof", "2dof", "1dof+heat-exchange"})
+  for (const char* c : {"1dof", "2dof", "1dof+heat-exchange", "2dof+end-stop+viscous-damping",
+                        "1dof+end-stop+viscous-damping+stribeck-friction", "1dof+oil-compressibility+real-gas",
+                        "2dof+stribeck-friction+oil-compressibility+real-gas",
+                        "2dof+viscous-damping+stribeck-friction+end-stop+oil-compressibility+real-gas"})
     for (Causality k : {Causality::kForceInput, Causality::kStrokeInput}) cases.push_back({c, k});
   return cases;
 }

@@ -266,6 +266,188 @@ class GasSolubility final : public Term {
   int solubility_ = -1, scale_ = -1, pressure_ = -1;
 };
 
+// ---------------------------------------------------------------------------------------------
+// Extra physics for the simulated rig (damper-physics.md §2; docs/simulated-rig.md). Each term is
+// smooth in every unknown so that Newton and IDA see a well-behaved Jacobian.
+
+//! log(1 + e^x) without overflow; smooth max(0, x).
+template <class S>
+S Softplus(const S& x) {
+  using std::exp;
+  using std::log;
+  if (Value(x) > 0.0) return S(x + log(1.0 + exp(S(-x))));
+  return S(log(1.0 + exp(x)));
+}
+
+//! theta18 q': linear (viscous) damping of the seals and laminar flow.
+class ViscousDamping final : public Term {
+ public:
+  std::string_view name() const override { return "viscous-damping"; }
+  void Declare(ModelBuilder& b) override {
+    b.add_parameter({18, "viscous_damping", "N s/m", 300.0, "linear (viscous) damping of seals and laminar flow"});
+  }
+  void Bind(const ModelBuilder& b) override { damping_ = b.parameter_position(18); }
+  template <class S>
+  void Eval(TermContext<S>& c) const {
+    if (c.phase == TermContext<S>::Phase::kBalance) c.force += c.theta[damping_] * c.v->stroke_rate;
+  }
+  STRUT_TERM_EVALUATE
+
+ private:
+  int damping_ = -1;
+};
+
+//! theta19 (theta8 + theta9 p) atan(theta10 q') exp(-(q'/theta20)^2): the Stribeck rise of the
+//! seal friction at low speed. With the Coulomb level F_C = (theta8 + theta9 p) pi/2 of
+//! pressure-friction the friction reads F_C sgn(q') [1 + theta19 exp(-(q'/theta20)^2)]
+//! (sgn smoothed by atan), i.e. theta19 = F_S / F_C - 1 (damper-physics.md §2.8).
+class StribeckFriction final : public Term {
+ public:
+  std::string_view name() const override { return "stribeck-friction"; }
+  void Declare(ModelBuilder& b) override {
+    b.add_parameter({19, "stribeck_excess", "-", 0.25, "static over kinetic friction minus one, F_S / F_C - 1"});
+    b.add_parameter({20, "stribeck_velocity", "m/s", 3.0e-3, "Stribeck velocity: width of the static-friction rise"});
+  }
+  void Bind(const ModelBuilder& b) override {
+    if (!b.has_term("pressure-friction"))
+      throw ModelError("stribeck-friction scales the friction of pressure-friction, which the model lacks");
+    excess_ = b.parameter_position(19);
+    velocity_ = b.parameter_position(20);
+    base_ = b.parameter_position(8);
+    per_pressure_ = b.parameter_position(9);
+    sharpness_ = b.parameter_position(10);
+    pressure_ = b.state_position("pressure", name());
+  }
+  template <class S>
+  void Eval(TermContext<S>& c) const {
+    using std::exp;
+    if (c.phase != TermContext<S>::Phase::kBalance) return;
+    const S& v = c.v->stroke_rate;
+    const S ratio = v / c.theta[velocity_];
+    const S amplitude = c.theta[base_] + c.theta[per_pressure_] * c.v->states[pressure_];
+    c.force += c.theta[excess_] * amplitude * Atan(S(c.theta[sharpness_] * v)) * S(exp(S(-ratio * ratio)));
+  }
+  STRUT_TERM_EVALUATE
+
+ private:
+  int excess_ = -1, velocity_ = -1, base_ = -1, per_pressure_ = -1, sharpness_ = -1, pressure_ = -1;
+};
+
+//! Top-out end stop near full extension (Hunt-Crossley contact, smoothed): penetration
+//! d = theta24 softplus((theta23 - q) / theta24), contact force k d + c d (-q') pushing towards
+//! compression, so the balance gets -(theta21 d - theta22 d q'). Zero (below 1e-4 N) from about
+//! 10 theta24 inside the stop position on (damper-physics.md §2.9).
+class EndStop final : public Term {
+ public:
+  std::string_view name() const override { return "end-stop"; }
+  void Declare(ModelBuilder& b) override {
+    b.add_parameter({21, "end_stop_stiffness", "N/m", 5.0e6, "top-out stop contact stiffness (elastomer snubber)"});
+    b.add_parameter({22, "end_stop_damping", "N s/m^2", 1.0e7, "top-out stop Hunt-Crossley damping per penetration"});
+    b.add_parameter({23, "end_stop_position", "m", 0.0, "stroke below which the top-out stop is in contact"});
+    b.add_parameter({24, "end_stop_smoothing", "m", 2.0e-4, "length over which the contact onset is smoothed"});
+  }
+  void Bind(const ModelBuilder& b) override {
+    stiffness_ = b.parameter_position(21);
+    damping_ = b.parameter_position(22);
+    position_ = b.parameter_position(23);
+    smoothing_ = b.parameter_position(24);
+  }
+  template <class S>
+  void Eval(TermContext<S>& c) const {
+    if (c.phase != TermContext<S>::Phase::kBalance) return;
+    const S& w = c.theta[smoothing_];
+    const S penetration = w * Softplus(S((c.theta[position_] - c.v->stroke) / w));
+    c.force -= penetration * (c.theta[stiffness_] - c.theta[damping_] * c.v->stroke_rate);
+  }
+  STRUT_TERM_EVALUATE
+
+ private:
+  int stiffness_ = -1, damping_ = -1, position_ = -1, smoothing_ = -1;
+};
+
+//! Oil and cylinder compliance: the oil shrinks and the cylinder swells with pressure, giving the
+//! gas more room: V_g / V0 += theta25 (p - theta27) / theta26, with theta25 = V_oil / V0 and
+//! theta26 the effective bulk modulus of oil and cylinder, 1/K_eff = 1/K_oil + D/(E t)
+//! (damper-physics.md §2.3). Softens the gas spring at deep compression.
+class OilCompressibility final : public Term {
+ public:
+  std::string_view name() const override { return "oil-compressibility"; }
+  void Declare(ModelBuilder& b) override {
+    b.add_parameter({25, "oil_volume_ratio", "-", 1.0, "oil volume over the gas volume at full extension, V_oil / V0"});
+    b.add_parameter({26, "oil_bulk_modulus", "Pa", 1.2e9, "effective bulk modulus of oil and cylinder, K_eff"});
+    b.add_parameter({27, "compliance_reference_pressure", "Pa", 7.0e5,
+                     "pressure at which the compliance adds no volume (the charge pressure)"});
+  }
+  void Bind(const ModelBuilder& b) override {
+    ratio_ = b.parameter_position(25);
+    modulus_ = b.parameter_position(26);
+    reference_ = b.parameter_position(27);
+    pressure_ = b.state_position("pressure", name());
+  }
+  template <class S>
+  void Eval(TermContext<S>& c) const {
+    if (c.phase == TermContext<S>::Phase::kGasState)
+      c.gas_volume += c.theta[ratio_] * (c.v->states[pressure_] - c.theta[reference_]) / c.theta[modulus_];
+  }
+  STRUT_TERM_EVALUATE
+
+ private:
+  int ratio_ = -1, modulus_ = -1, reference_ = -1, pressure_ = -1;
+};
+
+//! Real-gas nitrogen: the ideal-gas pressure times the compressibility factor
+//! Z = 1 + B(T) rho + theta30 rho^2, B(T) = theta28 - theta29 / T (a two-constant fit of the N2
+//! second virial coefficient, damper-physics.md §2.10), rho the molar density of the free gas:
+//! theta5 N / (R V) in 2 dof (theta5 = n R / V0), theta5 N / (R T_amb V) in 1 dof (theta5 the
+//! charge pressure; the 1 dof model has no gas temperature, B is taken at ambient). It multiplies
+//! the free gas amount by Z (by Z^(1/theta7) under the polytropic law), so every gas law gets p Z.
+class RealGas final : public Term {
+ public:
+  std::string_view name() const override { return "real-gas"; }
+  void Declare(ModelBuilder& b) override {
+    b.add_parameter({28, "virial_b0", "m^3/mol", 4.88e-5, "N2 second virial coefficient B(T) = b0 - a / T: b0"});
+    b.add_parameter({29, "virial_a", "m^3 K/mol", 1.59e-2, "N2 second virial coefficient B(T) = b0 - a / T: a"});
+    b.add_parameter({30, "virial_c", "m^6/mol^2", 1.4e-9, "N2 third virial coefficient C"});
+  }
+  void Bind(const ModelBuilder& b) override {
+    b0_ = b.parameter_position(28);
+    a_ = b.parameter_position(29);
+    c_ = b.parameter_position(30);
+    scale_ = b.parameter_position(5);
+    thermal_ = b.has_term("heat-exchange");
+    exponent_ = thermal_ ? -1 : b.parameter_position(7);
+    temperature_ = thermal_ ? b.state_position("temperature", name()) : -1;
+    if (!thermal_ && !b.has_term("polytropic-gas"))
+      throw ModelError("real-gas needs a gas law (polytropic-gas or heat-exchange)");
+  }
+  template <class S>
+  void Eval(TermContext<S>& c) const {
+    using std::exp;
+    using std::log;
+    if (c.phase != TermContext<S>::Phase::kGasState) return;
+    constexpr double kGasConstant = 8.314462618;  // J/(mol K)
+    S rho, b;
+    if (thermal_) {
+      const S& T = c.v->states[temperature_];
+      rho = c.theta[scale_] * c.gas_amount / (kGasConstant * c.gas_volume);
+      b = c.theta[b0_] - c.theta[a_] / T;
+    } else {
+      rho = c.theta[scale_] * c.gas_amount / (kGasConstant * kAmbientK * c.gas_volume);
+      b = c.theta[b0_] - c.theta[a_] / kAmbientK;
+    }
+    const S z = 1.0 + b * rho + c.theta[c_] * rho * rho;
+    if (thermal_)
+      c.gas_amount *= z;
+    else
+      c.gas_amount *= S(exp(S(log(z) / c.theta[exponent_])));
+  }
+  STRUT_TERM_EVALUATE
+
+ private:
+  int b0_ = -1, a_ = -1, c_ = -1, scale_ = -1, exponent_ = -1, temperature_ = -1;
+  bool thermal_ = false;
+};
+
 template <class T>
 std::shared_ptr<Term> Make() {
   return std::make_shared<T>();
@@ -285,6 +467,11 @@ const std::vector<TermEntry>& Catalogue() {
       {"polytropic-gas", &Make<PolytropicGas>, "", "polytropic gas law theta5 / (1 + theta6 q)^theta7"},
       {"heat-exchange", &Make<HeatExchange>, "polytropic-gas", "ideal gas with wall heat exchange (2 dof)"},
       {"gas-solubility", &Make<GasSolubility>, "", "linear gas solubility theta7 (2 dof)"},
+      {"viscous-damping", &Make<ViscousDamping>, "", "linear seal damping theta18 q'"},
+      {"stribeck-friction", &Make<StribeckFriction>, "", "static friction above kinetic, theta19, theta20"},
+      {"end-stop", &Make<EndStop>, "", "top-out contact near full extension, theta21..theta24"},
+      {"oil-compressibility", &Make<OilCompressibility>, "", "oil and cylinder compliance theta25..theta27"},
+      {"real-gas", &Make<RealGas>, "", "virial nitrogen Z(rho, T), theta28..theta30"},
   };
   return entries;
 }

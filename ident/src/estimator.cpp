@@ -20,7 +20,7 @@ std::vector<std::string> DefaultChannels(const Model& model) {
 // Everything one iterate of the fit needs per experiment.
 struct ExperimentState {
   const ExperimentData* data = nullptr;
-  PeriodicSolver solver;
+  std::unique_ptr<PeriodicPredictor> solver;
   PeriodicSolution solution;
   bool active = true;
   std::vector<bool> channel_fitted;  // per fitted channel: false when the channel has a data defect
@@ -142,7 +142,13 @@ FitSummary Estimator::Fit(const std::vector<ExperimentData>& data, const Paramet
   std::vector<ExperimentState> states;
   states.reserve(data.size());
   for (const ExperimentData& d : data) {
-    ExperimentState s{&d, PeriodicSolver(model_, solver_options), {}, true, std::vector<bool>(nc, true), {}};
+    ExperimentState s{&d,
+                      options_.predictor ? options_.predictor(model_)
+                                         : std::make_unique<PeriodicSolver>(model_, solver_options),
+                      {},
+                      true,
+                      std::vector<bool>(nc, true),
+                      {}};
     if (static_cast<int>(d.input.values.size()) != n)
       throw std::invalid_argument(fmt::format("estimator: experiment '{}' has {} grid points, the fit uses n = {}",
                                               d.label, d.input.values.size(), n));
@@ -176,7 +182,7 @@ FitSummary Estimator::Fit(const std::vector<ExperimentData>& data, const Paramet
       if (!s.active) continue;
       if (progress) progress({iteration, static_cast<int>(a) + 1, static_cast<int>(states.size()), NAN});
       try {
-        PeriodicSolution next = s.solver.Solve(s.data->input, values, s.solution.n == n ? &s.solution : nullptr);
+        PeriodicSolution next = s.solver->Solve(s.data->input, values, s.solution.n == n ? &s.solution : nullptr);
         s.solution = std::move(next);
       } catch (const PeriodicSolverError& e) {
         if (!allow_drop) return false;
@@ -243,7 +249,7 @@ FitSummary Estimator::Fit(const std::vector<ExperimentData>& data, const Paramet
     g.setZero(l);
     for (ExperimentState& s : states) {
       if (!s.active) continue;
-      const auto sens = s.solver.OutputSensitivities(s.solution, theta);
+      const auto sens = s.solver->OutputSensitivities(s.solution, theta);
       for (int b = 0; b < nc; ++b) {
         if (!s.channel_fitted[b]) continue;
         Eigen::MatrixXd j(s.j0.size(), l);
@@ -322,7 +328,7 @@ FitSummary Estimator::Fit(const std::vector<ExperimentData>& data, const Paramet
     for (ExperimentState& s : states) {
       if (s.active || !s.dropped_at_start) continue;
       try {
-        s.solution = s.solver.Solve(s.data->input, theta);
+        s.solution = s.solver->Solve(s.data->input, theta);
         s.active = true;
         s.error.clear();
         readmitted = true;

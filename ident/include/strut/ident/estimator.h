@@ -4,6 +4,7 @@
 
 #include <Eigen/Dense>
 #include <functional>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -38,6 +39,9 @@ struct EstimatorOptions {
   //! Output channels to fit; empty: the outputs of the causality (stroke and pressure for force
   //! input, force and pressure for stroke input).
   std::vector<std::string> channels;
+  //! How outputs and sensitivities are predicted; empty: the periodic solver with `scheme`.
+  //! (`strut bench identify` plugs in transient integration to compare.)
+  std::function<std::unique_ptr<PeriodicPredictor>(const Model&)> predictor;
   bool IsValid(std::string* error) const;
 };
 

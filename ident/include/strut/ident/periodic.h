@@ -93,8 +93,21 @@ struct PeriodicSolution {
   Eigen::VectorXd channel(std::string_view name) const;
 };
 
+//! What the estimator needs from a way of predicting periodic outputs: the periodic solver, or
+//! (for comparison) transient integration to steady state. Failures throw PeriodicSolverError.
+class PeriodicPredictor {
+ public:
+  virtual ~PeriodicPredictor() = default;
+  //! Periodic outputs for the input on its grid; `warm_start` (same n) may speed it up.
+  virtual PeriodicSolution Solve(const PeriodicInput& input, std::span<const double> theta,
+                                 const PeriodicSolution* warm_start = nullptr) = 0;
+  //! d outputs / d theta at a solution: one (n x parameters) matrix per output channel.
+  virtual std::vector<Eigen::MatrixXd> OutputSensitivities(const PeriodicSolution& solution,
+                                                           std::span<const double> theta) = 0;
+};
+
 //! Solves periodic equilibria of one model; keeps the last factorisation for sensitivities.
-class PeriodicSolver {
+class PeriodicSolver : public PeriodicPredictor {
  public:
   PeriodicSolver(Model model, PeriodicSolverOptions options = {});
 
@@ -104,11 +117,12 @@ class PeriodicSolver {
   //! Periodic solution for the input; from `warm_start` (same n) or from the quasi-static guess.
   //! Throws PeriodicSolverError with the residual reached when Newton fails.
   PeriodicSolution Solve(const PeriodicInput& input, std::span<const double> theta,
-                         const PeriodicSolution* warm_start = nullptr);
+                         const PeriodicSolution* warm_start = nullptr) override;
 
   //! d outputs / d theta at a solution (eqs. 14, 15): one (n x parameters) matrix per channel. Reuses
   //! the last Newton factorisation when `solution` is the last one solved, else factorises anew.
-  std::vector<Eigen::MatrixXd> OutputSensitivities(const PeriodicSolution& solution, std::span<const double> theta);
+  std::vector<Eigen::MatrixXd> OutputSensitivities(const PeriodicSolution& solution,
+                                                   std::span<const double> theta) override;
 
   //! The scaled residual G(z) of the discretised equations (m x n), for tests.
   Eigen::MatrixXd Residual(const Eigen::MatrixXd& unknowns, const PeriodicInput& input,

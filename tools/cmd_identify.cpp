@@ -11,6 +11,7 @@
 #include "strut/daq/session.h"
 #include "strut/ident/estimator.h"
 #include "strut/ident/fit_report.h"
+#include "strut/ident/initial_values.h"
 
 namespace strut::tools {
 namespace {
@@ -51,6 +52,14 @@ struct IdentifyCommand {
     for (const auto& issue : issues)
       spdlog::warn("{}: experiment '{}', channel '{}': {}: {}", sessions.size() == 1 ? sessions[0] : "session",
                    issue.experiment, issue.channel, issue.kind, issue.detail);
+    if (model.params_file.empty()) {
+      // No parameter file: every starting value comes from the data (then --set wins).
+      std::vector<std::string> log;
+      initial = ident::InitialValuesFromData(m, data, &log);
+      spdlog::info("starting values from the data:");
+      for (const auto& line : log) spdlog::info("  {}", line);
+      if (!model.assignments.empty()) initial.apply_assignments(model.assignments);
+    }
     std::string estimated;
     for (int i = 0; i < initial.size(); ++i)
       if (choices[i].estimate) estimated += " " + initial.spec(i).key();

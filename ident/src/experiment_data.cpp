@@ -27,40 +27,57 @@ std::vector<long> RunsAt(const std::vector<double>& x, double value) {
   return runs;
 }
 
-// The measured input drives the model, a stroke even through its first and second derivatives,
-// and differentiating sample noise would swamp the friction and inertia terms. Keep only the
-// harmonics that stand clear of the noise (6 times the median amplitude of the upper half of the
-// spectrum, which holds noise only) and evaluate that Fourier series on the solver grid.
-PeriodicInput SmoothInput(const Eigen::VectorXd& period, double frequency, int n, int* kept) {
+}  // namespace
+
+PeriodicSeries PeriodicSeries::Fit(const Eigen::VectorXd& period, double frequency) {
   const int count = static_cast<int>(period.size());
   Eigen::FFT<double> fft;
   std::vector<std::complex<double>> spectrum;
-  const std::vector<double> samples(period.data(), period.data() + count);
-  fft.fwd(spectrum, samples);
-  const int harmonics = count / 2;
+  fft.fwd(spectrum, std::vector<double>(period.data(), period.data() + count));
+  const int harmonics = (count - 1) / 2;  // below Nyquist
   std::vector<double> upper;
-  for (int h = harmonics / 2 + 1; h < harmonics; ++h) upper.push_back(std::abs(spectrum[h]));
+  for (int h = harmonics / 2 + 1; h <= harmonics; ++h) upper.push_back(std::abs(spectrum[h]));
   double threshold = 0.0;
   if (upper.size() >= 8) {
     std::nth_element(upper.begin(), upper.begin() + upper.size() / 2, upper.end());
     threshold = 6.0 * upper[upper.size() / 2];
   }
+  PeriodicSeries series;
+  series.frequency = frequency;
+  series.coefficients.assign(harmonics + 1, 0.0);
+  series.coefficients[0] = spectrum[0] / static_cast<double>(count);
+  for (int h = 1; h <= harmonics; ++h) {
+    if (std::abs(spectrum[h]) <= threshold) continue;
+    series.coefficients[h] = spectrum[h] / static_cast<double>(count);
+    ++series.kept;
+  }
+  return series;
+}
+
+double PeriodicSeries::At(double tau, int derivative) const {
+  double value = derivative == 0 ? coefficients[0].real() : 0.0;
+  for (std::size_t h = 1; h < coefficients.size(); ++h) {
+    if (coefficients[h] == 0.0) continue;
+    const double w = 2.0 * std::numbers::pi * frequency * h;
+    const std::complex<double> factor = std::pow(std::complex<double>(0.0, w), derivative);
+    value += 2.0 * (coefficients[h] * factor * std::polar(1.0, 2.0 * std::numbers::pi * h * tau)).real();
+  }
+  return value;
+}
+
+PeriodicInput PeriodicSeries::OnGrid(int n) const {
   // Zero-padded (or truncated) spectrum of length n: the series evaluated on the solver grid.
   std::vector<std::complex<double>> grid(n, 0.0);
-  grid[0] = spectrum[0] * (static_cast<double>(n) / count);
-  *kept = 0;
-  for (int h = 1; h < std::min(harmonics, (n - 1) / 2 + 1); ++h) {
-    if (std::abs(spectrum[h]) <= threshold) continue;
-    ++*kept;
-    grid[h] = spectrum[h] * (static_cast<double>(n) / count);
+  grid[0] = coefficients[0] * static_cast<double>(n);
+  for (int h = 1; h < std::min<int>(coefficients.size(), (n - 1) / 2 + 1); ++h) {
+    grid[h] = coefficients[h] * static_cast<double>(n);
     grid[n - h] = std::conj(grid[h]);
   }
+  Eigen::FFT<double> fft;
   std::vector<double> values;
   fft.inv(values, grid);
   return PeriodicInput{frequency, values};
 }
-
-}  // namespace
 
 std::vector<DataIssue> InspectChannel(const daq::Experiment& e, const daq::Channel& channel) {
   std::vector<DataIssue> issues;
@@ -189,9 +206,9 @@ std::vector<ExperimentData> PrepareExperiments(const daq::Session& session, Caus
         g.mean_noise_variance = g.noise_variance / e.periods;
       }
       if (c.name == input_channel) {
-        int kept = 0;
-        d.input = SmoothInput(g.mean, e.frequency, n, &kept);
-        spdlog::debug("{}: experiment '{}': {} input from {} harmonics", file, e.label, input_channel, kept);
+        const PeriodicSeries series = PeriodicSeries::Fit(g.mean, e.frequency);
+        d.input = series.OnGrid(n);
+        spdlog::debug("{}: experiment '{}': {} input from {} harmonics", file, e.label, input_channel, series.kept);
       }
       d.channels[c.name] = std::move(g);
     }

@@ -2,6 +2,7 @@
 #pragma once
 
 #include <Eigen/Dense>
+#include <complex>
 #include <map>
 #include <string>
 #include <vector>
@@ -11,6 +12,23 @@
 #include "strut/ident/periodic.h"
 
 namespace strut::ident {
+
+//! A periodic signal as the Fourier series of the harmonics that stand clear of the noise: 6 times
+//! the median amplitude of the upper half of the spectrum (which holds only noise). Measured
+//! inputs drive the model through their derivatives, and differentiating sample noise would swamp
+//! friction and inertia; the series has exact derivatives.
+struct PeriodicSeries {
+  double frequency = 0.0;                          //!< Hz
+  std::vector<std::complex<double>> coefficients;  //!< c_h, h = 0..H (zero for dropped harmonics)
+  int kept = 0;                                    //!< harmonics kept above the noise
+
+  //! From one averaged period sampled at `count` equidistant phases starting at phase 0.
+  static PeriodicSeries Fit(const Eigen::VectorXd& period, double frequency);
+  //! The `derivative`-th time derivative (0, 1, 2) at cyclic phase tau in [0, 1).
+  double At(double tau, int derivative = 0) const;
+  //! Values on the n-point grid tau_mu = mu / n, as a solver input.
+  PeriodicInput OnGrid(int n) const;
+};
 
 //! One measured channel of one experiment, averaged over its periods.
 struct GridChannel {

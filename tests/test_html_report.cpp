@@ -29,25 +29,18 @@ using strut::ident::Series;
 using strut::test::TempDir;
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
-constexpr const char* kChromium = "/usr/bin/chromium";
 
 std::string Lower(std::string text) {
   std::transform(text.begin(), text.end(), text.begin(), [](unsigned char c) { return std::tolower(c); });
   return text;
 }
 
-std::size_t Count(const std::string& text, const std::string& needle) {
-  std::size_t count = 0;
-  for (auto at = text.find(needle); at != std::string::npos; at = text.find(needle, at + needle.size())) ++count;
-  return count;
-}
-
-std::string ReadFile(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::ostringstream out;
-  out << in.rdbuf();
-  return out.str();
-}
+using strut::test::ChromiumCommand;
+using strut::test::Count;
+using strut::test::kChromium;
+using strut::test::ReadFile;
+using strut::test::Shell;
+using strut::test::ShellResult;
 
 // The report the browser test opens: a line plot, a heat map and error bars.
 HtmlReport MakeFullReport() {
@@ -80,26 +73,6 @@ HtmlReport MakeFullReport() {
   report.AddTable({"parameter", "estimate", "sigma"}, {{"theta1", "2.5e6", "1.2e4"}, {"theta4", "0.31", "0.002"}},
                   "Estimates");
   return report;
-}
-
-struct ShellResult {
-  int exit_code = -1;
-  std::string out;  //!< stdout
-  std::string err;  //!< stderr
-};
-
-// Runs a shell command, its stdout and stderr captured in files named after `stem`.
-ShellResult Shell(const std::string& command, const std::string& stem) {
-  const int status = std::system((command + " >" + stem + ".out 2>" + stem + ".err").c_str());
-  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, ReadFile(stem + ".out"), ReadFile(stem + ".err")};
-}
-
-std::string ChromiumCommand(const std::string& profile_dir) {
-  return std::string("timeout 60 ") + kChromium +
-         " --headless --no-sandbox --disable-gpu --disable-quic --no-first-run --disable-background-networking"
-         " --disable-component-update --disable-sync --disable-dev-shm-usage --hide-scrollbars"
-         " --user-data-dir=" +
-         profile_dir + " --virtual-time-budget=5000";
 }
 
 TEST(HtmlReport, RendersOneSelfContainedDocument) {

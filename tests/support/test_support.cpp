@@ -6,6 +6,9 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <unistd.h>
 #include <stdexcept>
 
 namespace strut::test {
@@ -31,6 +34,35 @@ CommandResult RunStrut(const std::string& args) {
   const int status = pclose(pipe);
   result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
   return result;
+}
+
+bool ChromiumAvailable() { return access(kChromium, X_OK) == 0; }
+
+ShellResult Shell(const std::string& command, const std::string& stem) {
+  const int status = std::system((command + " >" + stem + ".out 2>" + stem + ".err").c_str());
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, ReadFile(stem + ".out"), ReadFile(stem + ".err")};
+}
+
+std::string ChromiumCommand(const std::string& profile_dir) {
+  return std::string("timeout 60 ") + kChromium +
+         " --headless --no-sandbox --disable-gpu --disable-quic --no-first-run --disable-background-networking"
+         " --disable-component-update --disable-sync --disable-dev-shm-usage --hide-scrollbars"
+         " --user-data-dir=" +
+         profile_dir + " --virtual-time-budget=5000";
+}
+
+std::string ReadFile(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::ostringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+std::size_t Count(const std::string& haystack, const std::string& needle) {
+  std::size_t n = 0;
+  for (std::size_t at = haystack.find(needle); at != std::string::npos; at = haystack.find(needle, at + needle.size()))
+    ++n;
+  return n;
 }
 
 }  // namespace strut::test

@@ -27,4 +27,25 @@ struct CommandResult {
 //! Runs the built strut binary with the given argument string (shell-quoted by the caller).
 CommandResult RunStrut(const std::string& args);
 
+//! Debian's Chromium, which renders reports in the tests (scripts/install-deps.sh installs it).
+inline constexpr const char* kChromium = "/usr/bin/chromium";
+bool ChromiumAvailable();
+
+//! A shell command's exit code, stdout and stderr (captured in files named after `stem`).
+struct ShellResult {
+  int exit_code = -1;
+  std::string out;
+  std::string err;
+};
+ShellResult Shell(const std::string& command, const std::string& stem);
+
+//! Headless Chromium with a fresh profile in `profile_dir`, no network, scripts given 5 s.
+std::string ChromiumCommand(const std::string& profile_dir);
+
+//! The whole file as a string ("" when it cannot be read).
+std::string ReadFile(const std::string& path);
+
+//! Occurrences of `needle` in `haystack`.
+std::size_t Count(const std::string& haystack, const std::string& needle);
+
 }  // namespace strut::test

@@ -1,56 +1,78 @@
-// strut demo: the main job on the simulated rig. Until the simulated rig and the estimator land it
-// computes the periodic equilibrium states of the 2 dof model for the standard test matrix.
+// strut demo: the main job on the simulated rig. Simulates the standard test matrix on a damper
+// whose truth is known, records the session, identifies the 1 dof and 2 dof models from it, and
+// writes the fits (JSON) and reports (HTML).
 #include <spdlog/spdlog.h>
 
 #include <chrono>
+#include <filesystem>
+#include <fstream>
 #include <iostream>
 
 #include "commands.h"
-#include "model_options.h"
-#include "strut/ident/periodic.h"
+#include "strut/daq/session.h"
+#include "strut/ident/estimator.h"
+#include "strut/ident/fit_report.h"
+#include "strut/ident/initial_values.h"
 #include "strut/rig/test_matrix.h"
+#include "strut/sim/periodic_session.h"
 
 namespace strut::tools {
 namespace {
 
 struct DemoCommand {
-  ModelOptions model;
-  int n = 800;
+  std::string out_dir = "strut-demo";
+  unsigned seed = 1;
 
   void Run() const {
-    const ident::Model m = model.BuildModel();
-    const ident::ParameterSet parameters = model.Parameters(m);
-    spdlog::info("periodic equilibrium states of {} ({} input), n = {}, parameters:\n{}", m.composition(),
-                 ident::ToString(m.causality()), n, parameters.table());
-    // The matrix prescribes strokes; a force-driven run is fed the force of the stroke-driven solution.
-    ident::PeriodicSolver stroke_solver(ident::Model::Build(model.composition, ident::Causality::kStrokeInput));
-    ident::PeriodicSolver solver(m);
-    std::cout << fmt::format("{:<3} {:<6} {:>6} {:>7} {:>7} | {:>15} | {:>15} | {:>15} | {:>4} {:>8}\n", "exp", "group",
-                             "f Hz", "stat mm", "amp mm", "force kN", "pressure MPa", "gas temp C", "its", "ms");
-    for (const auto& e : rig::StandardMatrix()) {
-      const auto start = std::chrono::steady_clock::now();
-      ident::PeriodicSolution solution =
-          stroke_solver.Solve(ident::PeriodicInput::Sine(e.frequency, e.static_position, e.amplitude, n),
-                              parameters.values());
-      if (m.causality() == ident::Causality::kForceInput) {
-        ident::PeriodicInput force{e.frequency, {}};
-        const Eigen::VectorXd f = solution.channel("force");
-        force.values.assign(f.data(), f.data() + f.size());
-        solution = solver.Solve(force, parameters.values());
+    using Clock = std::chrono::steady_clock;
+    std::filesystem::create_directories(out_dir);
+    const std::string session_path = out_dir + "/session.h5";
+
+    // 1. The rig: the standard matrix on a simulated 2 dof damper with sensor noise.
+    ident::ParameterSet truth = ident::Model::Build("2dof", ident::Causality::kStrokeInput).defaults();
+    truth.set("stroke_offset", 0.002);
+    sim::PeriodicSessionOptions options;
+    options.seed = seed;
+    auto start = Clock::now();
+    daq::WriteSession(session_path, sim::SimulatePeriodicSession("2dof", truth.values(), rig::StandardMatrix(), options));
+    std::cout << fmt::format("1. simulated rig: 14 experiments of the standard matrix recorded to {} ({:.1f} s)\n",
+                             session_path, std::chrono::duration<double>(Clock::now() - start).count());
+
+    // 2. Identification: the paper's 1 dof and 2 dof models, starting values from the data.
+    const daq::Session session = daq::ReadSession(session_path);
+    std::cout << "2. identification (stroke input; the paper's parameter sets plus sensor offsets):\n";
+    std::vector<ident::FitSummary> fits;
+    for (const char* composition : {"1dof", "2dof"}) {
+      const ident::Model model = ident::Model::Build(composition, ident::Causality::kStrokeInput);
+      std::vector<ident::DataIssue> issues;
+      const auto data = ident::PrepareExperiments(session, model.causality(), 800, &issues);
+      const ident::ParameterSet initial = ident::InitialValuesFromData(model, data, nullptr);
+      start = Clock::now();
+      ident::FitSummary fit = ident::Estimator(model).Fit(data, initial, ident::DefaultChoices(model), issues);
+      const double seconds = std::chrono::duration<double>(Clock::now() - start).count();
+      std::cout << fmt::format("\n   {} fitted in {:.2f} s, {} iterations, BIC {:.6g}\n", composition, seconds,
+                               fit.iterations, fit.bic);
+      for (int i : fit.estimated_positions) {
+        const auto& spec = fit.parameters.spec(i);
+        const int t = truth.position_of_index(spec.index);
+        const bool comparable = t >= 0 && truth.spec(t).name == spec.name;
+        std::cout << fmt::format("     {:<8} {:<26} {:>12.6g} ± {:<9.2g} {:<6} truth {}\n", spec.key(), spec.name,
+                                 fit.parameters.value(i), fit.sd[i], spec.unit,
+                                 comparable ? fmt::format("{:.6g}", truth.value(t)) : std::string("-"));
       }
-      const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
-      const auto range = [&](const char* channel, double scale, double offset) {
-        for (std::size_t c = 0; c < solution.channels.size(); ++c)
-          if (solution.channels[c] == channel)
-            return fmt::format("{:7.3f}..{:7.3f}", solution.outputs.row(c).minCoeff() * scale + offset,
-                               solution.outputs.row(c).maxCoeff() * scale + offset);
-        return std::string("      -        ");
-      };
-      std::cout << fmt::format("{:<3} {:<6} {:>6.2f} {:>7.0f} {:>7.0f} | {} | {} | {} | {:>4} {:>8.2f}\n", e.label,
-                               e.group, e.frequency, e.static_position * 1e3, e.amplitude * 1e3,
-                               range("force", 1e-3, 0), range("pressure", 1e-6, 0),
-                               range("temperature", 1.0, -273.15), solution.newton_iterations, ms);
+      for (const auto& c : fit.channels)
+        std::cout << fmt::format("     {:<9} residual rms {:9.4g}, {:6.1f} x the noise floor\n", c.name, c.rms,
+                                 c.rms * c.rms / c.noise_floor_variance);
+      for (const auto& w : fit.warnings) std::cout << "     warning: " << w << "\n";
+      const std::string stem = out_dir + "/fit-" + composition;
+      std::ofstream(stem + ".json") << ident::FitToJson(fit).dump(1) << "\n";
+      ident::WriteFitReport(fit, stem + ".html", std::string("strut demo: ") + composition + " on the simulated rig");
+      fits.push_back(std::move(fit));
     }
+    std::cout << fmt::format(
+        "\n3. the 2 dof model explains the data {} (BIC {:.6g} against {:.6g} for 1 dof).\n"
+        "   Fits: {}/fit-*.json, reports: {}/fit-*.html\n",
+        fits[1].bic < fits[0].bic ? "better" : "no better", fits[1].bic, fits[0].bic, out_dir, out_dir);
   }
 };
 
@@ -58,9 +80,9 @@ struct DemoCommand {
 
 void RegisterDemoCommand(CLI::App& app) {
   auto command = std::make_shared<DemoCommand>();
-  CLI::App* sub = app.add_subcommand("demo", "Run the main job on the simulated rig (standard matrix)");
-  command->model.Add(*sub);
-  sub->add_option("--n", command->n, "Grid points per period")->check(CLI::Range(8, 100000))->capture_default_str();
+  CLI::App* sub = app.add_subcommand("demo", "Run the main job on the simulated rig: record the standard matrix, identify");
+  sub->add_option("--out", command->out_dir, "Directory for the session, fits and reports")->capture_default_str();
+  sub->add_option("--seed", command->seed, "Noise seed of the simulated rig")->capture_default_str();
   sub->callback([command] { command->Run(); });
 }
 

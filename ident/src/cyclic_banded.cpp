@@ -106,6 +106,35 @@ void SmallLuSolve(const double* lu, const int* pivots, int m, double* b, int col
   }
 }
 
+// Block forward substitution y_mu = D_mu^-1 (b_mu - sum_k A(mu, k) y_{mu+k}) with the inverse
+// diagonal blocks; M > 0 fixes the block size at compile time so the small loops unroll.
+template <int M>
+void ForwardSubstitute(int m_runtime, const double* inverse_diagonal, const double* sub, int lower, int points,
+                       double* b, int cols, std::size_t ld) {
+  const int m = M > 0 ? M : m_runtime;
+  const std::size_t mm = static_cast<std::size_t>(m) * m;
+  double acc[16];
+  for (int j = 0; j < cols; ++j) {
+    double* column = b + j * ld;
+    for (int mu = 0; mu < points; ++mu) {
+      double* y = column + static_cast<std::size_t>(mu) * m;
+      for (int r = 0; r < m; ++r) acc[r] = y[r];
+      for (int k = std::max(-lower, -mu); k < 0; ++k) {
+        const double* blk = sub + (static_cast<std::size_t>(mu) * lower + (k + lower)) * mm;
+        const double* x = column + static_cast<std::size_t>(mu + k) * m;
+        for (int c = 0; c < m; ++c)
+          for (int r = 0; r < m; ++r) acc[r] -= blk[r + c * m] * x[c];
+      }
+      const double* inverse = inverse_diagonal + mu * mm;
+      for (int r = 0; r < m; ++r) {
+        double v = 0.0;
+        for (int c = 0; c < m; ++c) v += inverse[r + c * m] * acc[c];
+        y[r] = v;
+      }
+    }
+  }
+}
+
 }  // namespace
 
 bool CyclicBandedLU::Factorize(const CyclicBlockBanded& a) {
@@ -120,7 +149,7 @@ bool CyclicBandedLU::Factorize(const CyclicBlockBanded& a) {
   // Backward schemes: block forward substitution plus a small border system. Central schemes:
   // the open (non-periodic) interior has parasitic growing modes that wreck the border system, so
   // they (and any border failure) go to the folded banded LU, stable by partial pivoting.
-  if (upper_ > 0 || !FactorizeBorder(a)) return FactorizeFolded(a);
+  if (upper_ > 0 || m_ > 16 || !FactorizeBorder(a)) return FactorizeFolded(a);  // 16: ForwardSubstitute's buffer
   return true;
 }
 
@@ -216,9 +245,15 @@ bool CyclicBandedLU::FactorizeInterior(const CyclicBlockBanded& a) {
     sub_.resize(ni * lower_ * mm);
     pivots_.resize(interior_rows_);
     for (int mu = 0; mu < ni; ++mu) {
+      // The inverse of each diagonal block: forward substitution is then a small product.
       const auto diag = a.block(mu, 0);
-      std::copy(diag.data(), diag.data() + mm, band_.data() + mu * mm);
-      if (!SmallLuFactor(band_.data() + mu * mm, m_, pivots_.data() + mu * m_)) return false;
+      double lu[256];  // m <= 16 on this path
+      std::copy(diag.data(), diag.data() + mm, lu);
+      if (!SmallLuFactor(lu, m_, pivots_.data() + mu * m_)) return false;
+      double* inverse = band_.data() + mu * mm;
+      std::fill(inverse, inverse + mm, 0.0);
+      for (int r = 0; r < m_; ++r) inverse[r + r * m_] = 1.0;
+      SmallLuSolve(lu, pivots_.data() + mu * m_, m_, inverse, m_, m_);
       for (int k = -lower_; k < 0; ++k) {
         const auto blk = a.block(mu, k);
         std::copy(blk.data(), blk.data() + mm, sub_.data() + (static_cast<std::size_t>(mu) * lower_ + (k + lower_)) * mm);
@@ -231,29 +266,14 @@ bool CyclicBandedLU::FactorizeInterior(const CyclicBlockBanded& a) {
 
 void CyclicBandedLU::SolveInterior(Eigen::Ref<Eigen::MatrixXd> b) const {
   const int cols = static_cast<int>(b.cols());
-  {
-    // Block forward substitution: y_mu = D_mu^-1 (b_mu - sum_k A(mu, k) y_{mu+k}).
-    const int ni = n_ - border_;
-    const std::size_t mm = static_cast<std::size_t>(m_) * m_;
-    for (int mu = 0; mu < ni; ++mu) {
-      const std::size_t ld = static_cast<std::size_t>(b.outerStride());
-      for (int k = -lower_; k < 0; ++k) {
-        if (mu + k < 0) continue;
-        const double* blk = sub_.data() + (static_cast<std::size_t>(mu) * lower_ + (k + lower_)) * mm;
-        for (int j = 0; j < cols; ++j) {
-          double* y = b.data() + j * ld + mu * m_;
-          const double* x = b.data() + j * ld + (mu + k) * m_;
-          for (int c = 0; c < m_; ++c) {
-            const double xc = x[c];
-            if (xc == 0.0) continue;
-            for (int r = 0; r < m_; ++r) y[r] -= blk[r + c * m_] * xc;
-          }
-        }
-      }
-      SmallLuSolve(band_.data() + mu * mm, pivots_.data() + mu * m_, m_, b.data() + mu * m_, cols,
-                   static_cast<int>(b.outerStride()));
-    }
-    return;
+  const int points = n_ - border_;
+  const std::size_t ld = static_cast<std::size_t>(b.outerStride());
+  switch (m_) {
+    case 1: return ForwardSubstitute<1>(m_, band_.data(), sub_.data(), lower_, points, b.data(), cols, ld);
+    case 2: return ForwardSubstitute<2>(m_, band_.data(), sub_.data(), lower_, points, b.data(), cols, ld);
+    case 3: return ForwardSubstitute<3>(m_, band_.data(), sub_.data(), lower_, points, b.data(), cols, ld);
+    case 4: return ForwardSubstitute<4>(m_, band_.data(), sub_.data(), lower_, points, b.data(), cols, ld);
+    default: return ForwardSubstitute<0>(m_, band_.data(), sub_.data(), lower_, points, b.data(), cols, ld);
   }
 }
 

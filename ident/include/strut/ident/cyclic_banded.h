@@ -80,7 +80,7 @@ class CyclicBandedLU {
   bool ok_ = false;
   bool dense_ = false;
   bool folded_ = false;
-  std::vector<double> band_;   // folded: LAPACK band LU of the whole; border: LU of the interior diagonal blocks
+  std::vector<double> band_;   // folded: LAPACK band LU of the whole; border: inverses of the interior diagonal blocks
   std::vector<double> sub_;    // border: the interior blocks below the diagonal, row point major
   std::vector<int> position_;  // folded: row position of each point
   std::vector<int> pivots_;

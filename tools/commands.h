@@ -11,5 +11,7 @@ void RegisterPeriodicCommand(CLI::App& app);
 void RegisterDemoCommand(CLI::App& app);
 void RegisterBenchCommand(CLI::App& app);
 void RegisterIdentifyCommand(CLI::App& app);
+void RegisterDiscoverCommand(CLI::App& app);
+void RegisterSimCommand(CLI::App& app);
 
 }  // namespace strut::tools

@@ -34,7 +34,9 @@ int main(int argc, char** argv) {
   strut::tools::RegisterPeriodicCommand(app);
   strut::tools::RegisterDemoCommand(app);
   strut::tools::RegisterIdentifyCommand(app);
+  strut::tools::RegisterDiscoverCommand(app);
   strut::tools::RegisterBenchCommand(app);
+  strut::tools::RegisterSimCommand(app);
 
   try {
     app.parse(argc, argv);

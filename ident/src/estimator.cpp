@@ -430,6 +430,8 @@ FitSummary Estimator::Fit(const std::vector<ExperimentData>& data, const Paramet
       const auto it = s.data->channels.find(channels[b]);
       if (s.active && it != s.data->channels.end()) {
         const Eigen::VectorXd r = s.Residual(channels[b], output_row[b]);
+        f.residual[channels[b]] = r;
+        f.noise_variance[channels[b]] = it->second.mean_noise_variance;
         st.mean = r.mean();
         st.sd = std::sqrt((r.array() - st.mean).square().sum() / std::max<Eigen::Index>(1, r.size() - 1));
         st.rms = std::sqrt(r.squaredNorm() / r.size());

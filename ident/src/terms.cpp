@@ -197,7 +197,7 @@ class HeatExchange final : public Term {
     b.add_parameter({5, "pressure_per_temperature", "Pa/K", 7.0e5 * (1.0 + 2.0e-5 * kAmbientK) / kAmbientK,
                      "gas pressure per temperature at full extension (m R / V0)"});
     b.add_parameter({15, "gas_heat_capacity", "J/K", 17.9, "effective heat capacity of the gas"});
-    b.add_parameter({16, "wall_heat_conductance", "W/K", 2.24, "heat conductance through the wall at full extension", true});
+    b.add_parameter({16, "wall_heat_conductance", "W/K", 2.24, "heat conductance through the wall at full extension", true, 0.0, true});
     b.add_parameter({17, "minus_ambient_temperature", "K", -kAmbientK, "minus the ambient (wall) temperature"});
     b.add_state(kPressureState);
     b.add_state(kTemperatureState);
@@ -245,7 +245,7 @@ class GasSolubility final : public Term {
  public:
   std::string_view name() const override { return "gas-solubility"; }
   void Declare(ModelBuilder& b) override {
-    b.add_parameter({7, "gas_solubility", "1/K", 2.0e-5, "linear gas solubility coefficient"});
+    b.add_parameter({7, "gas_solubility", "1/K", 2.0e-5, "linear gas solubility coefficient", false, 0.0, true});
   }
   void Bind(const ModelBuilder& b) override {
     if (!b.has_term("heat-exchange"))
@@ -284,7 +284,7 @@ class ViscousDamping final : public Term {
  public:
   std::string_view name() const override { return "viscous-damping"; }
   void Declare(ModelBuilder& b) override {
-    b.add_parameter({18, "viscous_damping", "N s/m", 300.0, "linear (viscous) damping of seals and laminar flow"});
+    b.add_parameter({18, "viscous_damping", "N s/m", 300.0, "linear (viscous) damping of seals and laminar flow", false, 0.0, true});
   }
   void Bind(const ModelBuilder& b) override { damping_ = b.parameter_position(18); }
   template <class S>
@@ -305,7 +305,7 @@ class StribeckFriction final : public Term {
  public:
   std::string_view name() const override { return "stribeck-friction"; }
   void Declare(ModelBuilder& b) override {
-    b.add_parameter({19, "stribeck_excess", "-", 0.25, "static over kinetic friction minus one, F_S / F_C - 1"});
+    b.add_parameter({19, "stribeck_excess", "-", 0.25, "static over kinetic friction minus one, F_S / F_C - 1", false, 0.0, true});
     b.add_parameter({20, "stribeck_velocity", "m/s", 3.0e-3, "Stribeck velocity: width of the static-friction rise"});
   }
   void Bind(const ModelBuilder& b) override {
@@ -335,16 +335,16 @@ class StribeckFriction final : public Term {
 
 //! Top-out end stop near full extension (Hunt-Crossley contact, smoothed): penetration
 //! d = theta24 softplus((theta23 - q) / theta24), contact force k d + c d (-q') pushing towards
-//! compression, so the balance gets -(theta21 d - theta22 d q'). Zero (below 1e-4 N) from about
-//! 10 theta24 inside the stop position on (damper-physics.md §2.9).
+//! compression, so the balance gets -(theta21 d - theta22 d q'). A distance s inside the stop
+//! position leaves k theta24 exp(-s / theta24): 0.02 N at 10 theta24 (damper-physics.md §2.9).
 class EndStop final : public Term {
  public:
   std::string_view name() const override { return "end-stop"; }
   void Declare(ModelBuilder& b) override {
-    b.add_parameter({21, "end_stop_stiffness", "N/m", 5.0e6, "top-out stop contact stiffness (elastomer snubber)"});
+    b.add_parameter({21, "end_stop_stiffness", "N/m", 5.0e6, "top-out stop contact stiffness (elastomer snubber)", false, 0.0, true});
     b.add_parameter({22, "end_stop_damping", "N s/m^2", 1.0e7, "top-out stop Hunt-Crossley damping per penetration"});
     b.add_parameter({23, "end_stop_position", "m", 0.0, "stroke below which the top-out stop is in contact"});
-    b.add_parameter({24, "end_stop_smoothing", "m", 2.0e-4, "length over which the contact onset is smoothed"});
+    b.add_parameter({24, "end_stop_smoothing", "m", 1.0e-4, "length over which the contact onset is smoothed"});
   }
   void Bind(const ModelBuilder& b) override {
     stiffness_ = b.parameter_position(21);
@@ -374,7 +374,7 @@ class OilCompressibility final : public Term {
   std::string_view name() const override { return "oil-compressibility"; }
   void Declare(ModelBuilder& b) override {
     b.add_parameter({25, "oil_volume_ratio", "-", 1.0, "oil volume over the gas volume at full extension, V_oil / V0"});
-    b.add_parameter({26, "oil_bulk_modulus", "Pa", 1.2e9, "effective bulk modulus of oil and cylinder, K_eff"});
+    b.add_parameter({26, "oil_bulk_modulus", "Pa", 1.2e9, "effective bulk modulus of oil and cylinder, K_eff", false, 0.0, true});
     b.add_parameter({27, "compliance_reference_pressure", "Pa", 7.0e5,
                      "pressure at which the compliance adds no volume (the charge pressure)"});
   }
@@ -405,7 +405,7 @@ class RealGas final : public Term {
  public:
   std::string_view name() const override { return "real-gas"; }
   void Declare(ModelBuilder& b) override {
-    b.add_parameter({28, "virial_b0", "m^3/mol", 4.88e-5, "N2 second virial coefficient B(T) = b0 - a / T: b0"});
+    b.add_parameter({28, "virial_b0", "m^3/mol", 4.88e-5, "N2 second virial coefficient B(T) = b0 - a / T: b0", false, 0.0, true});
     b.add_parameter({29, "virial_a", "m^3 K/mol", 1.59e-2, "N2 second virial coefficient B(T) = b0 - a / T: a"});
     b.add_parameter({30, "virial_c", "m^6/mol^2", 1.4e-9, "N2 third virial coefficient C"});
   }
@@ -465,13 +465,20 @@ const std::vector<TermEntry>& Catalogue() {
       {"stroke-offset", &Make<StrokeOffset>, "", "stroke sensor offset theta12"},
       {"gas-volume", &Make<GasVolume>, "", "gas volume 1 + theta6 q"},
       {"polytropic-gas", &Make<PolytropicGas>, "", "polytropic gas law theta5 / (1 + theta6 q)^theta7"},
-      {"heat-exchange", &Make<HeatExchange>, "polytropic-gas", "ideal gas with wall heat exchange (2 dof)"},
-      {"gas-solubility", &Make<GasSolubility>, "", "linear gas solubility theta7 (2 dof)"},
-      {"viscous-damping", &Make<ViscousDamping>, "", "linear seal damping theta18 q'"},
-      {"stribeck-friction", &Make<StribeckFriction>, "", "static friction above kinetic, theta19, theta20"},
-      {"end-stop", &Make<EndStop>, "", "top-out contact near full extension, theta21..theta24"},
-      {"oil-compressibility", &Make<OilCompressibility>, "", "oil and cylinder compliance theta25..theta27"},
-      {"real-gas", &Make<RealGas>, "", "virial nitrogen Z(rho, T), theta28..theta30"},
+      {"heat-exchange", &Make<HeatExchange>, "polytropic-gas", "ideal gas with wall heat exchange (2 dof)", "loop-frequency",
+       "a pressure-stroke loop whose area depends on the frequency: heat flows through the wall"},
+      {"gas-solubility", &Make<GasSolubility>, "", "linear gas solubility theta7 (2 dof)", "group-bias",
+       "a pressure bias that depends on the static-position group: less free gas at high pressure"},
+      {"viscous-damping", &Make<ViscousDamping>, "", "linear seal damping theta18 q'", "velocity",
+       "residual force proportional to the stroke velocity: linear (viscous) damping"},
+      {"stribeck-friction", &Make<StribeckFriction>, "", "static friction above kinetic, theta19, theta20", "reversal",
+       "force spikes at the velocity reversals: static friction above kinetic"},
+      {"end-stop", &Make<EndStop>, "", "top-out contact near full extension, theta21..theta24", "extension",
+       "residual only near full extension: contact with the top-out stop"},
+      {"oil-compressibility", &Make<OilCompressibility>, "", "oil and cylinder compliance theta25..theta27", "pressure-softening",
+       "softening that grows with pressure: oil and cylinder compliance"},
+      {"real-gas", &Make<RealGas>, "", "virial nitrogen Z(rho, T), theta28..theta30", "pressure-stiffening",
+       "stiffening that grows with pressure: real-gas (virial) nitrogen"},
   };
   return entries;
 }

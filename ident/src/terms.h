@@ -15,6 +15,10 @@ struct TermEntry {
   std::shared_ptr<Term> (*make)();
   std::string replaces;     //!< a term this one takes the place of ("" if none)
   std::string description;
+  //! Where its absence shows in the residuals of a fit without it (the located-mismatch feature
+  //! discovery scores it against; docs/discovery.md lists them), and that evidence in words.
+  std::string locus;
+  std::string signature;
 };
 
 //! Every term a composition may name, in evaluation order.

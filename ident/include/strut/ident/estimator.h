@@ -64,6 +64,8 @@ struct ExperimentFit {
   PeriodicSolution solution;  //!< at the final parameters (empty when not converged)
   std::vector<double> phases;                       //!< cyclic phases of the measured values
   std::map<std::string, Eigen::VectorXd> measured;  //!< every averaged measured channel at `phases`
+  std::map<std::string, Eigen::VectorXd> residual;  //!< measured - predicted at `phases`, fitted channels
+  std::map<std::string, double> noise_variance;     //!< of the averaged values, per fitted channel
 };
 
 struct FitChannel {

@@ -27,6 +27,7 @@ struct ParameterSpec {
   std::string description;    //!< one line for tables and reports
   bool estimate_by_default = false;  //!< estimated when the user names no parameters (paper's set, offsets)
   double typical = 0.0;              //!< size of a meaningful value (0: |default_value|); scales the estimator
+  bool sizes_term = false;           //!< sizes its term's effect: estimated when discovery adds the term
 
   double typical_size() const { return typical > 0 ? typical : std::abs(default_value); }
 

@@ -1,0 +1,154 @@
+// strut discover: find the physics a model leaves out, add it, and show the fit improve.
+#include <spdlog/spdlog.h>
+
+#include <fstream>
+#include <iostream>
+
+#include "commands.h"
+#include "strut/daq/session.h"
+#include "strut/ident/discover.h"
+#include "strut/ident/fit_report.h"
+#include "strut/ident/html_report.h"
+
+namespace strut::tools {
+namespace {
+
+nlohmann::json RatiosJson(const std::map<std::string, double>& ratio) {
+  nlohmann::json j = nlohmann::json::object();
+  for (const auto& [c, r] : ratio) j[c] = std::isfinite(r) ? nlohmann::json(r) : nlohmann::json(nullptr);
+  return j;
+}
+
+nlohmann::json FindingJson(const ident::Finding& f) {
+  return {{"locus", f.locus}, {"channel", f.channel}, {"score", f.score}, {"detail", f.detail}};
+}
+
+nlohmann::json DiscoveryJson(const ident::DiscoveryResult& r) {
+  nlohmann::json j;
+  j["baseline"] = {{"model", r.baseline.model},
+                   {"loglik", r.baseline.loglik},
+                   {"bic", r.baseline.bic},
+                   {"noise_ratio", RatiosJson(ident::PooledNoiseRatio(r.baseline))}};
+  j["nothing_missing"] = r.nothing_missing;
+  j["mismatch"] = nlohmann::json::array();
+  for (const auto& f : r.mismatch) j["mismatch"].push_back(FindingJson(f));
+  j["missing"] = r.missing;
+  j["final_model"] = r.final_model;
+  j["steps"] = nlohmann::json::array();
+  for (const auto& s : r.steps) {
+    nlohmann::json step{{"term", s.term},
+                        {"evidence", s.evidence},
+                        {"delta_bic", s.delta_bic},
+                        {"noise_before", RatiosJson(s.noise_before)},
+                        {"noise_after", RatiosJson(s.noise_after)},
+                        {"parameters", nlohmann::json::object()},
+                        {"candidates", nlohmann::json::array()}};
+    for (const auto& [key, value] : s.parameters) step["parameters"][key] = value;
+    for (const auto& c : s.candidates)
+      step["candidates"].push_back({{"term", c.term},
+                                    {"ok", c.ok},
+                                    {"delta_bic", c.delta_bic},
+                                    {"evidence", c.evidence},
+                                    {"noise_ratio", RatiosJson(c.noise_ratio)},
+                                    {"error", c.error}});
+    j["steps"].push_back(step);
+  }
+  j["unexplained"] = nlohmann::json::array();
+  for (const auto& f : r.unexplained) j["unexplained"].push_back(FindingJson(f));
+  j["conclusion"] = r.conclusion;
+  j["final_fit"] = ident::FitToJson(r.final_fit);
+  return j;
+}
+
+void WriteDiscoveryReport(const ident::DiscoveryResult& r, const std::string& path) {
+  ident::HtmlReport report("strut discover: " + r.baseline.model + " → " + r.final_model);
+  report.AddHeading("What was found");
+  report.AddParagraph(r.conclusion);
+  std::vector<std::vector<std::string>> rows;
+  for (const auto& s : r.steps) {
+    std::string before, after;
+    for (const auto& [c, v] : s.noise_before) before += fmt::format("{} {:.2f} ", c, v);
+    for (const auto& [c, v] : s.noise_after) after += fmt::format("{} {:.2f} ", c, v);
+    rows.push_back({s.term, fmt::format("{:+.1f}", s.delta_bic), before, after, s.evidence});
+  }
+  if (!rows.empty())
+    report.AddTable({"added", "ΔBIC", "noise ratio before", "after", "evidence"}, rows,
+                    "Each step adds the catalogue term that lowers BIC most and brings the residuals towards the noise.");
+  report.AddHeading("Where the baseline did not fit");
+  rows.clear();
+  for (const auto& f : r.mismatch) rows.push_back({f.locus, f.channel, fmt::format("{:.1f}", f.score), f.detail});
+  report.AddTable({"feature", "channel", "score", "detail"}, rows,
+                  "Scores are in noise units (about 1 or below: not there).");
+  // Residual rms per experiment, before and after, per channel.
+  for (const auto& channel : r.baseline.channels) {
+    std::vector<std::string> labels;
+    ident::ErrorBarSeries before{"baseline " + r.baseline.model, {}, {}}, after{"final " + r.final_model, {}, {}};
+    for (std::size_t a = 0; a < r.baseline.experiments.size(); ++a) {
+      labels.push_back(r.baseline.experiments[a].label);
+      for (auto* pair : {&before, &after}) {
+        const auto& e = pair == &before ? r.baseline.experiments[a] : r.final_fit.experiments[a];
+        double mean = NAN, sd = NAN;
+        for (const auto& c : e.channels)
+          if (c.channel == channel.name) mean = c.mean, sd = c.sd;
+        pair->mean.push_back(mean);
+        pair->sigma.push_back(sd);
+      }
+    }
+    report.AddErrorBars(channel.name + " residual before and after (mean ± 2σ per experiment)", channel.name + " [SI]",
+                        labels, {before, after});
+  }
+  report.Write(path);
+}
+
+struct DiscoverCommand {
+  std::vector<std::string> sessions;
+  std::string base = "1dof";
+  std::string input = "force";
+  std::string json_path, report_path;
+  int n = 800;
+  int threads = 2;
+
+  void Run() const {
+    const ident::Causality causality = ident::ParseCausality(input);
+    std::vector<ident::ExperimentData> data;
+    std::vector<ident::DataIssue> issues;
+    for (const auto& path : sessions) {
+      auto prepared = ident::PrepareExperiments(daq::ReadSession(path), causality, n, &issues);
+      for (auto& e : prepared) data.push_back(std::move(e));
+    }
+    if (data.empty()) throw std::invalid_argument("no complete periodic experiment in the given sessions");
+    ident::DiscoverOptions options;
+    options.estimator.n = n;
+    options.threads = threads;
+    const ident::DiscoveryResult result = ident::Discover(data, base, causality, options, issues);
+    std::cout << result.conclusion << "\n";
+    for (const auto& s : result.steps)
+      std::cout << fmt::format("  + {:<20} dBIC {:+.1f}  {}\n", s.term, s.delta_bic, s.evidence);
+    if (!json_path.empty()) {
+      std::ofstream out(json_path);
+      out << DiscoveryJson(result).dump(1) << "\n";
+      if (!out) throw std::runtime_error("cannot write " + json_path);
+    }
+    if (!report_path.empty()) WriteDiscoveryReport(result, report_path);
+  }
+};
+
+}  // namespace
+
+void RegisterDiscoverCommand(CLI::App& app) {
+  auto command = std::make_shared<DiscoverCommand>();
+  CLI::App* sub = app.add_subcommand("discover", "Find the physics a model leaves out, add it, show the fit improve");
+  sub->add_option("sessions", command->sessions, "Session files (HDF5)")->required()->check(CLI::ExistingFile);
+  sub->add_option("--model", command->base, "The baseline composition (1dof, 2dof, 1dof+heat-exchange, ...)")
+      ->capture_default_str();
+  sub->add_option("--input", command->input, "Causality: force or stroke")
+      ->check(CLI::IsMember({"force", "stroke"}))
+      ->capture_default_str();
+  sub->add_option("--json", command->json_path, "Write the findings as JSON");
+  sub->add_option("--report", command->report_path, "Write a self-contained HTML report");
+  sub->add_option("--n", command->n, "Grid points per period")->check(CLI::Range(16, 100000))->capture_default_str();
+  sub->add_option("--threads", command->threads, "Candidate refits in parallel")->check(CLI::Range(1, 64))->capture_default_str();
+  sub->callback([command] { command->Run(); });
+}
+
+}  // namespace strut::tools

@@ -1,0 +1,109 @@
+// Finding the missing physics on simulated sessions whose truth is known.
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <nlohmann/json.hpp>
+
+#include "strut/ident/discover.h"
+#include "strut/sim/periodic_session.h"
+#include "test_support.h"
+
+namespace strut::ident {
+namespace {
+
+constexpr int kGrid = 400;
+
+// A session of the standard matrix from `truth_model` with `changes` applied to its defaults.
+std::vector<ExperimentData> Simulate(const std::string& truth_model, const std::string& changes, unsigned seed) {
+  ParameterSet truth = Model::Build(truth_model, Causality::kStrokeInput).defaults();
+  if (!changes.empty()) truth.apply_assignments(changes);
+  sim::PeriodicSessionOptions options;
+  options.seed = seed;
+  const daq::Session session = sim::SimulatePeriodicSession(truth_model, truth.values(), rig::StandardMatrix(), options);
+  return PrepareExperiments(session, Causality::kStrokeInput, kGrid);
+}
+
+DiscoverOptions Options() {
+  DiscoverOptions options;
+  options.estimator.n = kGrid;
+  return options;
+}
+
+TEST(Discover, TellsThePapersStoryFromOneDof) {
+  const auto data = Simulate("2dof", "", 3);
+  const DiscoveryResult r = Discover(data, "1dof", Causality::kStrokeInput, Options());
+  EXPECT_FALSE(r.nothing_missing);
+  ASSERT_GE(r.missing.size(), 2u) << r.conclusion;
+  EXPECT_EQ(r.missing[0], "heat-exchange");
+  EXPECT_EQ(r.missing[1], "gas-solubility");
+  EXPECT_EQ(r.final_model, "2dof");
+  // The large-amplitude residuals fall by at least half.
+  for (std::size_t a = 0; a < r.baseline.experiments.size(); ++a) {
+    if (r.baseline.experiments[a].amplitude < 0.07) continue;
+    for (std::size_t c = 0; c < r.baseline.experiments[a].channels.size(); ++c)
+      EXPECT_LT(r.final_fit.experiments[a].channels[c].rms, 0.5 * r.baseline.experiments[a].channels[c].rms)
+          << r.baseline.experiments[a].label << " " << r.baseline.experiments[a].channels[c].channel;
+  }
+  for (const auto& [channel, ratio] : PooledNoiseRatio(r.final_fit)) EXPECT_LT(ratio, 1.3) << channel;
+}
+
+TEST(Discover, AddsNothingWhenTheModelHoldsTheTruthsPhysics) {
+  const auto data = Simulate("2dof", "", 4);
+  const DiscoveryResult r = Discover(data, "2dof", Causality::kStrokeInput, Options());
+  EXPECT_TRUE(r.nothing_missing) << r.conclusion;
+  EXPECT_TRUE(r.missing.empty());
+  EXPECT_EQ(r.final_model, "2dof");
+}
+
+struct Concealed {
+  std::string term;
+  std::string changes;  // the effect's level in the truth: present, but small
+};
+
+class DiscoverConcealedEffect : public testing::TestWithParam<Concealed> {};
+
+TEST_P(DiscoverConcealedEffect, NamesItFirst) {
+  const Concealed& c = GetParam();
+  const auto data = Simulate("2dof+" + c.term, c.changes, 7);
+  DiscoverOptions options = Options();
+  options.max_terms = 1;  // the first name is what this test is about
+  const DiscoveryResult r = Discover(data, "2dof", Causality::kStrokeInput, options);
+  ASSERT_FALSE(r.missing.empty()) << r.conclusion;
+  EXPECT_EQ(r.missing.front(), c.term) << r.conclusion;
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Catalogue, DiscoverConcealedEffect,
+    testing::Values(Concealed{"viscous-damping", "theta18=400"},            // 50 N at the fastest tests
+                    Concealed{"stribeck-friction", "theta19=0.3"},        // 30 % breakaway excess
+                    Concealed{"end-stop", "theta23=0.006,theta21=1e5"},   // touches only in test n (4-24 mm): 200 N
+                    Concealed{"oil-compressibility", "theta26=1.2e9"},    // K_eff of damper-physics.md
+                    Concealed{"real-gas", ""}),                           // nitrogen as it is
+    [](const testing::TestParamInfo<Concealed>& info) {
+      std::string name = info.param.term;
+      std::replace(name.begin(), name.end(), '-', '_');
+      return name;
+    });
+
+TEST(DiscoverCommand, WritesTheStoryAsJson) {
+  test::TempDir dir;
+  ParameterSet truth = Model::Build("2dof", Causality::kStrokeInput).defaults();
+  std::vector<rig::MatrixEntry> matrix;
+  for (const auto& e : rig::StandardMatrix())
+    if (std::string("abgk").find(e.label) != std::string::npos) matrix.push_back(e);
+  daq::WriteSession(dir.file("s.h5"), sim::SimulatePeriodicSession("2dof", truth.values(), matrix, {}));
+  const auto r = test::RunStrut("discover " + dir.file("s.h5") + " --model 2dof --input stroke --n 400 --json " +
+                                dir.file("d.json") + " --report " + dir.file("d.html"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  std::ifstream in(dir.file("d.json"));
+  const nlohmann::json j = nlohmann::json::parse(in);
+  for (const char* key : {"baseline", "mismatch", "missing", "final_model", "steps", "unexplained"})
+    EXPECT_TRUE(j.contains(key)) << key;
+  for (const char* key : {"model", "loglik", "bic", "noise_ratio"}) EXPECT_TRUE(j["baseline"].contains(key)) << key;
+  EXPECT_TRUE(j["missing"].empty());
+  EXPECT_EQ(j["final_model"], "2dof");
+  EXPECT_GT(test::ReadFile(dir.file("d.html")).size(), 1'000'000u);  // plotly inline
+}
+
+}  // namespace
+}  // namespace strut::ident

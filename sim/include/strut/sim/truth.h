@@ -1,0 +1,85 @@
+// The truth of the simulated rig: which physics the simulated damper has (effects), its parameter
+// values, and the rig around it (actuator, sensors, acquisition, injected faults). Read from a TOML
+// truth file (format in docs/simulated-rig.md); the shipped default sim/data/f16-nose-lab.toml
+// is compiled in (DefaultTruth()).
+#pragma once
+
+#include <stdexcept>
+#include <string>
+#include <string_view>
+#include <utility>
+#include <vector>
+
+#include "strut/ident/model.h"
+#include "strut/sim/actuator.h"
+#include "strut/sim/sensors.h"
+
+namespace strut::sim {
+
+//! A mistake in a truth or matrix file; what() names the file and the key or line.
+class TruthError : public std::invalid_argument {
+ public:
+  using std::invalid_argument::invalid_argument;
+};
+
+//! How experiments are sampled and settled.
+struct AcquisitionOptions {
+  //! Sample rate of periodic experiments, Hz; every matrix frequency must give whole samples per
+  //! period (200 Hz does for the standard matrix).
+  double sample_rate = 200.0;
+  //! Sample rate of drop experiments, Hz.
+  double drop_sample_rate = 1000.0;
+  //! Whole steady-state periods recorded per periodic experiment.
+  long periods = 3;
+  //! Settled when two consecutive periods differ by less than this, relative to the range of the
+  //! force and of the pressure over the period (each sample compared).
+  double settle_tolerance = 1e-4;
+  //! Periods simulated before giving up on settling (the record is then taken anyway and the
+  //! experiment says so in its attributes and the log).
+  int settle_periods_max = 40;
+  //! Record gauge pressure (as most transducers read) rather than absolute.
+  bool gauge_pressure = true;
+  //! Relative tolerance of the IDA integration of the damper.
+  double rtol = 1e-7;
+  bool IsValid(std::string* error) const;
+};
+
+//! Everything the simulated rig needs to know about the world it simulates.
+struct Truth {
+  std::string source = "<built-in default>";  //!< file it came from, for messages
+  std::string damper_serial = "SIM-F16N-0001";
+  std::string rig = "strut simulated rig";
+  std::vector<std::string> effects;  //!< effects switched on, in EffectNames() order
+  //! Parameter values as given (name or thetaN, value), applied over the model defaults in order.
+  std::vector<std::pair<std::string, double>> parameters;
+  ActuatorOptions actuator;
+  SensorSet sensors;
+  AcquisitionOptions acquisition;
+  std::vector<FaultSpec> faults;
+
+  //! Names of the switchable effects (the names of the identification model terms):
+  //! heat-exchange, gas-solubility, oil-compressibility, viscous-damping, stribeck-friction,
+  //! end-stop, real-gas.
+  static const std::vector<std::string>& EffectNames();
+  bool has_effect(std::string_view name) const;
+  //! The model composition: 2dof when heat-exchange and gas-solubility are on, 1dof+heat-exchange
+  //! with heat-exchange alone, 1dof (polytropic gas) without it; plus the other effects.
+  std::string Composition() const;
+  ident::Model BuildModel(ident::Causality causality) const;
+  //! The model's defaults with this truth's values applied. Throws TruthError for a value the
+  //! model cannot take.
+  ident::ParameterSet Parameters(const ident::Model& model) const;
+  //! Throws TruthError naming `source` when a setting is invalid.
+  void Validate() const;
+};
+
+//! Reads a truth file. Throws TruthError naming the file and the line or key of every mistake:
+//! TOML syntax, unknown table or key, unknown effect or parameter, a value that is not a number.
+Truth ReadTruthFile(const std::string& path);
+//! Parses truth-file text; `source_name` names it in messages.
+Truth ParseTruth(std::string_view text, const std::string& source_name);
+//! The shipped default (sim/data/f16-nose-lab.toml, compiled in).
+Truth DefaultTruth();
+std::string_view DefaultTruthText();
+
+}  // namespace strut::sim

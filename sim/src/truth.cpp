@@ -1,0 +1,399 @@
+#include "strut/sim/truth.h"
+
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <cmath>
+#include <fmt/format.h>
+#include <fstream>
+#include <set>
+#include <sstream>
+#include <toml++/toml.h>
+
+namespace strut::sim {
+namespace {
+
+// Parameters that only make sense when positive, or at least not negative.
+const std::set<std::string> kPositive = {"moving_mass", "gas_area", "pressure_per_temperature", "extended_pressure",
+                                         "polytropic_exponent", "gas_heat_capacity", "oil_bulk_modulus",
+                                         "stribeck_velocity", "end_stop_smoothing"};
+const std::set<std::string> kNonNegative = {"orifice_damping", "friction_sharpness", "wall_heat_conductance",
+                                            "viscous_damping", "stribeck_excess", "end_stop_stiffness",
+                                            "end_stop_damping", "oil_volume_ratio", "gas_solubility"};
+
+//! Reads one truth file; every message starts with "FILE:LINE:".
+class Reader {
+ public:
+  explicit Reader(std::string source) : source_(std::move(source)) {}
+
+  Truth Read(std::string_view text) {
+    toml::table root;
+    try {
+      root = toml::parse(text, source_);
+    } catch (const toml::parse_error& e) {
+      throw TruthError(fmt::format("{}:{}:{}: TOML syntax: {}", source_, e.source().begin.line,
+                                   e.source().begin.column, e.description()));
+    }
+    Truth truth;
+    truth.source = source_;
+    for (auto&& [key, node] : root) {
+      const std::string name(key.str());
+      if (name == "damper") {
+        ReadDamper(Table(node, name), truth);
+      } else if (name == "effects") {
+        ReadEffects(Table(node, name), truth);
+      } else if (name == "parameters") {
+        ReadParameters(Table(node, name), truth);
+      } else if (name == "actuator") {
+        ReadActuator(Table(node, name), truth.actuator);
+      } else if (name == "sensors") {
+        ReadSensors(Table(node, name), truth.sensors);
+      } else if (name == "acquisition") {
+        ReadAcquisition(Table(node, name), truth.acquisition);
+      } else if (name == "faults") {
+        ReadFaults(node, truth.faults);
+      } else {
+        throw TruthError(fmt::format("{}: unknown table [{}] (known: damper, effects, parameters, actuator, sensors, "
+                                     "acquisition, faults)",
+                                     Where(node), name));
+      }
+    }
+    CheckParameters(truth);
+    truth.Validate();
+    return truth;
+  }
+
+ private:
+  std::string Where(const toml::node& node) const {
+    return fmt::format("{}:{}", source_, node.source().begin.line);
+  }
+  const toml::table& Table(const toml::node& node, std::string_view name) const {
+    const toml::table* t = node.as_table();
+    if (!t) throw TruthError(fmt::format("{}: '{}' must be a table ([{}])", Where(node), name, name));
+    return *t;
+  }
+  double Number(const toml::node& node, std::string_view section, std::string_view key) const {
+    if (!node.is_number())
+      throw TruthError(fmt::format("{}: [{}] {}: expected a number, got {}", Where(node), section, key,
+                                   Describe(node)));
+    const double v = *node.value<double>();
+    if (!std::isfinite(v)) throw TruthError(fmt::format("{}: [{}] {}: the value must be finite", Where(node), section, key));
+    return v;
+  }
+  long Integer(const toml::node& node, std::string_view section, std::string_view key) const {
+    if (!node.is_integer())
+      throw TruthError(fmt::format("{}: [{}] {}: expected an integer, got {}", Where(node), section, key,
+                                   Describe(node)));
+    return static_cast<long>(*node.value<int64_t>());
+  }
+  bool Boolean(const toml::node& node, std::string_view section, std::string_view key) const {
+    if (!node.is_boolean())
+      throw TruthError(fmt::format("{}: [{}] {}: expected true or false, got {}", Where(node), section, key,
+                                   Describe(node)));
+    return *node.value<bool>();
+  }
+  std::string String(const toml::node& node, std::string_view section, std::string_view key) const {
+    if (!node.is_string())
+      throw TruthError(fmt::format("{}: [{}] {}: expected a string, got {}", Where(node), section, key,
+                                   Describe(node)));
+    return *node.value<std::string>();
+  }
+  static std::string Describe(const toml::node& node) {
+    std::ostringstream out;
+    if (node.is_string())
+      out << "the string \"" << *node.value<std::string>() << "\"";
+    else if (node.is_table())
+      out << "a table";
+    else if (node.is_array())
+      out << "an array";
+    else
+      out << node.type();
+    return out.str();
+  }
+  [[noreturn]] void UnknownKey(const toml::node& node, std::string_view section, std::string_view key,
+                               std::string_view known) const {
+    throw TruthError(fmt::format("{}: [{}] unknown key '{}' (known: {})", Where(node), section, key, known));
+  }
+
+  void ReadDamper(const toml::table& t, Truth& truth) const {
+    for (auto&& [k, node] : t) {
+      const std::string key(k.str());
+      if (key == "serial")
+        truth.damper_serial = String(node, "damper", key);
+      else if (key == "rig")
+        truth.rig = String(node, "damper", key);
+      else
+        UnknownKey(node, "damper", key, "serial, rig");
+    }
+  }
+
+  void ReadEffects(const toml::table& t, Truth& truth) {
+    std::set<std::string> on;
+    for (auto&& [k, node] : t) {
+      const std::string key(k.str());
+      const auto& names = Truth::EffectNames();
+      if (std::find(names.begin(), names.end(), key) == names.end()) {
+        std::string known;
+        for (const auto& n : names) known += (known.empty() ? "" : ", ") + n;
+        throw TruthError(fmt::format("{}: [effects] unknown effect '{}' (known: {})", Where(node), key, known));
+      }
+      if (Boolean(node, "effects", key)) on.insert(key);
+      effect_lines_[key] = static_cast<int>(node.source().begin.line);
+    }
+    truth.effects.clear();
+    for (const auto& n : Truth::EffectNames())
+      if (on.count(n)) truth.effects.push_back(n);
+  }
+
+  void ReadParameters(const toml::table& t, Truth& truth) {
+    for (auto&& [k, node] : t) {
+      const std::string key(k.str());
+      truth.parameters.emplace_back(key, Number(node, "parameters", key));
+      parameter_lines_.push_back(static_cast<int>(node.source().begin.line));
+    }
+  }
+
+  void ReadActuator(const toml::table& t, ActuatorOptions& a) const {
+    for (auto&& [k, node] : t) {
+      const std::string key(k.str());
+      if (key == "ideal")
+        a.ideal = Boolean(node, "actuator", key);
+      else if (key == "loop_bandwidth")
+        a.loop_bandwidth = Number(node, "actuator", key);
+      else if (key == "feedforward")
+        a.feedforward = Number(node, "actuator", key);
+      else if (key == "valve_bandwidth")
+        a.valve_bandwidth = Number(node, "actuator", key);
+      else if (key == "max_velocity")
+        a.max_velocity = Number(node, "actuator", key);
+      else if (key == "stall_force")
+        a.stall_force = Number(node, "actuator", key);
+      else if (key == "control_rate")
+        a.control_rate = Number(node, "actuator", key);
+      else
+        UnknownKey(node, "actuator", key,
+                   "ideal, loop_bandwidth, feedforward, valve_bandwidth, max_velocity, stall_force, control_rate");
+    }
+  }
+
+  void ReadSensor(const toml::table& t, const std::string& section, SensorOptions& s) const {
+    for (auto&& [k, node] : t) {
+      const std::string key(k.str());
+      if (key == "range") {
+        const toml::array* a = node.as_array();
+        if (!a || a->size() != 2)
+          throw TruthError(fmt::format("{}: [{}] range: expected [low, high]", Where(node), section));
+        s.range_min = Number((*a)[0], section, "range");
+        s.range_max = Number((*a)[1], section, "range");
+      } else if (key == "noise") {
+        s.noise = Number(node, section, key);
+      } else if (key == "offset") {
+        s.offset = Number(node, section, key);
+      } else if (key == "gain_error") {
+        s.gain_error = Number(node, section, key);
+      } else if (key == "bits") {
+        s.bits = static_cast<int>(Integer(node, section, key));
+      } else {
+        UnknownKey(node, section, key, "range, noise, offset, gain_error, bits");
+      }
+    }
+    std::string error;
+    if (!s.IsValid(&error)) throw TruthError(fmt::format("{}: [{}] {}", Where(t), section, error));
+  }
+
+  void ReadSensors(const toml::table& t, SensorSet& sensors) const {
+    for (auto&& [k, node] : t) {
+      const std::string key(k.str());
+      const std::string section = "sensors." + key;
+      if (key == "stroke")
+        ReadSensor(Table(node, section), section, sensors.stroke);
+      else if (key == "force")
+        ReadSensor(Table(node, section), section, sensors.force);
+      else if (key == "pressure")
+        ReadSensor(Table(node, section), section, sensors.pressure);
+      else
+        UnknownKey(node, "sensors", key, "stroke, force, pressure");
+    }
+  }
+
+  void ReadAcquisition(const toml::table& t, AcquisitionOptions& a) const {
+    for (auto&& [k, node] : t) {
+      const std::string key(k.str());
+      if (key == "sample_rate")
+        a.sample_rate = Number(node, "acquisition", key);
+      else if (key == "drop_sample_rate")
+        a.drop_sample_rate = Number(node, "acquisition", key);
+      else if (key == "periods")
+        a.periods = Integer(node, "acquisition", key);
+      else if (key == "settle_tolerance")
+        a.settle_tolerance = Number(node, "acquisition", key);
+      else if (key == "settle_periods_max")
+        a.settle_periods_max = static_cast<int>(Integer(node, "acquisition", key));
+      else if (key == "gauge_pressure")
+        a.gauge_pressure = Boolean(node, "acquisition", key);
+      else if (key == "rtol")
+        a.rtol = Number(node, "acquisition", key);
+      else
+        UnknownKey(node, "acquisition", key,
+                   "sample_rate, drop_sample_rate, periods, settle_tolerance, settle_periods_max, gauge_pressure, rtol");
+    }
+    std::string error;
+    if (!a.IsValid(&error)) throw TruthError(fmt::format("{}: [acquisition] {}", Where(t), error));
+  }
+
+  void ReadFaults(const toml::node& node, std::vector<FaultSpec>& faults) const {
+    const toml::array* list = node.as_array();
+    if (!list) throw TruthError(fmt::format("{}: faults must be an array of tables ([[faults]])", Where(node)));
+    for (const toml::node& item : *list) {
+      const toml::table* t = item.as_table();
+      if (!t) throw TruthError(fmt::format("{}: each fault must be a table ([[faults]])", Where(item)));
+      FaultSpec f;
+      bool has_kind = false;
+      for (auto&& [k, v] : *t) {
+        const std::string key(k.str());
+        if (key == "experiment") {
+          f.experiment = String(v, "faults", key);
+        } else if (key == "channel") {
+          f.channel = String(v, "faults", key);
+        } else if (key == "kind") {
+          try {
+            f.kind = ParseFaultKind(String(v, "faults", key));
+          } catch (const std::invalid_argument& e) {
+            throw TruthError(fmt::format("{}: [[faults]] {}", Where(v), e.what()));
+          }
+          has_kind = true;
+        } else if (key == "start") {
+          f.start = Number(v, "faults", key);
+        } else if (key == "duration") {
+          f.duration = Number(v, "faults", key);
+        } else if (key == "rate") {
+          f.rate = Number(v, "faults", key);
+        } else if (key == "amplitude") {
+          f.amplitude = Number(v, "faults", key);
+        } else {
+          UnknownKey(v, "faults", key, "experiment, channel, kind, start, duration, rate, amplitude");
+        }
+      }
+      if (!has_kind) throw TruthError(fmt::format("{}: [[faults]] needs a kind", Where(item)));
+      std::string error;
+      if (!f.IsValid(&error)) throw TruthError(fmt::format("{}: [[faults]] {}", Where(item), error));
+      faults.push_back(f);
+    }
+  }
+
+  // Every parameter name must exist in some model the effects can build; names of effects that
+  // are off are ignored with a warning.
+  void CheckParameters(const Truth& truth) const {
+    ident::Model model = [&] {
+      try {
+        return truth.BuildModel(ident::Causality::kStrokeInput);
+      } catch (const ident::ModelError& e) {
+        const auto line = effect_lines_.find("gas-solubility");
+        throw TruthError(fmt::format("{}:{}: [effects] {}", source_, line != effect_lines_.end() ? line->second : 1,
+                                     e.what()));
+      }
+    }();
+    std::vector<ident::ParameterSet> all;
+    for (const char* base : {"1dof", "2dof"}) {
+      std::string composition = base;
+      for (const auto& e : Truth::EffectNames())
+        if (e != "heat-exchange" && e != "gas-solubility") composition += "+" + e;
+      all.push_back(ident::Model::Build(composition, ident::Causality::kStrokeInput).defaults());
+    }
+    for (std::size_t i = 0; i < truth.parameters.size(); ++i) {
+      const auto& [key, value] = truth.parameters[i];
+      const int line = parameter_lines_.at(i);
+      const auto position = model.defaults().find(key);
+      if (!position) {
+        const bool known = std::any_of(all.begin(), all.end(), [&](const ident::ParameterSet& s) {
+          return s.find(key).has_value();
+        });
+        if (!known)
+          throw TruthError(fmt::format("{}:{}: [parameters] unknown parameter '{}'; the model {} has:\n{}", source_,
+                                       line, key, model.composition(), model.defaults().table()));
+        spdlog::warn("{}:{}: parameter '{}' is not used by the model {} (its effect is off)", source_, line, key,
+                     model.composition());
+        continue;
+      }
+      const std::string& name = model.defaults().spec(*position).name;
+      if ((kPositive.count(name) && !(value > 0)) || (kNonNegative.count(name) && value < 0))
+        throw TruthError(fmt::format("{}:{}: [parameters] {} must be {}, got {}", source_, line, key,
+                                     kPositive.count(name) ? "positive" : "zero or positive", value));
+    }
+  }
+
+  std::string source_;
+  std::map<std::string, int> effect_lines_;
+  std::vector<int> parameter_lines_;
+};
+
+}  // namespace
+
+bool AcquisitionOptions::IsValid(std::string* error) const {
+  const auto fail = [&](const std::string& m) {
+    if (error) *error = m;
+    return false;
+  };
+  if (!std::isfinite(sample_rate) || !(sample_rate > 0))
+    return fail(fmt::format("sample_rate must be positive, got {}", sample_rate));
+  if (!std::isfinite(drop_sample_rate) || !(drop_sample_rate > 0))
+    return fail(fmt::format("drop_sample_rate must be positive, got {}", drop_sample_rate));
+  if (periods < 1 || periods > 1000) return fail(fmt::format("periods must be 1..1000, got {}", periods));
+  if (!std::isfinite(settle_tolerance) || !(settle_tolerance > 0))
+    return fail(fmt::format("settle_tolerance must be positive, got {}", settle_tolerance));
+  if (settle_periods_max < 2) return fail(fmt::format("settle_periods_max must be at least 2, got {}", settle_periods_max));
+  if (!std::isfinite(rtol) || rtol < 1e-12 || rtol > 1e-3)
+    return fail(fmt::format("rtol must be between 1e-12 and 1e-3, got {}", rtol));
+  return true;
+}
+
+const std::vector<std::string>& Truth::EffectNames() {
+  static const std::vector<std::string> names = {"heat-exchange",    "gas-solubility",    "oil-compressibility",
+                                                 "viscous-damping",  "stribeck-friction", "end-stop",
+                                                 "real-gas"};
+  return names;
+}
+
+bool Truth::has_effect(std::string_view name) const {
+  return std::find(effects.begin(), effects.end(), name) != effects.end();
+}
+
+std::string Truth::Composition() const {
+  std::string c = has_effect("heat-exchange") ? (has_effect("gas-solubility") ? "2dof" : "1dof+heat-exchange") : "1dof";
+  if (!has_effect("heat-exchange") && has_effect("gas-solubility")) c += "+gas-solubility";  // refused by Build
+  for (const auto& e : EffectNames())
+    if (e != "heat-exchange" && e != "gas-solubility" && has_effect(e)) c += "+" + e;
+  return c;
+}
+
+ident::Model Truth::BuildModel(ident::Causality causality) const { return ident::Model::Build(Composition(), causality); }
+
+ident::ParameterSet Truth::Parameters(const ident::Model& model) const {
+  ident::ParameterSet p = model.defaults();
+  for (const auto& [key, value] : parameters)
+    if (p.find(key)) p.set(key, value);
+  return p;
+}
+
+void Truth::Validate() const {
+  std::string error;
+  if (!actuator.IsValid(&error)) throw TruthError(fmt::format("{}: [actuator] {}", source, error));
+  if (!sensors.IsValid(&error)) throw TruthError(fmt::format("{}: [sensors] {}", source, error));
+  if (!acquisition.IsValid(&error)) throw TruthError(fmt::format("{}: [acquisition] {}", source, error));
+  for (const auto& f : faults)
+    if (!f.IsValid(&error)) throw TruthError(fmt::format("{}: [[faults]] {}", source, error));
+}
+
+Truth ParseTruth(std::string_view text, const std::string& source_name) { return Reader(source_name).Read(text); }
+
+Truth ReadTruthFile(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw TruthError(fmt::format("{}: cannot open the truth file", path));
+  std::ostringstream text;
+  text << in.rdbuf();
+  return ParseTruth(text.str(), path);
+}
+
+Truth DefaultTruth() { return ParseTruth(DefaultTruthText(), "<built-in default truth>"); }
+
+}  // namespace strut::sim

@@ -1,0 +1,204 @@
+// strut sim: the simulated rig. `sim matrix` runs a test matrix (the standard one by default) and
+// writes a contract-format session of whole steady-state periods; `sim drop` writes a drop test;
+// `sim truth` shows (or writes out) the truth the rig simulates. docs/simulated-rig.md.
+#include <spdlog/spdlog.h>
+
+#include <chrono>
+#include <fstream>
+#include <iostream>
+
+#include "commands.h"
+#include "strut/daq/session.h"
+#include "strut/sim/simulated_rig.h"
+#include "strut/sim/truth.h"
+
+namespace strut::tools {
+namespace {
+
+struct TruthOptions {
+  std::string truth_path;
+  bool ideal_actuator = false;
+
+  void Add(CLI::App& command) {
+    command.add_option("--truth", truth_path, "Truth file (TOML; default: the built-in F-16-nose-like lab damper)")
+        ->check(CLI::ExistingFile);
+    command.add_flag("--ideal-actuator", ideal_actuator, "The stroke follows the set-point exactly (no servo loop)");
+  }
+  sim::Truth Load() const {
+    sim::Truth truth = truth_path.empty() ? sim::DefaultTruth() : sim::ReadTruthFile(truth_path);
+    if (ideal_actuator) truth.actuator.ideal = true;
+    return truth;
+  }
+};
+
+struct RunOptions {
+  unsigned long seed = 1;
+  bool real_time = false;
+  double speed = 1.0;
+
+  void Add(CLI::App& command) {
+    command.add_option("--seed", seed, "Seed of noise, start phases and faults (same seed, same session)")
+        ->capture_default_str();
+    command.add_flag("--real-time", real_time, "Pace the simulation to the wall clock (as a real rig delivers samples)");
+    command.add_option("--speed", speed, "With --real-time: simulated seconds per wall second")
+        ->check(CLI::PositiveNumber)
+        ->capture_default_str();
+  }
+  sim::RigRunOptions Get() const {
+    sim::RigRunOptions o;
+    o.seed = seed;
+    o.clock.mode = real_time ? sim::ClockMode::kRealTime : sim::ClockMode::kFast;
+    o.clock.speed = speed;
+    return o;
+  }
+};
+
+double Seconds(std::chrono::steady_clock::time_point since) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count();
+}
+
+std::string RangeText(const std::vector<double>& v, double scale) {
+  const auto [lo, hi] = std::minmax_element(v.begin(), v.end());
+  return fmt::format("{:8.3f}..{:8.3f}", *lo * scale, *hi * scale);
+}
+
+struct SimMatrixCommand {
+  TruthOptions truth;
+  RunOptions run;
+  std::string matrix_path;
+  std::string output;
+
+  void Run() const {
+    const auto start = std::chrono::steady_clock::now();
+    const sim::SimulatedRig rig(truth.Load());
+    const sim::MatrixPlan plan = matrix_path.empty() ? sim::StandardMatrixPlan() : sim::ReadMatrixFile(matrix_path);
+    spdlog::info("simulated rig: {} ({}), {} experiments from {}", rig.model().composition(), rig.truth().source,
+                 plan.experiments.size(), plan.source);
+    std::vector<sim::PeriodicRunReport> reports;
+    const daq::Session session = rig.RunMatrix(plan, run.Get(), &reports);
+    daq::WriteSession(output, session);
+
+    std::cout << fmt::format("{:<4} {:>6} {:>7} {:>7} | {:>6} {:>9} {:>9} | {:>19} | {:>19} | {:>6} {:>8}\n", "exp",
+                             "f Hz", "stat mm", "amp mm", "settle", "change", "track mm", "force kN", "pressure MPa g",
+                             "steps", "wall ms");
+    double simulated = 0.0;
+    for (std::size_t i = 0; i < reports.size(); ++i) {
+      const sim::PeriodicRunReport& r = reports[i];
+      const daq::Experiment& e = session.experiments[i];
+      simulated += r.simulated_seconds;
+      std::cout << fmt::format("{:<4} {:>6.2f} {:>7.0f} {:>7.0f} | {:>5}{} {:>9.1e} {:>9.3f} | {} | {} | {:>6} {:>8.1f}\n",
+                               e.label, e.frequency, e.static_position * 1e3, e.amplitude * 1e3, r.settle_periods,
+                               r.settled ? " " : "!", r.record_change, r.actuator.max_tracking_error * 1e3,
+                               RangeText(e.channel("force").samples, 1e-3), RangeText(e.channel("pressure").samples, 1e-6),
+                               r.ida_steps, r.wall_seconds * 1e3);
+    }
+    const double wall = Seconds(start);
+    std::cout << fmt::format("{} experiments, {:.1f} s simulated in {:.2f} s ({:.0f} simulated s per wall s); wrote {}\n",
+                             reports.size(), simulated, wall, simulated / wall, output);
+  }
+};
+
+struct SimDropCommand {
+  TruthOptions truth;
+  RunOptions run;
+  sim::DropSpec drop;
+  std::string output;
+
+  void Run() const {
+    const auto start = std::chrono::steady_clock::now();
+    const sim::SimulatedRig rig(truth.Load());
+    spdlog::info("simulated drop: {} kg at {} m/s for {} s on {} ({})", drop.mass, drop.impact_velocity, drop.duration,
+                 rig.model().composition(), rig.truth().source);
+    sim::DropRunReport report;
+    const daq::Session session = rig.RunDropSession(drop, run.Get(), &report);
+    daq::WriteSession(output, session);
+    std::cout << fmt::format(
+        "drop {} kg at {} m/s: peak stroke {:.1f} mm, peak force {:.2f} kN, stroke after {} s {:.1f} mm\n", drop.mass,
+        drop.impact_velocity, report.peak_stroke * 1e3, report.peak_force * 1e-3, drop.duration,
+        report.final_stroke * 1e3);
+    if (report.thermal_time_constant_fit > 0)
+      std::cout << fmt::format(
+          "gas cooling: time constant {:.2f} s fitted to T - T_amb over 20..80 % of the record; model "
+          "theta15 / (theta16 (1 + theta6 q)) = {:.2f} s\n",
+          report.thermal_time_constant_fit, report.thermal_time_constant_model);
+    std::cout << fmt::format("{} samples at {} Hz, {} IDA steps, {:.2f} s wall; wrote {}\n",
+                             session.experiments.front().sample_count(), session.experiments.front().sample_rate,
+                             report.ida_steps, Seconds(start), output);
+  }
+};
+
+struct SimTruthCommand {
+  TruthOptions truth;
+  std::string write_path;
+
+  void Run() const {
+    if (!write_path.empty()) {
+      std::ofstream out(write_path);
+      out << sim::DefaultTruthText();
+      if (!out) throw std::runtime_error("cannot write " + write_path);
+      std::cout << "wrote the built-in default truth to " << write_path << "\n";
+      return;
+    }
+    const sim::SimulatedRig rig(truth.Load());
+    const sim::Truth& t = rig.truth();
+    std::cout << fmt::format("truth: {}\ndamper: {}\nmodel: {}\neffects:", t.source, t.damper_serial,
+                             rig.model().composition());
+    for (const auto& e : sim::Truth::EffectNames()) std::cout << fmt::format(" {}={}", e, t.has_effect(e) ? "on" : "off");
+    std::cout << "\nparameters:\n" << rig.truth().Parameters(rig.model()).table() << "\n";
+    const sim::ActuatorOptions& a = t.actuator;
+    if (a.ideal)
+      std::cout << "actuator: ideal (the stroke follows the set-point)\n";
+    else
+      std::cout << fmt::format(
+          "actuator: loop {} Hz, feed-forward {}, valve {} Hz, max velocity {} m/s, stall force {} kN, control {} Hz\n",
+          a.loop_bandwidth, a.feedforward, a.valve_bandwidth, a.max_velocity, a.stall_force * 1e-3, a.control_rate);
+    for (const auto& [name, s] : {std::pair{"stroke", &t.sensors.stroke}, std::pair{"force", &t.sensors.force},
+                                  std::pair{"pressure", &t.sensors.pressure}})
+      std::cout << fmt::format("sensor {:<8}: range [{}, {}] {}, noise {}, offset {}, gain error {}, {} bits (LSB {:.3g})\n",
+                               name, s->range_min, s->range_max, s->units, s->noise, s->offset, s->gain_error, s->bits,
+                               s->lsb());
+    std::cout << fmt::format("acquisition: {} Hz periodic, {} Hz drop, {} periods, settle to {:.0e} within {} periods, "
+                             "{} pressure\nfaults: {}\n",
+                             t.acquisition.sample_rate, t.acquisition.drop_sample_rate, t.acquisition.periods,
+                             t.acquisition.settle_tolerance, t.acquisition.settle_periods_max,
+                             t.acquisition.gauge_pressure ? "gauge" : "absolute", t.faults.size());
+  }
+};
+
+}  // namespace
+
+void RegisterSimCommand(CLI::App& app) {
+  CLI::App* sim_app = app.add_subcommand("sim", "Simulated rig: test matrices and drop tests written as sessions");
+  sim_app->require_subcommand(1);
+
+  auto matrix = std::make_shared<SimMatrixCommand>();
+  CLI::App* m = sim_app->add_subcommand("matrix", "Run a test matrix (default: the 14 standard experiments)");
+  matrix->truth.Add(*m);
+  matrix->run.Add(*m);
+  m->add_option("--matrix", matrix->matrix_path, "Matrix file (TOML, docs/simulated-rig.md)")->check(CLI::ExistingFile);
+  m->add_option("-o,--output", matrix->output, "Session file to write (HDF5)")->required();
+  m->callback([matrix] { matrix->Run(); });
+
+  auto drop = std::make_shared<SimDropCommand>();
+  CLI::App* d = sim_app->add_subcommand("drop", "Drop a mass onto the fully extended damper");
+  drop->truth.Add(*d);
+  drop->run.Add(*d);
+  d->add_option("--mass", drop->drop.mass, "Dropped mass, kg")->check(CLI::PositiveNumber)->capture_default_str();
+  d->add_option("--velocity", drop->drop.impact_velocity, "Stroke velocity at contact, m/s")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  d->add_option("--duration", drop->drop.duration, "Record length from contact, s")
+      ->check(CLI::Range(1e-3, 3600.0))
+      ->capture_default_str();
+  d->add_option("--label", drop->drop.label, "Experiment label")->capture_default_str();
+  d->add_option("-o,--output", drop->output, "Session file to write (HDF5)")->required();
+  d->callback([drop] { drop->Run(); });
+
+  auto truth = std::make_shared<SimTruthCommand>();
+  CLI::App* t = sim_app->add_subcommand("truth", "Show the truth the rig simulates, or write out the default");
+  truth->truth.Add(*t);
+  t->add_option("--write-default", truth->write_path, "Write the built-in default truth file here and stop");
+  t->callback([truth] { truth->Run(); });
+}
+
+}  // namespace strut::tools

@@ -12,6 +12,7 @@
 #include "commands.h"
 #include "strut/ident/periodic.h"
 #include "strut/rig/test_matrix.h"
+#include "strut/sim/simulated_rig.h"
 #include "strut/sim/transient.h"
 
 namespace strut::tools {
@@ -248,6 +249,64 @@ struct BenchPeriodic {
   }
 };
 
+// ---------------------------------------------------------------------------------------------
+// strut bench sim: throughput of the simulated rig, the whole standard matrix with settling and
+// every effect on (the default truth), then a 30 s drop test. Single-threaded.
+
+struct BenchSim {
+  std::string json_path;
+  std::string truth_path;
+
+  void Run() const {
+    const sim::Truth truth = truth_path.empty() ? sim::DefaultTruth() : sim::ReadTruthFile(truth_path);
+    const sim::SimulatedRig rig(truth);
+    nlohmann::json report;
+    std::cout << fmt::format("simulated rig, {} ({}), standard matrix with settling:\n", rig.model().composition(),
+                             truth.source)
+              << fmt::format("  {:<4} {:>6} {:>8} {:>10} {:>10} {:>12} {:>9}\n", "exp", "f Hz", "periods", "sim s",
+                             "wall ms", "sim s/wall s", "IDA steps");
+    std::vector<sim::PeriodicRunReport> reports;
+    const auto start = Clock::now();
+    rig.RunMatrix(sim::StandardMatrixPlan(), {}, &reports);
+    const double wall = std::chrono::duration<double>(Clock::now() - start).count();
+    double simulated = 0.0;
+    nlohmann::json rows = nlohmann::json::array();
+    for (const sim::PeriodicRunReport& r : reports) {
+      simulated += r.simulated_seconds;
+      const double f = r.periods_simulated / r.simulated_seconds;
+      std::cout << fmt::format("  {:<4} {:>6.2f} {:>8} {:>10.1f} {:>10.1f} {:>12.0f} {:>9}\n", r.label, f,
+                               r.periods_simulated, r.simulated_seconds, r.wall_seconds * 1e3,
+                               r.simulated_seconds / r.wall_seconds, r.ida_steps);
+      rows.push_back({{"label", r.label}, {"periods", r.periods_simulated}, {"simulated_s", r.simulated_seconds},
+                      {"wall_s", r.wall_seconds}, {"ida_steps", r.ida_steps}});
+    }
+    std::cout << fmt::format("  matrix: {:.1f} s simulated in {:.2f} s wall = {:.0f} simulated s per wall s   "
+                             "target: whole matrix < 10 s ({})\n",
+                             simulated, wall, simulated / wall, wall < 10.0 ? "met" : "MISSED");
+    report["matrix"] = {{"experiments", rows}, {"simulated_s", simulated}, {"wall_s", wall},
+                        {"simulated_per_wall", simulated / wall}, {"target_wall_s", 10.0}};
+
+    sim::DropSpec drop;
+    sim::DropRunReport d;
+    const auto drop_start = Clock::now();
+    rig.RunDropSession(drop, {}, &d);
+    const double drop_wall = std::chrono::duration<double>(Clock::now() - drop_start).count();
+    std::cout << fmt::format("drop {} kg at {} m/s, {} s at {} Hz: {:.3f} s wall = {:.0f} simulated s per wall s, {} "
+                             "IDA steps; gas time constant {:.2f} s (model {:.2f} s)\n",
+                             drop.mass, drop.impact_velocity, drop.duration, truth.acquisition.drop_sample_rate,
+                             drop_wall, drop.duration / drop_wall, d.ida_steps, d.thermal_time_constant_fit,
+                             d.thermal_time_constant_model);
+    report["drop"] = {{"simulated_s", drop.duration}, {"wall_s", drop_wall}, {"ida_steps", d.ida_steps},
+                      {"time_constant_fit_s", d.thermal_time_constant_fit},
+                      {"time_constant_model_s", d.thermal_time_constant_model}};
+    if (!json_path.empty()) {
+      std::ofstream out(json_path);
+      out << report.dump(1) << "\n";
+      if (!out) throw std::runtime_error("cannot write " + json_path);
+    }
+  }
+};
+
 }  // namespace
 
 void RegisterBenchCommand(CLI::App& app) {
@@ -258,6 +317,13 @@ void RegisterBenchCommand(CLI::App& app) {
   sub->add_option("--json", periodic->json_path, "Also write the figures as JSON");
   sub->add_flag("--quick", periodic->quick, "Fewer repeats (for a smoke run)");
   sub->callback([periodic] { periodic->Run(); });
+
+  auto simulated = std::make_shared<BenchSim>();
+  CLI::App* sim_bench = bench->add_subcommand(
+      "sim", "Simulated rig: simulated seconds per wall second, standard matrix with settling, every effect on");
+  sim_bench->add_option("--json", simulated->json_path, "Also write the figures as JSON");
+  sim_bench->add_option("--truth", simulated->truth_path, "Truth file (default: the built-in one)")->check(CLI::ExistingFile);
+  sim_bench->callback([simulated] { simulated->Run(); });
 }
 
 }  // namespace strut::tools

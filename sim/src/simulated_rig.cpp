@@ -480,8 +480,12 @@ daq::Experiment SimulatedRig::RunDrop(const DropSpec& drop, std::mt19937_64& rng
   const DropLoad load{drop.mass, drop.impact_velocity, gravity >= 0 ? theta_[gravity] : 9.81};
   const std::vector<double> times = UniformTimes(drop.duration, rate);
 
+  // A drop rig has no fixture between the force measurement and the damper: the moving mass is the
+  // dropped mass alone (give it with the piston's share), so theta1 is zero here.
+  std::vector<double> theta = theta_;
+  if (const int mass = force_model.defaults().position_of_index(1); mass >= 0) theta[mass] = 0.0;
   DropRunReport report;
-  report.result = simulator.Simulate(theta_, load, times);
+  report.result = simulator.Simulate(theta, load, times);
   const TransientResult& r = report.result;
   report.ida_steps = r.steps;
   const Eigen::VectorXd q = r.unknowns.row(0).transpose();

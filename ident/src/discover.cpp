@@ -207,7 +207,14 @@ DiscoveryResult Discover(const std::vector<ExperimentData>& data, const std::str
     return worst;
   };
 
+  const auto mean_ratio = [](const std::map<std::string, double>& ratio) {
+    double sum = 0.0;
+    for (const auto& [c, r] : ratio) sum += r;
+    return ratio.empty() ? 0.0 : sum / ratio.size();
+  };
+
   DiscoveryResult result;
+  bool exhausted = false;  // stopped because no candidate qualified (not because of max_terms)
   say(fmt::format("fitting the baseline {}", base));
   result.baseline = fit(base, nullptr);
   result.mismatch = LocateMismatch(result.baseline);
@@ -258,7 +265,7 @@ DiscoveryResult Discover(const std::vector<ExperimentData>& data, const std::str
     int best = -1;
     for (std::size_t c = 0; c < results.size(); ++c) {
       if (!results[c].ok || results[c].delta_bic > -options.bic_threshold) continue;
-      if (worst_ratio(results[c].noise_ratio) > options.min_improvement * worst_ratio(ratio)) continue;
+      if (mean_ratio(results[c].noise_ratio) > options.min_improvement * mean_ratio(ratio)) continue;
       if (best < 0 || results[c].delta_bic < results[best].delta_bic) best = static_cast<int>(c);
     }
     for (const CandidateFit& c : results)
@@ -266,6 +273,7 @@ DiscoveryResult Discover(const std::vector<ExperimentData>& data, const std::str
                    worst_ratio(c.noise_ratio), c.evidence, c.ok ? "" : "  (" + c.error + ")");
     if (best < 0) {
       say("no candidate improves the fit beyond what its parameters cost");
+      exhausted = true;
       break;
     }
     DiscoveryStep step;
@@ -312,8 +320,11 @@ DiscoveryResult Discover(const std::vector<ExperimentData>& data, const std::str
     result.conclusion = fmt::format(
         "{} left residuals above the noise floor (noise ratios{}). {} Final model {} (noise ratios{}).{}", base, ratios,
         added.empty() ? "No catalogue term explains them." : "Missing: " + added + ".", result.final_model, after,
-        result.unexplained.empty() ? ""
-                                   : " What is left matches no catalogue term: " + result.unexplained.front().detail + ".");
+        result.unexplained.empty()
+            ? ""
+            : (exhausted ? " What is left matches no catalogue term: "
+                         : fmt::format(" Stopped after {} terms; the strongest feature left: ", options.max_terms)) +
+                  result.unexplained.front().detail + ".");
   }
   say(result.conclusion);
   return result;

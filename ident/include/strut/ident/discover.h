@@ -19,9 +19,9 @@ struct DiscoverOptions {
   //! Nothing is missing when every channel's residual variance is below this many times its
   //! noise floor (the ratio of a correct model scatters around 1).
   double noise_ratio_threshold = 1.5;
-  //! A kept term must also lower the noise ratio of the channels that were off by this factor.
-  double min_improvement = 0.9;
-  int max_terms = 4;
+  //! A kept term must also lower the mean noise ratio over the channels to this fraction or less.
+  double min_improvement = 0.95;
+  int max_terms = 8;
   int threads = 2;  //!< candidate refits in parallel
   bool IsValid(std::string* error) const;
 };

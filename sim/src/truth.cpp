@@ -284,6 +284,12 @@ class Reader {
   // Every parameter name must exist in some model the effects can build; names of effects that
   // are off are ignored with a warning.
   void CheckParameters(const Truth& truth) const {
+    if (truth.has_effect("gas-solubility") && !truth.has_effect("heat-exchange")) {
+      const auto line = effect_lines_.find("gas-solubility");
+      throw TruthError(fmt::format("{}:{}: [effects] gas-solubility needs heat-exchange (the paper's solubility is "
+                                   "written with the gas temperature)",
+                                   source_, line != effect_lines_.end() ? line->second : 1));
+    }
     ident::Model model = [&] {
       try {
         return truth.BuildModel(ident::Causality::kStrokeInput);
@@ -348,8 +354,9 @@ bool AcquisitionOptions::IsValid(std::string* error) const {
 }
 
 const std::vector<std::string>& Truth::EffectNames() {
-  static const std::vector<std::string> names = {"heat-exchange",    "gas-solubility",    "oil-compressibility",
-                                                 "viscous-damping",  "stribeck-friction", "end-stop",
+  // In the catalogue's (evaluation) order.
+  static const std::vector<std::string> names = {"heat-exchange",     "gas-solubility", "viscous-damping",
+                                                 "stribeck-friction", "end-stop",       "oil-compressibility",
                                                  "real-gas"};
   return names;
 }
@@ -377,6 +384,8 @@ ident::ParameterSet Truth::Parameters(const ident::Model& model) const {
 
 void Truth::Validate() const {
   std::string error;
+  if (has_effect("gas-solubility") && !has_effect("heat-exchange"))
+    throw TruthError(fmt::format("{}: [effects] gas-solubility needs heat-exchange", source));
   if (!actuator.IsValid(&error)) throw TruthError(fmt::format("{}: [actuator] {}", source, error));
   if (!sensors.IsValid(&error)) throw TruthError(fmt::format("{}: [sensors] {}", source, error));
   if (!acquisition.IsValid(&error)) throw TruthError(fmt::format("{}: [acquisition] {}", source, error));

@@ -1,0 +1,193 @@
+// The extra physics terms of the simulated rig (viscous-damping, stribeck-friction, end-stop,
+// oil-compressibility, real-gas): their equations as documented, and exact derivatives checked
+// against finite differences at instants where each term is active (near full extension, at low
+// speed, at deep compression), which test_model.cpp's mid-stroke instant does not reach.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "strut/ident/model.h"
+
+namespace strut::ident {
+namespace {
+
+constexpr const char* kAll = "viscous-damping+stribeck-friction+end-stop+oil-compressibility+real-gas";
+
+struct Instant {
+  std::vector<double> x, xd, xdd;
+  double u = 0, ud = 0, ud2 = 0;
+};
+
+// An instant with stroke q, rate v, pressure p, temperature T (whatever the causality).
+Instant At(const Model& model, double q, double v, double a, double p, double T, double F) {
+  Instant s;
+  for (int j = 0; j < model.unknown_count(); ++j) {
+    const std::string name = model.unknown_spec(j).name;
+    s.x.push_back(name == "stroke" ? q : name == "force" ? F : name == "pressure" ? p : T);
+    s.xd.push_back(name == "stroke" ? v : name == "temperature" ? 0.3 : 0.0);
+    s.xdd.push_back(name == "stroke" ? a : 0.0);
+  }
+  if (model.causality() == Causality::kForceInput) {
+    s.u = F, s.ud = 150.0, s.ud2 = -10.0;
+  } else {
+    const int offset = model.defaults().position_of_index(12);
+    s.u = q + (offset >= 0 ? model.defaults().value(offset) : 0.0), s.ud = v, s.ud2 = a;
+  }
+  return s;
+}
+
+std::vector<double> Residual(const Model& model, const Instant& s, const std::vector<double>& theta) {
+  std::vector<double> r(model.unknown_count());
+  model.Residual<double>(s.x, s.xd, s.xdd, s.u, s.ud, s.ud2, theta, r);
+  return r;
+}
+
+TEST(SimTerms, JetDerivativesMatchFiniteDifferencesWhereEachTermIsActive) {
+  // In contact with the top-out stop at low speed (end-stop, Stribeck), and deep in the stroke at
+  // high pressure and temperature (oil compliance, real gas).
+  const struct {
+    double q, v, a, p, T, F;
+  } instants[] = {{-2e-5, 0.0021, 0.4, 7.1e5, 296.0, 2400.0}, {0.24, -0.0035, -0.3, 5.5e6, 385.0, 28000.0}};
+  for (const char* base : {"1dof", "2dof"}) {
+    for (Causality causality : {Causality::kForceInput, Causality::kStrokeInput}) {
+      const Model model = Model::Build(std::string(base) + "+" + kAll, causality);
+      const std::vector<double> theta = model.defaults().values();
+      const int m = model.unknown_count(), np = model.parameter_count(), nd = 3 * m + 3 + np;
+      ASSERT_LE(nd, kMaxDerivatives);
+      for (const auto& in : instants) {
+        SCOPED_TRACE(model.composition() + " " + std::string(ToString(causality)) + " q = " + std::to_string(in.q));
+        const Instant s = At(model, in.q, in.v, in.a, in.p, in.T, in.F);
+        std::vector<Jet> x(m), xd(m), xdd(m), th(np), r(m);
+        for (int j = 0; j < m; ++j) {
+          x[j] = MakeVariable(s.x[j], nd, j);
+          xd[j] = MakeVariable(s.xd[j], nd, m + j);
+          xdd[j] = MakeVariable(s.xdd[j], nd, 2 * m + j);
+        }
+        const Jet u = MakeVariable(s.u, nd, 3 * m), ud = MakeVariable(s.ud, nd, 3 * m + 1),
+                  ud2 = MakeVariable(s.ud2, nd, 3 * m + 2);
+        for (int i = 0; i < np; ++i) th[i] = MakeVariable(theta[i], nd, 3 * m + 3 + i);
+        model.Residual<Jet>(x, xd, xdd, u, ud, ud2, th, r);
+        // Central differences with a step of 1e-6 relative to each variable (at least 1e-9).
+        const auto check = [&](int direction, auto&& perturb, double base_value, const std::string& what) {
+          const double h = 1e-6 * std::max(std::abs(base_value), 1e-3);
+          Instant plus = s, minus = s;
+          std::vector<double> tp = theta, tm = theta;
+          perturb(plus, tp, h);
+          perturb(minus, tm, -h);
+          const auto rp = Residual(model, plus, tp), rm = Residual(model, minus, tm);
+          for (int i = 0; i < m; ++i) {
+            const double numeric = (rp[i] - rm[i]) / (2 * h), exact = r[i].derivatives()[direction];
+            EXPECT_NEAR(exact, numeric, 2e-6 * std::max(1.0, std::abs(exact)) + 1e-7 * model.equation_scale(i) * 1e6)
+                << "equation " << i << " w.r.t. " << what;
+          }
+        };
+        for (int j = 0; j < m; ++j) {
+          check(j, [&](Instant& t, std::vector<double>&, double h) { t.x[j] += h; }, s.x[j], "x" + std::to_string(j));
+          check(m + j, [&](Instant& t, std::vector<double>&, double h) { t.xd[j] += h; }, s.xd[j],
+                "xd" + std::to_string(j));
+          check(2 * m + j, [&](Instant& t, std::vector<double>&, double h) { t.xdd[j] += h; }, s.xdd[j],
+                "xdd" + std::to_string(j));
+        }
+        check(3 * m, [&](Instant& t, std::vector<double>&, double h) { t.u += h; }, s.u, "u");
+        check(3 * m + 1, [&](Instant& t, std::vector<double>&, double h) { t.ud += h; }, s.ud, "u'");
+        for (int i = 0; i < np; ++i)
+          check(3 * m + 3 + i, [&](Instant&, std::vector<double>& t, double h) { t[i] += h; }, theta[i],
+                model.defaults().spec(i).key());
+      }
+    }
+  }
+}
+
+// Force of the balance of a stroke-input model at an instant, i.e. sum of term forces (F = 0 given).
+double TermForces(const Model& model, const std::vector<double>& theta, double q, double v, double p, double T) {
+  Instant s = At(model, q, v, 0.0, p, T, 0.0);
+  s.x[0] = 0.0;
+  return Residual(model, s, theta)[0];
+}
+
+TEST(SimTerms, ForceTermsFollowTheirDocumentedEquations) {
+  const Model plain = Model::Build("2dof", Causality::kStrokeInput);
+  const Model more = Model::Build("2dof+viscous-damping+stribeck-friction+end-stop", Causality::kStrokeInput);
+  const ParameterSet& d = more.defaults();
+  const auto t = [&](int i) { return d.value(d.position_of_index(i)); };
+  const std::vector<double> base = plain.defaults().values(), theta = d.values();
+  for (const double q : {-3e-4, 0.0, 5e-4, 0.1}) {
+    for (const double v : {-0.05, -0.002, 0.0005, 0.004, 0.1}) {
+      const double p = 9e5, T = 300.0;
+      const double extra = TermForces(more, theta, q, v, p, T) - TermForces(plain, base, q, v, p, T);
+      const double coulomb = (t(8) + t(9) * p) * std::atan(t(10) * v);
+      const double stribeck = t(19) * coulomb * std::exp(-(v / t(20)) * (v / t(20)));
+      const double w = t(24), depth = w * std::log1p(std::exp((t(23) - q) / w));
+      const double stop = -depth * (t(21) - t(22) * v);
+      EXPECT_NEAR(extra, t(18) * v + stribeck + stop, 1e-9 * (1.0 + std::abs(extra))) << "q " << q << " v " << v;
+    }
+  }
+  // The stop is inert a millimetre inside full extension and holds the gas preload just beyond it.
+  EXPECT_LT(std::abs(TermForces(more, theta, 1e-3, 0.0, 7e5, 293.15) - TermForces(plain, base, 1e-3, 0.0, 7e5, 293.15)),
+            0.5);
+  EXPECT_LT(TermForces(more, theta, -1e-3, 0.0, 7e5, 293.15), -1500.0);
+}
+
+TEST(SimTerms, OilComplianceAndRealGasChangeThePressureAsDocumented) {
+  // Static gas pressure at a deep stroke and the charge: oil compliance gives the gas room
+  // (lower pressure), the virial N2 is stiffer than ideal where it is dense and hot.
+  const auto pressure = [](const std::string& composition, double stroke, double temperature_offset) {
+    const Model model = Model::Build(composition, Causality::kStrokeInput);
+    std::vector<double> theta = model.defaults().values();
+    theta[model.defaults().position_of_index(17)] -= temperature_offset;  // hotter wall
+    return model.StaticEquilibrium(stroke, theta)[1];
+  };
+  const double ideal = pressure("2dof", 0.25, 0.0);
+  const double oil = pressure("2dof+oil-compressibility", 0.25, 0.0);
+  EXPECT_LT(oil, ideal);
+  // V_g / V0 = 1 + theta6 q + (V_oil / V0)(p - p_ref) / K: solve the ideal-gas law with it.
+  const Model m = Model::Build("2dof+oil-compressibility", Causality::kStrokeInput);
+  const ParameterSet& d = m.defaults();
+  const auto t = [&](int i) { return d.value(d.position_of_index(i)); };
+  const double T = -t(17), V = 1 + t(6) * 0.25 + t(25) * (oil - t(27)) / t(26);
+  EXPECT_NEAR(oil, t(5) * T * (1 - t(7) * oil / t(5)) / V, 1e-6 * oil);
+  EXPECT_NEAR(ideal / oil - 1, (V - (1 + t(6) * 0.25)) / (1 + t(6) * 0.25), 2e-3);
+
+  // Real gas: Z = 1 + (b0 - a / T) rho + c rho^2; below 1 at the charge (B < 0 at 293 K), above 1
+  // deep in the stroke at 400 K.
+  EXPECT_LT(pressure("2dof+real-gas", 0.0, 0.0), pressure("2dof", 0.0, 0.0));
+  const double hot_ideal = pressure("2dof", 0.25, 107.0), hot_real = pressure("2dof+real-gas", 0.25, 107.0);
+  EXPECT_GT(hot_real, hot_ideal * 1.01);
+  const Model r = Model::Build("2dof+real-gas", Causality::kStrokeInput);
+  const ParameterSet& rd = r.defaults();
+  const auto rt = [&](int i) { return rd.value(rd.position_of_index(i)); };
+  const double T400 = 293.15 + 107.0, N = 1 - rt(7) * hot_real / rt(5), V400 = 1 + rt(6) * 0.25;
+  const double rho = rt(5) * N / (8.314462618 * V400);
+  const double Z = 1 + (rt(28) - rt(29) / T400) * rho + rt(30) * rho * rho;
+  EXPECT_NEAR(hot_real, rt(5) * T400 * N * Z / V400, 1e-6 * hot_real);
+  EXPECT_GT(Z, 1.01);
+  EXPECT_LT(Z, 1.06);  // damper-physics.md §2.10: Z of about 1.03 at 10 MPa and 400 K
+}
+
+TEST(SimTerms, TermsComposeWithBothBasesAndNameTheirRequirements) {
+  for (const char* base : {"1dof", "2dof"})
+    for (const char* term : {"viscous-damping", "stribeck-friction", "end-stop", "oil-compressibility", "real-gas"}) {
+      const Model model = Model::Build(std::string(base) + "+" + term, Causality::kForceInput);
+      EXPECT_TRUE(model.has_term(term)) << base << "+" << term;
+      // Every parameter has a name, a unit and a finite default.
+      for (const auto& spec : model.defaults().specs()) {
+        EXPECT_FALSE(spec.name.empty());
+        EXPECT_FALSE(spec.unit.empty());
+        EXPECT_TRUE(std::isfinite(spec.default_value));
+      }
+    }
+  const Model all = Model::Build(std::string("2dof+") + kAll, Causality::kStrokeInput);
+  for (int index = 18; index <= 30; ++index) EXPECT_GE(all.defaults().position_of_index(index), 0) << index;
+  // Real gas under the polytropic law multiplies the pressure by Z (not Z^n).
+  const Model poly = Model::Build("1dof+real-gas", Causality::kStrokeInput);
+  const Model ideal = Model::Build("1dof", Causality::kStrokeInput);
+  const double p_real = poly.StaticEquilibrium(0.2, poly.defaults().values())[1];
+  const double p_ideal = ideal.StaticEquilibrium(0.2, ideal.defaults().values())[1];
+  const ParameterSet& d = poly.defaults();
+  const auto t = [&](int i) { return d.value(d.position_of_index(i)); };
+  const double rho = t(5) / (8.314462618 * 293.15) / (1 + t(6) * 0.2);
+  EXPECT_NEAR(p_real / p_ideal, 1 + (t(28) - t(29) / 293.15) * rho + t(30) * rho * rho, 1e-4);
+}
+
+}  // namespace
+}  // namespace strut::ident

@@ -1,6 +1,7 @@
-// strut demo: the main job on the simulated rig. Simulates the standard test matrix on a damper
-// whose truth is known, records the session, identifies the 1 dof and 2 dof models from it, and
-// writes the fits (JSON) and reports (HTML).
+// strut demo: the main job on the simulated rig. Runs the standard test matrix on the simulated
+// rig (actuator, sensors, a damper with every extra effect of the default truth), records the
+// session, identifies the paper's 1 dof and 2 dof models, lets discovery name what they leave
+// out, and writes the fits (JSON) and reports (HTML).
 #include <spdlog/spdlog.h>
 
 #include <chrono>
@@ -14,7 +15,9 @@
 #include "strut/ident/fit_report.h"
 #include "strut/ident/initial_values.h"
 #include "strut/rig/test_matrix.h"
-#include "strut/sim/periodic_session.h"
+#include "strut/ident/discover.h"
+#include "strut/sim/simulated_rig.h"
+#include "strut/sim/truth.h"
 
 namespace strut::tools {
 namespace {
@@ -28,15 +31,16 @@ struct DemoCommand {
     std::filesystem::create_directories(out_dir);
     const std::string session_path = out_dir + "/session.h5";
 
-    // 1. The rig: the standard matrix on a simulated 2 dof damper with sensor noise.
-    ident::ParameterSet truth = ident::Model::Build("2dof", ident::Causality::kStrokeInput).defaults();
-    truth.set("stroke_offset", 0.002);
-    sim::PeriodicSessionOptions options;
-    options.seed = seed;
+    // 1. The rig: the standard matrix on the simulated rig, default truth (every effect on).
+    const sim::SimulatedRig rig(sim::DefaultTruth());
+    sim::RigRunOptions run;
+    run.seed = seed;
     auto start = Clock::now();
-    daq::WriteSession(session_path, sim::SimulatePeriodicSession("2dof", truth.values(), rig::StandardMatrix(), options));
-    std::cout << fmt::format("1. simulated rig: 14 experiments of the standard matrix recorded to {} ({:.1f} s)\n",
-                             session_path, std::chrono::duration<double>(Clock::now() - start).count());
+    daq::WriteSession(session_path, rig.RunMatrix(sim::StandardMatrixPlan(), run));
+    const ident::ParameterSet truth = rig.truth().Parameters(rig.model());
+    std::cout << fmt::format("1. simulated rig ({}): 14 experiments of the standard matrix recorded to {} ({:.1f} s)\n",
+                             rig.truth().Composition(), session_path,
+                             std::chrono::duration<double>(Clock::now() - start).count());
 
     // 2. Identification: the paper's 1 dof and 2 dof models, starting values from the data.
     const daq::Session session = daq::ReadSession(session_path);
@@ -54,11 +58,11 @@ struct DemoCommand {
                                fit.iterations, fit.bic);
       for (int i : fit.estimated_positions) {
         const auto& spec = fit.parameters.spec(i);
-        const int t = truth.position_of_index(spec.index);
-        const bool comparable = t >= 0 && truth.spec(t).name == spec.name;
+        const auto t = truth.find(spec.key());
+        const bool comparable = t && truth.spec(*t).name == spec.name;
         std::cout << fmt::format("     {:<8} {:<26} {:>12.6g} ± {:<9.2g} {:<6} truth {}\n", spec.key(), spec.name,
                                  fit.parameters.value(i), fit.sd[i], spec.unit,
-                                 comparable ? fmt::format("{:.6g}", truth.value(t)) : std::string("-"));
+                                 comparable ? fmt::format("{:.6g}", truth.value(*t)) : std::string("-"));
       }
       for (const auto& c : fit.channels)
         std::cout << fmt::format("     {:<9} residual rms {:9.4g}, {:6.1f} x the noise floor\n", c.name, c.rms,
@@ -69,10 +73,19 @@ struct DemoCommand {
       ident::WriteFitReport(fit, stem + ".html", std::string("strut demo: ") + composition + " on the simulated rig");
       fits.push_back(std::move(fit));
     }
-    std::cout << fmt::format(
-        "\n3. the 2 dof model explains the data {} (BIC {:.6g} against {:.6g} for 1 dof).\n"
-        "   Fits: {}/fit-*.json, reports: {}/fit-*.html\n",
-        fits[1].bic < fits[0].bic ? "better" : "no better", fits[1].bic, fits[0].bic, out_dir, out_dir);
+    std::cout << fmt::format("\n   the 2 dof model explains the data {} (BIC {:.6g} against {:.6g} for 1 dof).\n",
+                             fits[1].bic < fits[0].bic ? "better" : "no better", fits[1].bic, fits[0].bic);
+
+    // 3. Discovery from 1 dof: what physics do the recordings show beyond it?
+    std::cout << "\n3. discovery from 1dof (the truth has every effect of the catalogue):\n";
+    start = Clock::now();
+    const auto data = ident::PrepareExperiments(session, ident::Causality::kStrokeInput, 800);
+    const ident::DiscoveryResult found = ident::Discover(data, "1dof", ident::Causality::kStrokeInput, {});
+    for (const auto& step : found.steps)
+      std::cout << fmt::format("   + {:<20} BIC {:+11.1f}   {}\n", step.term, step.delta_bic, step.evidence);
+    std::cout << fmt::format("   {} ({:.1f} s)\n", found.conclusion,
+                             std::chrono::duration<double>(Clock::now() - start).count());
+    std::cout << fmt::format("\n   Fits: {0}/fit-*.json, reports: {0}/fit-*.html, session: {1}\n", out_dir, session_path);
   }
 };
 

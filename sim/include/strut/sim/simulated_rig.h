@@ -56,6 +56,7 @@ struct PeriodicRunReport {
   int periods_simulated = 0;
   bool settled = false;           //!< consecutive periods agreed within the tolerance before recording
   double settle_change = 0.0;     //!< relative change of the last settling period
+  double settle_remaining = 0.0;  //!< that change extrapolated over the slowest decay still under way
   double record_change = 0.0;     //!< largest relative change between recorded periods
   bool started_from_periodic_solution = false;  //!< the periodic-solver shortcut worked
   long ida_steps = 0;

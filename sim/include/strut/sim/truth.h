@@ -32,7 +32,8 @@ struct AcquisitionOptions {
   //! Whole steady-state periods recorded per periodic experiment.
   long periods = 3;
   //! Settled when two consecutive periods differ by less than this, relative to the range of the
-  //! force and of the pressure over the period (each sample compared).
+  //! force and of the pressure over the period (each sample compared), and so does that change
+  //! extrapolated over the slowest decay still under way (rho / (1 - rho), rho from the last changes).
   double settle_tolerance = 1e-4;
   //! Periods simulated before giving up on settling (the record is then taken anyway and the
   //! experiment says so in its attributes and the log).

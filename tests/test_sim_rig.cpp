@@ -138,6 +138,19 @@ TEST(SimRig, LimitsAreFlaggedAndBadMatricesRefused) {
   const auto& q = s.experiments[0].channel("stroke").samples;
   EXPECT_LT(0.5 * (*std::max_element(q.begin(), q.end()) - *std::min_element(q.begin(), q.end())), 0.95 * 0.050);
 
+  // The force-limit interlock stops a test that loads the actuator too hard: aborted, no periods.
+  Truth weak = DefaultTruth();
+  weak.actuator.stall_force = 22e3, weak.actuator.force_limit = 20e3;
+  MatrixPlan deep;
+  deep.experiments = {{"f", "high", 2.0, 0.249, 0.010}, {"n", "low", 2.0, 0.014, 0.010}};
+  const daq::Session stopped = SimulatedRig(weak).RunMatrix(deep);
+  EXPECT_TRUE(daq::Validate(stopped).empty());
+  EXPECT_EQ(stopped.experiment("f").status, "aborted");
+  EXPECT_EQ(stopped.experiment("f").periods, 0);
+  EXPECT_NE(stopped.experiment("f").extra_attributes.at("sim_interlock").find("force limit 20.0 kN"), std::string::npos);
+  EXPECT_LT(stopped.experiment("f").sample_count(), 100u);
+  EXPECT_EQ(stopped.experiment("n").status, "complete");  // 4 kN: the next test runs
+
   MatrixPlan odd;
   odd.experiments = {{"odd", "", 0.3, 0.133, 0.01}};  // 200 / 0.3 samples per period
   try {

@@ -92,6 +92,8 @@ struct SimMatrixCommand {
                                RangeText(e.channel("force").samples, 1e-3), RangeText(e.channel("pressure").samples, 1e-6),
                                r.ida_steps, r.wall_seconds * 1e3);
     }
+    for (const sim::PeriodicRunReport& r : reports)
+      if (!r.interlock.empty()) std::cout << fmt::format("{}: aborted by the interlock: {}\n", r.label, r.interlock);
     const double wall = Seconds(start);
     std::cout << fmt::format("{} experiments, {:.1f} s simulated in {:.2f} s ({:.0f} simulated s per wall s); wrote {}\n",
                              reports.size(), simulated, wall, simulated / wall, output);
@@ -150,8 +152,10 @@ struct SimTruthCommand {
       std::cout << "actuator: ideal (the stroke follows the set-point)\n";
     else
       std::cout << fmt::format(
-          "actuator: loop {} Hz, feed-forward {}, valve {} Hz, max velocity {} m/s, stall force {} kN, control {} Hz\n",
-          a.loop_bandwidth, a.feedforward, a.valve_bandwidth, a.max_velocity, a.stall_force * 1e-3, a.control_rate);
+          "actuator: loop {} Hz, feed-forward {}, valve {} Hz, max velocity {} m/s, stall force {} kN, force limit {} kN, "
+          "control {} Hz\n",
+          a.loop_bandwidth, a.feedforward, a.valve_bandwidth, a.max_velocity, a.stall_force * 1e-3, a.force_limit * 1e-3,
+          a.control_rate);
     for (const auto& [name, s] : {std::pair{"stroke", &t.sensors.stroke}, std::pair{"force", &t.sensors.force},
                                   std::pair{"pressure", &t.sensors.pressure}})
       std::cout << fmt::format("sensor {:<8}: range [{}, {}] {}, noise {}, offset {}, gain error {}, {} bits (LSB {:.3g})\n",

@@ -49,6 +49,8 @@ bool ActuatorOptions::IsValid(std::string* error) const {
                             valve_bandwidth));
   if (!positive(max_velocity)) return fail(fmt::format("max_velocity must be positive, got {} m/s", max_velocity));
   if (!positive(stall_force)) return fail(fmt::format("stall_force must be positive, got {} N", stall_force));
+  if (!std::isfinite(force_limit) || force_limit < 0)
+    return fail(fmt::format("force_limit must be 0 (off) or positive, got {} N", force_limit));
   if (!positive(control_rate) || control_rate < 20.0 * valve_bandwidth)
     return fail(fmt::format("control_rate must be at least 20 times valve_bandwidth ({} Hz) for the RK4 loop, got {} Hz",
                             20.0 * valve_bandwidth, control_rate));

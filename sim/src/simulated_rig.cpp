@@ -312,6 +312,7 @@ daq::Experiment SimulatedRig::RunPeriodic(const rig::MatrixEntry& entry, double 
   int record_start = -1;
   double settle_change = INFINITY;
   std::vector<double> changes;
+  std::vector<double> all_stroke, all_force, all_pressure;  // every acquired sample, for an aborted test
   std::optional<ident::PeriodicSolution> restart;
   for (int k = 0;; ++k) {
     const double t0 = k * period;
@@ -409,10 +410,28 @@ daq::Experiment SimulatedRig::RunPeriodic(const rig::MatrixEntry& entry, double 
       force_values[i] = clean(1, i);
       pressure_values[i] = clean(2, i);
     }
+    // Force-limit interlock: the controller stops the test at the first sample beyond the limit.
+    const double limit = truth_.actuator.ideal ? 0.0 : truth_.actuator.force_limit;
+    long trip = -1;
+    if (limit > 0)
+      for (long j = 0; j <= fine && trip < 0; ++j)
+        if (std::abs(force_out[j]) > limit) trip = j / oversample;
+    if (trip >= 0) {
+      stroke_values.resize(trip + 1), force_values.resize(trip + 1), pressure_values.resize(trip + 1);
+      report.interlock = fmt::format("force limit {:.1f} kN exceeded at t = {:.3f} s", limit * 1e-3,
+                                     t0 + trip / sample_rate);
+    }
     SampleBlock block = acquisition.Acquire(entry.label, stroke_values, force_values, pressure_values, sample_rate,
                                             record_time, recording, rng);
     block.start_time = t0;
     Emit(sink, clock, block, t0);
+    all_stroke.insert(all_stroke.end(), block.stroke.begin(), block.stroke.end());
+    all_force.insert(all_force.end(), block.force.begin(), block.force.end());
+    all_pressure.insert(all_pressure.end(), block.pressure.begin(), block.pressure.end());
+    if (trip >= 0) {
+      report.periods_simulated = k + 1;
+      break;
+    }
     if (recording) {
       record_stroke.push_back(std::move(block.stroke));
       record_force.push_back(std::move(block.force));
@@ -439,20 +458,31 @@ daq::Experiment SimulatedRig::RunPeriodic(const rig::MatrixEntry& entry, double 
   e.static_position = entry.static_position;
   e.periods = periods;
   e.group = entry.group;
-  const long count = n * periods;
-  e.time.resize(count);
-  for (long i = 0; i < count; ++i) e.time[i] = static_cast<double>(i) / sample_rate;
   const auto join = [&](const std::vector<std::vector<double>>& blocks) {
     std::vector<double> all;
-    all.reserve(count);
+    all.reserve(n * periods);
     for (const auto& b : blocks) all.insert(all.end(), b.begin(), b.end());
     return all;
   };
+  if (!report.interlock.empty()) {
+    // Stopped by the interlock: no steady state; everything acquired up to the trip is kept.
+    e.status = "aborted";
+    e.periods = 0;
+    record_stroke = {std::move(all_stroke)};
+    record_force = {std::move(all_force)};
+    record_pressure = {std::move(all_pressure)};
+    record_clean.clear();
+    e.extra_attributes["sim_interlock"] = report.interlock;
+    spdlog::warn("experiment '{}' aborted: {}", entry.label, report.interlock);
+  }
   e.channels.push_back({"stroke", "m", "", join(record_stroke)});
   e.channels.push_back({"force", "N", "", join(record_force)});
   e.channels.push_back(acquisition.PressureChannel(join(record_pressure), acq.gauge_pressure));
+  const long count = static_cast<long>(e.channels.front().samples.size());
+  e.time.resize(count);
+  for (long i = 0; i < count; ++i) e.time[i] = static_cast<double>(i) / sample_rate;
 
-  report.clean.resize(record_clean.front().rows(), count);
+  report.clean.resize(has_temperature ? 5 : 4, static_cast<Eigen::Index>(record_clean.size()) * n);
   for (std::size_t b = 0; b < record_clean.size(); ++b)
     report.clean.middleCols(static_cast<Eigen::Index>(b) * n, n) = record_clean[b];
   report.clean_rows = {"stroke", "force", "pressure"};

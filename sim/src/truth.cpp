@@ -168,11 +168,14 @@ class Reader {
         a.max_velocity = Number(node, "actuator", key);
       else if (key == "stall_force")
         a.stall_force = Number(node, "actuator", key);
+      else if (key == "force_limit")
+        a.force_limit = Number(node, "actuator", key);
       else if (key == "control_rate")
         a.control_rate = Number(node, "actuator", key);
       else
         UnknownKey(node, "actuator", key,
-                   "ideal, loop_bandwidth, feedforward, valve_bandwidth, max_velocity, stall_force, control_rate");
+                   "ideal, loop_bandwidth, feedforward, valve_bandwidth, max_velocity, stall_force, force_limit, "
+                   "control_rate");
     }
   }
 

@@ -40,6 +40,10 @@ struct ActuatorOptions {
   double max_velocity = 0.4;
   //! Force at which the piston stalls, N: supply pressure times piston area (force limit).
   double stall_force = 5.0e4;
+  //! Force-limit interlock, N (0: none): when the load cell reads more than this in magnitude the
+  //! controller stops the test (MTS-style limit detector with an interlock action) and the
+  //! experiment is recorded as aborted. Below the stall force, so the loop never runs stalled.
+  double force_limit = 4.5e4;
   //! Rate at which the loop is integrated and the stroke is stored (classic RK4), Hz.
   double control_rate = 2000.0;
   bool IsValid(std::string* error) const;

@@ -59,13 +59,14 @@ struct PeriodicRunReport {
   double settle_remaining = 0.0;  //!< that change extrapolated over the slowest decay still under way
   double record_change = 0.0;     //!< largest relative change between recorded periods
   bool started_from_periodic_solution = false;  //!< the periodic-solver shortcut worked
+  std::string interlock;          //!< why the controller stopped the test (empty: it did not)
   long ida_steps = 0;
   double simulated_seconds = 0.0;
   double wall_seconds = 0.0;
   ActuatorStats actuator;
   //! The record without sensors (rows: stroke as an ideal LVDT reads it, q + theta12; force, N;
   //! absolute pressure, Pa; gas temperature, K, when the model has it; set-point, m), one column
-  //! per recorded sample.
+  //! per recorded sample (none when the interlock stopped the test).
   Eigen::MatrixXd clean;
   std::vector<std::string> clean_rows;
 };

@@ -10,7 +10,9 @@
 #include <nlohmann/json.hpp>
 
 #include "commands.h"
+#include "strut/ident/oscillator.h"
 #include "strut/ident/periodic.h"
+#include "strut/ident/silverbox.h"
 #include "strut/rig/test_matrix.h"
 #include "strut/sim/simulated_rig.h"
 #include "strut/sim/transient.h"
@@ -309,7 +311,108 @@ struct BenchSim {
 
 }  // namespace
 
-void RegisterBenchCommand(CLI::App& app) {
+//! strut bench silverbox: the Silverbox benchmark from the raw files (docs/silverbox.md).
+struct BenchSilverbox {
+  std::string data_dir, json_path, report_path;
+  std::vector<std::string> models;
+  int refine = 4, substeps = 8, threads = 0;
+  bool no_check = false;
+
+  void Run() const {
+    const auto start = Clock::now();
+    const daq::Session session = ident::ReadSilverbox(data_dir);
+    const double import_seconds = std::chrono::duration<double>(Clock::now() - start).count();
+    ident::SilverboxOptions options;
+    if (!models.empty()) options.models = models;
+    options.refine = refine;
+    options.substeps = substeps;
+    options.threads = threads;
+    const ident::SilverboxResult r = ident::RunSilverbox(session, options);
+    const ident::SilverboxCandidate& best = r.best();
+
+    // Cross-check of the test simulation: IDA (sim::TransientSimulator) on the same model and input.
+    nlohmann::json check = nullptr;
+    std::vector<std::string> notes;
+    if (!no_check) {
+      const ident::Model model = ident::Model::Build(best.model, ident::Causality::kForceInput);
+      const daq::Experiment& arrow = session.experiment("arrow");
+      const std::vector<double>& u = arrow.channel("u").samples;
+      constexpr int kFine = 16;
+      const double fs = arrow.sample_rate, h = 1.0 / (fs * kFine);
+      // The same band-limited input as the RK4 run, evaluated between its fine points by cubic Lagrange.
+      const std::vector<double> fine = ident::BandLimitedRecord(u, kFine);
+      const sim::InputSignal input([&fine, h](double t) {
+        const double p = t / h;
+        const long i = static_cast<long>(std::floor(p));
+        const double s = p - i;
+        const auto at = [&](long j) { return fine[std::clamp<long>(j, 0, static_cast<long>(fine.size()) - 1)]; };
+        const double v = -s * (s - 1) * (s - 2) / 6 * at(i - 1) + (s + 1) * (s - 1) * (s - 2) / 2 * at(i) -
+                         (s + 1) * s * (s - 2) / 2 * at(i + 1) + (s + 1) * s * (s - 1) / 6 * at(i + 2);
+        return sim::InputSample{v, 0.0, 0.0};
+      });
+      sim::TransientOptions to;
+      to.rtol = 1e-8;
+      to.atol_factor = 10.0;
+      to.max_steps = 20'000'000;
+      const sim::TransientSimulator simulator(model, to);
+      std::vector<double> times(u.size());
+      for (std::size_t i = 0; i < times.size(); ++i) times[i] = i / fs;
+      const auto t0 = Clock::now();
+      const sim::TransientResult ida = simulator.Simulate(best.fit.parameters.values(), input, times);
+      const double ida_seconds = std::chrono::duration<double>(Clock::now() - t0).count();
+      const Eigen::VectorXd y = ida.channel("y");
+      double max_diff = 0.0, sum = 0.0;
+      long count = 0;
+      for (std::size_t i = 0; i < times.size(); ++i) max_diff = std::max(max_diff, std::abs(y[i] - r.arrow_simulated[i]));
+      for (long i = ident::SilverboxLayout::kTransient; i < static_cast<long>(times.size()); ++i, ++count)
+        sum += std::pow(r.arrow_measured[i] - y[i], 2);
+      const double ida_rms = 1e3 * std::sqrt(sum / count);
+      check = {{"integrator", "IDA (sim::TransientSimulator), rtol 1e-8"},
+               {"seconds", ida_seconds},
+               {"steps", ida.steps},
+               {"max_difference_uv", 1e6 * max_diff},
+               {"test_arrow_rms_mv", ida_rms}};
+      notes.push_back(fmt::format(
+          "Cross-check of the test simulation: SUNDIALS IDA (rtol 1e-8) on the same model and input gives an arrow "
+          "RMS of {:.4f} mV; it differs from the RK4 run by at most {:.2f} µV ({} steps, {:.2f} s; RK4 {:.2f} s).",
+          ida_rms, 1e6 * max_diff, ida.steps, ida_seconds, r.simulate_seconds));
+    }
+
+    std::cout << fmt::format("Silverbox (classic split), model {}\n", best.model);
+    std::cout << fmt::format("  candidates (chosen by validation RMS):\n");
+    for (const auto& c : r.candidates)
+      std::cout << fmt::format("    {:<72} estimation {:.4f} mV  validation {:.4f} mV  BIC {:.1f}\n", c.model,
+                               c.estimation_rms_mv, c.validation_rms_mv, c.fit.bic);
+    std::cout << fmt::format("  validation RMS (realisation 9)         {:.4f} mV\n", best.validation_rms_mv);
+    std::cout << fmt::format("  test RMS, arrow y[486, 40486)           {:.4f} mV\n", r.test_arrow_rms_mv);
+    std::cout << fmt::format("  test RMS, no extrapolation y[486, 32100) {:.4f} mV\n", r.test_arrow_no_extrapolation_rms_mv);
+    std::cout << fmt::format("  fit of 9 periods                        {:.2f} s wall, {:.2f} s CPU ({} iterations)\n",
+                             best.fit_seconds, best.fit_cpu_seconds, best.fit.iterations);
+    std::cout << fmt::format("  import {:.2f} s, arrow simulation {:.2f} s\n", import_seconds, r.simulate_seconds);
+    for (const auto& n : notes) std::cout << "  " << n << "\n";
+    std::cout << "  parameters (95 % intervals):\n";
+    for (int i = 0; i < best.fit.parameters.size(); ++i) {
+      const auto& spec = best.fit.parameters.spec(i);
+      const double v = best.fit.parameters.value(i), sd = best.fit.sd[i];
+      std::cout << fmt::format("    {:<8} {:<20} {:>14.7g} +- {:.3g}  [{:.7g}, {:.7g}] {}\n", spec.key(), spec.name, v,
+                               1.96 * sd, v - 1.96 * sd, v + 1.96 * sd, spec.unit);
+    }
+    if (!json_path.empty()) {
+      nlohmann::json out = ident::SilverboxToJson(r, options);
+      out["import_seconds"] = import_seconds;
+      out["data"] = session.source_path;
+      out["test_simulation_check"] = check;
+      std::ofstream file(json_path);
+      file << out.dump(1) << "\n";
+      if (!file) throw std::runtime_error("cannot write " + json_path);
+      spdlog::info("wrote {}", json_path);
+    }
+    if (!report_path.empty()) {
+      ident::WriteSilverboxReport(r, options, report_path, notes);
+      spdlog::info("wrote {}", report_path);
+    }
+  }
+};void RegisterBenchCommand(CLI::App& app) {
   CLI::App* bench = app.add_subcommand("bench", "Benchmarks: figures and ratios measured side by side");
   bench->require_subcommand(1);
   auto periodic = std::make_shared<BenchPeriodic>();
@@ -324,6 +427,23 @@ void RegisterBenchCommand(CLI::App& app) {
   sim_bench->add_option("--json", simulated->json_path, "Also write the figures as JSON");
   sim_bench->add_option("--truth", simulated->truth_path, "Truth file (default: the built-in one)")->check(CLI::ExistingFile);
   sim_bench->callback([simulated] { simulated->Run(); });
-}
+
+  auto silverbox = std::make_shared<BenchSilverbox>();
+  CLI::App* sb = bench->add_subcommand(
+      "silverbox", "Silverbox benchmark from the raw files: periodic fit, validation, arrow test (classic split)");
+  sb->add_option("--data", silverbox->data_dir, "Directory with SNLS80mV.mat (or .csv)")->required()->check(CLI::ExistingDirectory);
+  sb->add_option("--json", silverbox->json_path, "Also write the figures as JSON");
+  sb->add_option("--report", silverbox->report_path, "Write a self-contained HTML report");
+  sb->add_option("--model", silverbox->models,
+                 "Candidate composition(s); the lowest validation RMS is tested (default: the selected model)");
+  sb->add_option("--refine", silverbox->refine, "Periodic-solver grid points per sample")
+      ->check(CLI::Range(1, 64))
+      ->capture_default_str();
+  sb->add_option("--substeps", silverbox->substeps, "RK4 steps per sample in the arrow simulation")
+      ->check(CLI::Range(1, 256))
+      ->capture_default_str();
+  sb->add_option("--threads", silverbox->threads, "Estimator threads (0: one per core)")->capture_default_str();
+  sb->add_flag("--no-check", silverbox->no_check, "Skip the IDA cross-check of the arrow simulation");
+  sb->callback([silverbox] { silverbox->Run(); });}
 
 }  // namespace strut::tools

@@ -41,7 +41,7 @@ struct IdentifyCommand {
     std::vector<ident::DataIssue> issues;
     for (const std::string& path : sessions) {
       const daq::Session session = daq::ReadSession(path);
-      auto prepared = ident::PrepareExperiments(session, m.causality(), n, &issues);
+      auto prepared = ident::PrepareExperiments(session, m, n, &issues);
       for (auto& e : prepared) {
         const bool clash = std::any_of(data.begin(), data.end(), [&](const auto& d) { return d.label == e.label; });
         if (clash) e.label = path + ":" + e.label;  // several sessions may reuse labels

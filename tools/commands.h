@@ -13,5 +13,6 @@ void RegisterBenchCommand(CLI::App& app);
 void RegisterIdentifyCommand(CLI::App& app);
 void RegisterDiscoverCommand(CLI::App& app);
 void RegisterSimCommand(CLI::App& app);
+void RegisterImportCommand(CLI::App& app);
 
 }  // namespace strut::tools

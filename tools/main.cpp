@@ -37,6 +37,7 @@ int main(int argc, char** argv) {
   strut::tools::RegisterDiscoverCommand(app);
   strut::tools::RegisterBenchCommand(app);
   strut::tools::RegisterSimCommand(app);
+  strut::tools::RegisterImportCommand(app);
 
   try {
     app.parse(argc, argv);

@@ -420,9 +420,10 @@ class Reader {
     return value;
   }
 
-  std::optional<double> Number(hid_t object, const char* name, std::string_view experiment) {
+  std::optional<double> Number(hid_t object, const char* name, std::string_view experiment,
+                               bool required = true) {
     const std::string item = AttributeItem(name);
-    const hdf5::Attribute attribute = Open(object, name, experiment, item, true);
+    const hdf5::Attribute attribute = Open(object, name, experiment, item, required);
     if (!attribute) return std::nullopt;
     std::string error;
     const auto value = GetNumber(attribute.get(), error);
@@ -459,6 +460,11 @@ class Reader {
       session.damper_serial = std::move(*text);
     }
     if (auto text = String(file, "rig", "", AttributeItem("rig"))) session.rig = std::move(*text);
+    // strut's extension (docs/session-files.md): absent means the contract's damper profile.
+    if (auto text = String(file, "profile", "", AttributeItem("profile"), false)) {
+      session.profile = std::move(*text);
+    }
+    generic_ = session.profile == kGenericProfile;
   }
 
   void ReadExperiments(hid_t file, Session& session) {
@@ -508,18 +514,21 @@ class Reader {
         e.kind = ExperimentKind::kDrop;
       } else if (*kind == "static") {
         e.kind = ExperimentKind::kStatic;
+      } else if (*kind == "record" && generic_) {
+        e.kind = ExperimentKind::kRecord;
       } else {
         kind_known = false;
         defects_.Add(label, kind_item,
-                     fmt::format("'{}' is not \"periodic\", \"drop\" or \"static\"", *kind));
+                     fmt::format("'{}' is not \"periodic\", \"drop\" or \"static\"{}", *kind,
+                                 generic_ ? " or \"record\"" : ""));
       }
     }
     if (auto status = String(g, "status", label, AttributeItem("status"))) e.status = *status;
     e.sample_rate = Number(g, "sample_rate", label).value_or(0.0);
     if (kind_known && e.kind == ExperimentKind::kPeriodic) {
       e.frequency = Number(g, "frequency", label).value_or(0.0);
-      e.amplitude = Number(g, "amplitude", label).value_or(0.0);
-      e.static_position = Number(g, "static_position", label).value_or(0.0);
+      e.amplitude = Number(g, "amplitude", label, !generic_).value_or(0.0);
+      e.static_position = Number(g, "static_position", label, !generic_).value_or(0.0);
       if (auto waveform = String(g, "waveform", label, AttributeItem("waveform"))) {
         e.waveform = *waveform;
       }
@@ -596,6 +605,8 @@ class Reader {
     for (std::string_view standard : detail::kStandardChannels) {
       const std::string name(standard);
       const std::string item = ChannelItem(name);
+      // Generic sessions name their own channels: a standard one is read when it is there.
+      if (generic_ && H5Lexists(group, name.c_str(), H5P_DEFAULT) <= 0) continue;
       const hdf5::Dataset dataset = OpenDataset(group, name, label, item);
       if (!dataset) continue;
       Channel channel;
@@ -653,6 +664,7 @@ class Reader {
 
   std::string path_;
   DefectList defects_;
+  bool generic_ = false;  //!< the file's profile is "generic"
 };
 
 bool IsAscii(std::string_view text) {
@@ -670,6 +682,7 @@ class Writer {
       : path_(std::move(path)), options_(options) {}
 
   std::vector<unsigned char> Image(const Session& session) {
+    generic_ = session.generic();
     hdf5::PropertyList access(Checked(H5Pcreate(H5P_FILE_ACCESS), "file access properties"));
     Check(H5Pset_fapl_core(access.get(), GrowthIncrement(session), false), "in-memory file");
     hdf5::File file(Checked(H5Fcreate(path_.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, access.get()),
@@ -680,6 +693,7 @@ class Writer {
     StringAttribute(root, "created_utc", session.created_utc, "root");
     StringAttribute(root, "damper_serial", session.damper_serial, "root");
     StringAttribute(root, "rig", session.rig, "root");
+    if (session.profile != kDamperProfile) StringAttribute(root, "profile", session.profile, "root");
 
     // Record creation order so experiments read back in the order they were recorded.
     hdf5::PropertyList create(Checked(H5Pcreate(H5P_GROUP_CREATE), "group properties"));
@@ -731,8 +745,11 @@ class Writer {
     DoubleAttribute(g, "sample_rate", e.sample_rate, where);
     if (e.kind == ExperimentKind::kPeriodic) {
       DoubleAttribute(g, "frequency", e.frequency, where);
-      DoubleAttribute(g, "amplitude", e.amplitude, where);
-      DoubleAttribute(g, "static_position", e.static_position, where);
+      // Generic sessions: amplitude and static position only when they mean something.
+      if (!generic_ || e.amplitude != 0.0) DoubleAttribute(g, "amplitude", e.amplitude, where);
+      if (!generic_ || e.static_position != 0.0) {
+        DoubleAttribute(g, "static_position", e.static_position, where);
+      }
       StringAttribute(g, "waveform", e.waveform, where);
       IntegerAttribute(g, "periods", e.periods, H5T_STD_I64LE, where);
       if (!e.group.empty()) StringAttribute(g, "group", e.group, where);
@@ -813,6 +830,7 @@ class Writer {
 
   std::string path_;
   WriteOptions options_;
+  bool generic_ = false;  //!< writing a generic-profile session
 };
 
 // The temporary file of a write: removed unless it was renamed onto the target.

@@ -24,6 +24,8 @@ std::string_view ToString(ExperimentKind kind) {
       return "drop";
     case ExperimentKind::kStatic:
       return "static";
+    case ExperimentKind::kRecord:
+      return "record";
   }
   return "unknown";
 }
@@ -138,7 +140,8 @@ std::string NonFiniteMessage(std::size_t count, std::size_t first) {
 
 class ExperimentChecker {
  public:
-  ExperimentChecker(const Experiment& e, DefectList& defects) : e_(e), defects_(defects) {}
+  ExperimentChecker(const Experiment& e, DefectList& defects, bool generic)
+      : e_(e), defects_(defects), generic_(generic) {}
 
   void Run() {
     CheckAttributes();
@@ -170,7 +173,23 @@ class ExperimentChecker {
     rate_ok_ = Positive("sample_rate", e_.sample_rate);
 
     if (!kind_ok_) return;
-    if (e_.kind == ExperimentKind::kPeriodic) {
+    if (e_.kind == ExperimentKind::kRecord && !generic_) {
+      Add(AttributeItem("kind"), "\"record\" needs the session profile \"generic\"");
+    }
+    if (e_.kind == ExperimentKind::kPeriodic && generic_) {
+      // Generic profile: any excitation; amplitude and static position are optional (0: none).
+      frequency_ok_ = Positive("frequency", e_.frequency);
+      const std::string waveform_item = AttributeItem("waveform");
+      if (!Has(waveform_item) && e_.waveform.empty()) Add(waveform_item, "empty");
+      const std::pair<const char*, double> optional[] = {{"amplitude", e_.amplitude},
+                                                         {"static_position", e_.static_position}};
+      for (const auto& [name, value] : optional) {
+        if (!Has(AttributeItem(name)) && !std::isfinite(value)) {
+          Add(AttributeItem(name), fmt::format("must be finite, found {}", value));
+        }
+      }
+      CheckPeriods();
+    } else if (e_.kind == ExperimentKind::kPeriodic) {
       frequency_ok_ = Positive("frequency", e_.frequency);
       Positive("amplitude", e_.amplitude);
       const std::string position_item = AttributeItem("static_position");
@@ -182,16 +201,7 @@ class ExperimentChecker {
       if (!Has(waveform_item) && e_.waveform != "sine") {
         Add(waveform_item, fmt::format("'{}' is not supported (only \"sine\")", e_.waveform));
       }
-      // An aborted experiment may hold no steady-state period at all.
-      const std::string periods_item = AttributeItem("periods");
-      const long min_periods = e_.status == "aborted" ? 0 : 1;
-      if (!Has(periods_item)) {
-        if (e_.periods >= min_periods) {
-          periods_ok_ = true;
-        } else {
-          Add(periods_item, fmt::format("must be >= {}, found {}", min_periods, e_.periods));
-        }
-      }
+      CheckPeriods();
     } else if (e_.kind == ExperimentKind::kDrop) {
       Positive("drop_mass", e_.drop_mass);
       Positive("impact_velocity", e_.impact_velocity);
@@ -203,6 +213,19 @@ class ExperimentChecker {
         Add("extra attributes", "an extra attribute has an empty name");
       } else if (IsContractAttribute(e_.kind, name)) {
         Add(item, "extra attribute has the name of a contract attribute");
+      }
+    }
+  }
+
+  void CheckPeriods() {
+    // An aborted experiment may hold no steady-state period at all.
+    const std::string periods_item = AttributeItem("periods");
+    const long min_periods = e_.status == "aborted" ? 0 : 1;
+    if (!Has(periods_item)) {
+      if (e_.periods >= min_periods) {
+        periods_ok_ = true;
+      } else {
+        Add(periods_item, fmt::format("must be >= {}, found {}", min_periods, e_.periods));
       }
     }
   }
@@ -273,10 +296,12 @@ class ExperimentChecker {
 
   void CheckChannels(bool time_ok) {
     std::set<std::string_view> seen;
+    // The generic profile names its own channels; it needs at least one.
     for (std::string_view name : kStandardChannels) {
       const std::string item = ChannelItem(name);
-      if (e_.find_channel(name) == nullptr && !Has(item)) Add(item, "missing");
+      if (!generic_ && e_.find_channel(name) == nullptr && !Has(item)) Add(item, "missing");
     }
+    if (generic_ && e_.channels.empty() && !Has("channels")) Add("channels", "none (a generic experiment needs one)");
     for (const Channel& c : e_.channels) {
       const std::string item = ChannelItem(c.name);
       if (!IsValidName(c.name) || c.name == "time") {
@@ -348,6 +373,7 @@ class ExperimentChecker {
 
   const Experiment& e_;
   DefectList& defects_;
+  bool generic_ = false;
   bool kind_ok_ = false;
   bool rate_ok_ = false;
   bool frequency_ok_ = false;
@@ -419,6 +445,11 @@ void SortChannels(std::vector<Channel>& channels) {
 }
 
 void CheckSession(const Session& session, DefectList& defects) {
+  const std::string profile_item = AttributeItem("profile");
+  if (!defects.Has("", profile_item) && session.profile != kDamperProfile && session.profile != kGenericProfile) {
+    defects.Add("", profile_item,
+                fmt::format("'{}' is neither \"{}\" nor \"{}\"", session.profile, kDamperProfile, kGenericProfile));
+  }
   const std::string version_item = AttributeItem("format_version");
   if (!defects.Has("", version_item) && session.format_version != 1) {
     defects.Add(
@@ -452,7 +483,7 @@ void CheckSession(const Session& session, DefectList& defects) {
       defects.Add(e.label, "label", "used by more than one experiment");
       continue;
     }
-    ExperimentChecker(e, defects).Run();
+    ExperimentChecker(e, defects, session.generic()).Run();
   }
 }
 

@@ -2,6 +2,11 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
+#include <exception>
+#include <mutex>
+#include <optional>
+#include <thread>
 #include <cmath>
 #include <fmt/format.h>
 #include <numbers>
@@ -13,8 +18,13 @@ namespace strut::ident {
 namespace {
 
 std::vector<std::string> DefaultChannels(const Model& model) {
-  if (model.causality() == Causality::kForceInput) return {"stroke", "pressure"};
-  return {"force", "pressure"};
+  // The mechanical output (stroke under force input, force under stroke input; y for a generic
+  // oscillator) and the gas pressure when the model has one.
+  std::vector<std::string> channels = {model.mechanical_channel()};
+  const auto& states = model.states();
+  if (std::any_of(states.begin(), states.end(), [](const StateSpec& s) { return s.name == "pressure"; }))
+    channels.push_back("pressure");
+  return channels;
 }
 
 // Everything one iterate of the fit needs per experiment.
@@ -60,6 +70,33 @@ struct ExperimentState {
   }
 };
 
+// Runs f(0) .. f(count - 1) on up to `threads` threads; the first exception is rethrown.
+void ParallelFor(int count, int threads, const std::function<void(int)>& f) {
+  threads = std::min(threads, count);
+  if (threads <= 1) {
+    for (int i = 0; i < count; ++i) f(i);
+    return;
+  }
+  std::atomic<int> next{0};
+  std::exception_ptr error;
+  std::mutex error_mutex;
+  const auto work = [&] {
+    for (int i = next++; i < count; i = next++) {
+      try {
+        f(i);
+      } catch (...) {
+        const std::lock_guard lock(error_mutex);
+        if (!error) error = std::current_exception();
+      }
+    }
+  };
+  std::vector<std::thread> pool;
+  for (int t = 1; t < threads; ++t) pool.emplace_back(work);
+  work();
+  for (auto& t : pool) t.join();
+  if (error) std::rethrow_exception(error);
+}
+
 struct Evaluation {
   bool ok = true;
   std::vector<double> sum_squares;  // per channel, over active experiments
@@ -78,6 +115,8 @@ bool EstimatorOptions::IsValid(std::string* error) const {
   if (!(step_tolerance > 0)) return fail("step_tolerance must be positive");
   if (!(damping_relative_sd > 0)) return fail("damping_relative_sd must be positive");
   if (max_halvings < 0) return fail("max_halvings must not be negative");
+  if (start_up_periods < 0) return fail("start_up_periods must not be negative");
+  if (threads < 0) return fail("threads must not be negative");
   return true;
 }
 
@@ -139,6 +178,7 @@ FitSummary Estimator::Fit(const std::vector<ExperimentData>& data, const Paramet
   // Experiments: solvers, defects, starting solutions.
   PeriodicSolverOptions solver_options;
   solver_options.scheme = options_.scheme;
+  solver_options.start_up_periods = options_.start_up_periods;
   std::vector<ExperimentState> states;
   states.reserve(data.size());
   for (const ExperimentData& d : data) {
@@ -175,25 +215,38 @@ FitSummary Estimator::Fit(const std::vector<ExperimentData>& data, const Paramet
 
   std::vector<double> theta = initial.values();
   // Solves every active experiment at `values`; warm starts from `from` (the accepted iterate).
+  const int threads = options_.threads > 0 ? options_.threads
+                                           : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
   const auto solve_all = [&](const std::vector<double>& values, bool allow_drop, int iteration) {
-    bool ok = true;
-    for (std::size_t a = 0; a < states.size(); ++a) {
+    // Experiments are independent: solved on `threads` threads (progress is reported as they start).
+    std::vector<std::optional<std::string>> failure(states.size());
+    std::mutex progress_mutex;
+    ParallelFor(static_cast<int>(states.size()), threads, [&](int a) {
       ExperimentState& s = states[a];
-      if (!s.active) continue;
-      if (progress) progress({iteration, static_cast<int>(a) + 1, static_cast<int>(states.size()), NAN});
+      if (!s.active) return;
+      if (progress) {
+        const std::lock_guard lock(progress_mutex);
+        progress({iteration, a + 1, static_cast<int>(states.size()), NAN});
+      }
       try {
         PeriodicSolution next = s.solver->Solve(s.data->input, values, s.solution.n == n ? &s.solution : nullptr);
         s.solution = std::move(next);
       } catch (const PeriodicSolverError& e) {
-        if (!allow_drop) return false;
-        s.active = false;
-        s.dropped_at_start = true;
-        s.error = e.what();
-        spdlog::warn("experiment '{}': no periodic solution at the starting values ({}); left out until the "
-                     "parameters improve",
-                     s.data->label, e.what());
-        ok = false;
+        failure[a] = e.what();
       }
+    });
+    bool ok = true;
+    for (std::size_t a = 0; a < states.size(); ++a) {
+      if (!failure[a]) continue;
+      if (!allow_drop) return false;
+      ExperimentState& s = states[a];
+      s.active = false;
+      s.dropped_at_start = true;
+      s.error = *failure[a];
+      spdlog::warn("experiment '{}': no periodic solution at the starting values ({}); left out until the "
+                   "parameters improve",
+                   s.data->label, s.error);
+      ok = false;
     }
     return ok || allow_drop;
   };
@@ -247,17 +300,25 @@ FitSummary Estimator::Fit(const std::vector<ExperimentData>& data, const Paramet
   const auto normal_equations = [&](const std::vector<double>& variance, Eigen::MatrixXd& h, Eigen::VectorXd& g) {
     h.setZero(l, l);
     g.setZero(l);
-    for (ExperimentState& s : states) {
-      if (!s.active) continue;
+    // Per experiment on `threads` threads, summed in experiment order (the same result for any count).
+    std::vector<Eigen::MatrixXd> hs(states.size(), Eigen::MatrixXd::Zero(l, l));
+    std::vector<Eigen::VectorXd> gs(states.size(), Eigen::VectorXd::Zero(l));
+    ParallelFor(static_cast<int>(states.size()), threads, [&](int a) {
+      ExperimentState& s = states[a];
+      if (!s.active) return;
       const auto sens = s.solver->OutputSensitivities(s.solution, theta);
       for (int b = 0; b < nc; ++b) {
         if (!s.channel_fitted[b]) continue;
         Eigen::MatrixXd j(s.j0.size(), l);
         for (int k = 0; k < l; ++k) j.col(k) = s.AtPhases(sens[output_row[b]].col(est[k])) * scale[est[k]];
         const Eigen::VectorXd r = s.Residual(channels[b], output_row[b]);
-        h.noalias() += j.transpose() * j / variance[b];
-        g.noalias() += j.transpose() * r / variance[b];
+        hs[a].noalias() += j.transpose() * j / variance[b];
+        gs[a].noalias() += j.transpose() * r / variance[b];
       }
+    });
+    for (std::size_t a = 0; a < states.size(); ++a) {
+      h += hs[a];
+      g += gs[a];
     }
     for (int k = 0; k < l; ++k) {
       const int i = est[k];

@@ -164,11 +164,12 @@ std::vector<DataIssue> InspectChannel(const daq::Experiment& e, const daq::Chann
   return issues;
 }
 
-std::vector<ExperimentData> PrepareExperiments(const daq::Session& session, Causality causality, int n,
-                                               std::vector<DataIssue>* issues) {
+namespace {
+
+std::vector<ExperimentData> Prepare(const daq::Session& session, const std::string& input_channel, int n,
+                                    std::vector<DataIssue>* issues) {
   std::vector<ExperimentData> prepared;
   const std::string file = session.source_path.empty() ? "<memory>" : session.source_path;
-  const std::string input_channel = causality == Causality::kForceInput ? "force" : "stroke";
   for (const daq::Experiment& e : session.experiments) {
     if (e.kind != daq::ExperimentKind::kPeriodic || e.status != "complete") {
       spdlog::info("{}: experiment '{}' skipped ({} {})", file, e.label, daq::ToString(e.kind), e.status);
@@ -219,6 +220,18 @@ std::vector<ExperimentData> PrepareExperiments(const daq::Session& session, Caus
     prepared.push_back(std::move(d));
   }
   return prepared;
+}
+
+}  // namespace
+
+std::vector<ExperimentData> PrepareExperiments(const daq::Session& session, Causality causality, int n,
+                                               std::vector<DataIssue>* issues) {
+  return Prepare(session, causality == Causality::kForceInput ? "force" : "stroke", n, issues);
+}
+
+std::vector<ExperimentData> PrepareExperiments(const daq::Session& session, const Model& model, int n,
+                                               std::vector<DataIssue>* issues) {
+  return Prepare(session, model.input_channel(), n, issues);
 }
 
 }  // namespace strut::ident

@@ -1,5 +1,7 @@
 #include "strut/ident/initial_values.h"
 
+#include "strut/ident/oscillator.h"
+
 #include <algorithm>
 #include <cmath>
 #include <fmt/format.h>
@@ -123,6 +125,8 @@ FrictionEstimate PreidentifyFriction(const std::vector<ExperimentData>& data) {
 
 ParameterSet InitialValuesFromData(const Model& model, const std::vector<ExperimentData>& data,
                                    std::vector<std::string>* log) {
+  // Generic oscillators have their own (equation-error) starting values.
+  if (model.has_term("linear-oscillator")) return OscillatorInitialValues(model, data, log);
   ParameterSet values = model.defaults();
   const auto note = [&](const std::string& line) {
     if (log) log->push_back(line);

@@ -11,6 +11,11 @@
 namespace strut::ident {
 namespace {
 constexpr double kForceScale = 1e-6;  // N: a force-balance residual too small to matter
+// The damper's mechanical slots. Scales are changes too small to matter: Newton stops below them.
+const StateSpec kStrokeSlot{"stroke", "m", 2, 0.1, 1e-9, kForceScale};
+const StateSpec kForceSlot{"force", "N", 0, 5.0e3, 1e-6, kForceScale};
+// Bases in the order the canonical name prefers them (the largest damper base first).
+constexpr std::string_view kBases[] = {"2dof", "1dof", "linear-oscillator"};
 }  // namespace
 
 std::string_view ToString(Causality c) { return c == Causality::kForceInput ? "force" : "stroke"; }
@@ -57,9 +62,21 @@ bool ModelBuilder::has_term(std::string_view term) const {
   return std::find(term_names_.begin(), term_names_.end(), term) != term_names_.end();
 }
 
+void ModelBuilder::declare_channels(const StateSpec& displacement, const StateSpec& drive, std::string_view by) {
+  if (displacement_ && (displacement_->name != displacement.name || drive_->name != drive.name))
+    throw ModelError(fmt::format("terms '{}' and '{}' name the model's channels differently ({}/{} and {}/{})",
+                                 channels_by_, by, displacement_->name, drive_->name, displacement.name, drive.name));
+  displacement_ = displacement;
+  drive_ = drive;
+  channels_by_ = std::string(by);
+}
+
+void ModelBuilder::set_output_offset(int index) { output_offset_index_ = index; }
+
 std::vector<std::string> Model::Catalogue() {
-  std::vector<std::string> names = {"1dof", "2dof"};
-  for (const auto& e : ::strut::ident::Catalogue()) names.push_back(e.name);
+  std::vector<std::string> names = {"1dof", "2dof", "linear-oscillator"};
+  for (const auto& e : ::strut::ident::Catalogue())
+    if (std::find(names.begin(), names.end(), e.name) == names.end()) names.push_back(e.name);
   return names;
 }
 
@@ -79,12 +96,17 @@ Model Model::Build(std::string_view composition, Causality causality) {
   }
   const auto& base = BaseTerms(tokens.front());
   if (base.empty())
-    throw ModelError(fmt::format("model '{}': the base must be 1dof or 2dof, not '{}'", composition, tokens.front()));
+    throw ModelError(fmt::format("model '{}': the base must be 1dof, 2dof or linear-oscillator, not '{}'", composition,
+                                 tokens.front()));
   std::set<std::string> chosen(base.begin(), base.end());
   for (std::size_t i = 1; i < tokens.size(); ++i) {
     const auto it = std::find_if(catalogue.begin(), catalogue.end(), [&](const TermEntry& e) { return e.name == tokens[i]; });
     if (it == catalogue.end())
       throw ModelError(fmt::format("model '{}': unknown term '{}'; the catalogue has:{}", composition, tokens[i], catalogue_list()));
+    if (std::find(std::begin(kBases), std::end(kBases), tokens[i]) != std::end(kBases) &&
+        !BaseTerms(tokens.front()).empty() && !chosen.count(it->name))
+      throw ModelError(fmt::format("model '{}': '{}' is a base of its own; start the composition with it", composition,
+                                   tokens[i]));
     if (!chosen.insert(it->name).second)
       throw ModelError(fmt::format("model '{}': term '{}' is already in the model", composition, tokens[i]));
     if (!it->replaces.empty()) chosen.erase(it->replaces);
@@ -108,7 +130,12 @@ Model Model::Build(std::string_view composition, Causality causality) {
   const auto contains = [&](const std::vector<std::string>& set) {
     return std::all_of(set.begin(), set.end(), [&](const std::string& n) { return chosen.count(n) > 0; });
   };
-  const std::string base_name = contains(BaseTerms("2dof")) ? "2dof" : "1dof";
+  std::string base_name(tokens.front());
+  for (std::string_view b : kBases)
+    if (contains(BaseTerms(b))) {
+      base_name = std::string(b);
+      break;
+    }
   const auto& base_set = BaseTerms(base_name);
   model.composition_ = base_name;
   for (const auto& n : builder.term_names_)
@@ -118,7 +145,12 @@ Model Model::Build(std::string_view composition, Causality causality) {
   model.terms_.assign(terms.begin(), terms.end());
   model.states_ = builder.states_;
   model.defaults_ = ParameterSet(builder.parameters_);
-  model.stroke_offset_position_ = model.has_term("stroke-offset") ? builder.parameter_position(12) : -1;
+  model.displacement_ = builder.displacement_.value_or(kStrokeSlot);
+  model.drive_ = builder.drive_.value_or(kForceSlot);
+  model.displacement_.derivative_order = 2;
+  model.drive_.derivative_order = 0;
+  model.stroke_offset_position_ =
+      builder.output_offset_index_ >= 0 ? builder.parameter_position(builder.output_offset_index_) : -1;
   return model;
 }
 
@@ -133,22 +165,30 @@ int Model::derivative_order(int j) const {
 
 StateSpec Model::unknown_spec(int j) const {
   if (j > 0) return states_.at(j - 1);
-  // Scales are changes too small to matter: Newton stops below them.
-  if (causality_ == Causality::kForceInput) return {"stroke", "m", 2, 0.1, 1e-9, kForceScale};
-  return {"force", "N", 0, 5.0e3, 1e-6, kForceScale};
+  return causality_ == Causality::kForceInput ? displacement_ : drive_;
 }
 
-double Model::equation_scale(int j) const { return j == 0 ? kForceScale : states_.at(j - 1).equation_scale; }
+double Model::equation_scale(int j) const {
+  return j == 0 ? drive_.equation_scale : states_.at(j - 1).equation_scale;
+}
 
 std::vector<std::string> Model::output_channels() const {
-  std::vector<std::string> channels = {"stroke", "force"};
+  std::vector<std::string> channels = {displacement_.name, drive_.name};
   for (const auto& s : states_) channels.push_back(s.name);
   return channels;
 }
 
+const std::string& Model::input_channel() const {
+  return causality_ == Causality::kForceInput ? drive_.name : displacement_.name;
+}
+
+const std::string& Model::mechanical_channel() const {
+  return causality_ == Causality::kForceInput ? displacement_.name : drive_.name;
+}
+
 std::string Model::channel_unit(std::string_view channel) const {
-  if (channel == "stroke") return "m";
-  if (channel == "force") return "N";
+  if (channel == displacement_.name) return displacement_.unit;
+  if (channel == drive_.name) return drive_.unit;
   for (const auto& s : states_)
     if (s.name == channel) return s.unit;
   throw ModelError(fmt::format("model '{}' has no output channel '{}'", composition_, channel));

@@ -132,6 +132,7 @@ class StrokeOffset final : public Term {
   std::string_view name() const override { return "stroke-offset"; }
   void Declare(ModelBuilder& b) override {
     b.add_parameter({12, "stroke_offset", "m", 0.0, "stroke sensor offset: measured = true + offset", true, 1e-3});
+    b.set_output_offset(12);
   }
   void Bind(const ModelBuilder&) override {}
   template <class S>
@@ -448,6 +449,117 @@ class RealGas final : public Term {
   bool thermal_ = false;
 };
 
+// ---------------------------------------------------------------------------------------------
+// Generic forced oscillators (docs/silverbox.md): m y'' + d y' + k y + k2 y^2 + k3 y^3 + u0 = u,
+// measured output y + y0. The displacement slot is the output y, the drive slot the input u; both
+// in the units of the record ([y], [u]: volts for the Silverbox circuit). Indices from theta50 on.
+
+// The channels of a generic oscillator: output y (the unknown under input u), input u. Typical
+// values 0.1 (the static solve starts there and limits its steps by them), Newton scales 1e-9.
+const StateSpec kOutputY{"y", "[y]", 2, 0.1, 1e-9, 1e-9};
+const StateSpec kInputU{"u", "[u]", 0, 0.1, 1e-9, 1e-9};
+
+//! theta50 y'' + theta51 y' + theta52 y: mass, damping and stiffness of a forced oscillator
+//! driven by the input u. The base of the generic models; it names the channels y and u.
+class LinearOscillator final : public Term {
+ public:
+  std::string_view name() const override { return "linear-oscillator"; }
+  void Declare(ModelBuilder& b) override {
+    // Tiny typical sizes: the estimator scales these by their (data-derived) starting values, whatever
+    // the units of the record.
+    b.add_parameter({50, "mass", "[u] s^2/[y]", 1.0, "oscillator mass (input per output acceleration)", true, 1e-12});
+    b.add_parameter({51, "damping", "[u] s/[y]", 0.1, "linear damping (input per output rate)", true, 1e-12});
+    b.add_parameter({52, "stiffness", "[u]/[y]", 1.0, "linear stiffness (input per output)", true, 1e-12});
+    b.declare_channels(kOutputY, kInputU, name());
+  }
+  void Bind(const ModelBuilder& b) override {
+    mass_ = b.parameter_position(50);
+    damping_ = b.parameter_position(51);
+    stiffness_ = b.parameter_position(52);
+  }
+  template <class S>
+  void Eval(TermContext<S>& c) const {
+    if (c.phase != TermContext<S>::Phase::kBalance) return;
+    const auto& v = *c.v;
+    c.force += c.theta[mass_] * v.stroke_accel + c.theta[damping_] * v.stroke_rate + c.theta[stiffness_] * v.stroke;
+  }
+  STRUT_TERM_EVALUATE
+
+ private:
+  int mass_ = -1, damping_ = -1, stiffness_ = -1;
+};
+
+//! theta53 y^2: quadratic (asymmetric) stiffness.
+class QuadraticStiffness final : public Term {
+ public:
+  std::string_view name() const override { return "quadratic-stiffness"; }
+  void Declare(ModelBuilder& b) override {
+    b.add_parameter({53, "quadratic_stiffness", "[u]/[y]^2", 0.0, "quadratic stiffness: input per output squared",
+                     true, 1e-12, true});
+  }
+  void Bind(const ModelBuilder& b) override { k2_ = b.parameter_position(53); }
+  template <class S>
+  void Eval(TermContext<S>& c) const {
+    if (c.phase == TermContext<S>::Phase::kBalance) c.force += c.theta[k2_] * c.v->stroke * c.v->stroke;
+  }
+  STRUT_TERM_EVALUATE
+
+ private:
+  int k2_ = -1;
+};
+
+//! theta54 y^3: cubic (hardening when positive) stiffness, the Duffing term.
+class CubicStiffness final : public Term {
+ public:
+  std::string_view name() const override { return "cubic-stiffness"; }
+  void Declare(ModelBuilder& b) override {
+    b.add_parameter({54, "cubic_stiffness", "[u]/[y]^3", 0.0, "cubic stiffness: input per output cubed",
+                     true, 1e-12, true});
+  }
+  void Bind(const ModelBuilder& b) override { k3_ = b.parameter_position(54); }
+  template <class S>
+  void Eval(TermContext<S>& c) const {
+    if (c.phase == TermContext<S>::Phase::kBalance)
+      c.force += c.theta[k3_] * c.v->stroke * c.v->stroke * c.v->stroke;
+  }
+  STRUT_TERM_EVALUATE
+
+ private:
+  int k3_ = -1;
+};
+
+//! theta55: input offset, the input reading that moves nothing (measured u = true u + theta55).
+class InputOffset final : public Term {
+ public:
+  std::string_view name() const override { return "input-offset"; }
+  void Declare(ModelBuilder& b) override {
+    b.add_parameter({55, "input_offset", "[u]", 0.0, "input sensor offset: measured = true + offset", true, 1e-3});
+  }
+  void Bind(const ModelBuilder& b) override { offset_ = b.parameter_position(55); }
+  template <class S>
+  void Eval(TermContext<S>& c) const {
+    if (c.phase == TermContext<S>::Phase::kBalance) c.force += c.theta[offset_];
+  }
+  STRUT_TERM_EVALUATE
+
+ private:
+  int offset_ = -1;
+};
+
+//! theta56: output offset, measured y = true y + theta56 (like stroke-offset for dampers).
+class OutputOffset final : public Term {
+ public:
+  std::string_view name() const override { return "output-offset"; }
+  void Declare(ModelBuilder& b) override {
+    b.add_parameter({56, "output_offset", "[y]", 0.0, "output sensor offset: measured = true + offset", true, 1e-3});
+    b.set_output_offset(56);
+  }
+  void Bind(const ModelBuilder&) override {}
+  template <class S>
+  void Eval(TermContext<S>&) const {}
+  STRUT_TERM_EVALUATE
+};
+
 template <class T>
 std::shared_ptr<Term> Make() {
   return std::make_shared<T>();
@@ -479,6 +591,12 @@ const std::vector<TermEntry>& Catalogue() {
        "softening that grows with pressure: oil and cylinder compliance"},
       {"real-gas", &Make<RealGas>, "", "virial nitrogen Z(rho, T), theta28..theta30", "pressure-stiffening",
        "stiffening that grows with pressure: real-gas (virial) nitrogen"},
+      // Generic oscillators (docs/silverbox.md); no locus yet: discovery does not propose them.
+      {"linear-oscillator", &Make<LinearOscillator>, "", "forced oscillator theta50 y'' + theta51 y' + theta52 y = u", "", ""},
+      {"quadratic-stiffness", &Make<QuadraticStiffness>, "", "quadratic stiffness theta53 y^2", "", ""},
+      {"cubic-stiffness", &Make<CubicStiffness>, "", "cubic (Duffing) stiffness theta54 y^3", "", ""},
+      {"input-offset", &Make<InputOffset>, "", "input sensor offset theta55", "", ""},
+      {"output-offset", &Make<OutputOffset>, "", "output sensor offset theta56", "", ""},
   };
   return entries;
 }
@@ -493,9 +611,11 @@ const std::vector<std::string>& BaseTerms(std::string_view base) {
     t.push_back("gas-solubility");
     return t;
   }();
+  static const std::vector<std::string> oscillator = {"linear-oscillator"};
   static const std::vector<std::string> none;
   if (base == "1dof") return one;
   if (base == "2dof") return two;
+  if (base == "linear-oscillator") return oscillator;
   return none;
 }
 

@@ -24,7 +24,7 @@ struct TermEntry {
 //! Every term a composition may name, in evaluation order.
 const std::vector<TermEntry>& Catalogue();
 
-//! The terms of a base model ("1dof", "2dof"); empty for an unknown base.
+//! The terms of a base model ("1dof", "2dof", "linear-oscillator"); empty for an unknown base.
 const std::vector<std::string>& BaseTerms(std::string_view base);
 
 }  // namespace strut::ident

@@ -21,7 +21,15 @@ class SessionError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-enum class ExperimentKind { kPeriodic, kDrop, kStatic };
+//! Session profiles. "damper" is the contract (the default; strut writes no `profile` attribute
+//! for it). "generic" is strut's extension for measured records of other systems
+//! (docs/session-files.md, "Generic sessions"): channels of any name, periodic experiments with
+//! any excitation waveform, and free records (kind "record").
+inline constexpr std::string_view kDamperProfile = "damper";
+inline constexpr std::string_view kGenericProfile = "generic";
+
+//! kRecord: a free record (generic profile only), e.g. a test signal from rest.
+enum class ExperimentKind { kPeriodic, kDrop, kStatic, kRecord };
 std::string_view ToString(ExperimentKind kind);
 
 //! One recorded channel: samples in SI units.
@@ -41,9 +49,9 @@ struct Experiment {
 
   // periodic only
   double frequency = 0.0;        //!< Hz
-  double amplitude = 0.0;        //!< m
-  double static_position = 0.0;  //!< m
-  std::string waveform = "sine";
+  double amplitude = 0.0;        //!< m (generic profile: optional, 0 when not applicable)
+  double static_position = 0.0;  //!< m (generic profile: optional, 0 when not applicable)
+  std::string waveform = "sine";  //!< "sine" (generic profile: any name, e.g. "multisine")
   long periods = 0;              //!< whole periods recorded in steady state
   std::string group;             //!< optional: "high", "middle", "low"
 
@@ -74,7 +82,10 @@ struct Session {
   std::string created_utc;
   std::string damper_serial;
   std::string rig;
+  std::string profile = std::string(kDamperProfile);  //!< kDamperProfile or kGenericProfile
   std::vector<Experiment> experiments;
+
+  bool generic() const { return profile == kGenericProfile; }
 
   const Experiment* find_experiment(std::string_view label) const;
   //! The experiment, or SessionError naming the file and label.

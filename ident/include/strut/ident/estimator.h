@@ -26,6 +26,13 @@ struct EstimatorOptions {
   //! Grid points per period (paper: 800) and difference scheme of the periodic solver.
   int n = 800;
   Scheme scheme = Scheme::kBackward2;
+  //! Periods of time marching before the periodic solver's first Newton solve of an experiment
+  //! (PeriodicSolverOptions::start_up_periods). The damper default 2 settles friction; a weakly
+  //! nonlinear oscillator needs none (Newton from the quasi-static guess converges in a few steps).
+  int start_up_periods = 2;
+  //! Threads that solve the experiments of one iterate side by side (each has its own solver);
+  //! 0: one per core. The sums run in experiment order, so the fit is the same for any count.
+  int threads = 1;
   //! Gauss-Newton iterations before giving up.
   int max_iterations = 40;
   //! Converged when every parameter step is below this fraction of its posterior sd.
@@ -37,7 +44,7 @@ struct EstimatorOptions {
   //! Step halvings per iteration when the objective does not improve.
   int max_halvings = 12;
   //! Output channels to fit; empty: the outputs of the causality (stroke and pressure for force
-  //! input, force and pressure for stroke input).
+  //! input, force and pressure for stroke input; y for a generic oscillator driven by u).
   std::vector<std::string> channels;
   //! How outputs and sensitivities are predicted; empty: the periodic solver with `scheme`.
   //! (`strut bench identify` plugs in transient integration to compare.)

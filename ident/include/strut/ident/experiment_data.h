@@ -63,6 +63,10 @@ struct ExperimentData {
 //! std::invalid_argument naming the session, experiment and channel for unusable data.
 std::vector<ExperimentData> PrepareExperiments(const daq::Session& session, Causality causality, int n,
                                                std::vector<DataIssue>* issues = nullptr);
+//! The same for any model: its input channel (Model::input_channel(): force or stroke for
+//! dampers, u for a generic oscillator) is the input.
+std::vector<ExperimentData> PrepareExperiments(const daq::Session& session, const Model& model, int n,
+                                               std::vector<DataIssue>* issues = nullptr);
 
 //! Looks for saturated (clipped) stretches, dropouts (runs of exact zeros or NaN-free flat lines),
 //! and outliers (samples far from the period-synchronous mean) in one channel of one experiment.

@@ -10,6 +10,7 @@
 #pragma once
 
 #include <memory>
+#include <optional>
 #include <span>
 #include <string>
 #include <string_view>
@@ -104,18 +105,30 @@ class ModelBuilder {
   int state_position(std::string_view state, std::string_view needed_by) const;
   bool has_state(std::string_view state) const;
   bool has_term(std::string_view term) const;
+  //! Names the two mechanical slots (a base term calls this; damper models keep the defaults
+  //! "stroke" [m] and "force" [N]): `displacement` is the unknown under force input and the
+  //! measured input under stroke input, `drive` the other way round. Name, unit, typical value
+  //! and scale are used; `drive.equation_scale` is the scale of the balance residual. Throws
+  //! ModelError when two terms name them differently.
+  void declare_channels(const StateSpec& displacement, const StateSpec& drive, std::string_view by);
+  //! The parameter (by index) that is the displacement sensor's offset: measured = true + offset.
+  void set_output_offset(int index);
 
  private:
   friend class Model;
   std::vector<ParameterSpec> parameters_;
   std::vector<StateSpec> states_;
   std::vector<std::string> term_names_;
+  std::optional<StateSpec> displacement_, drive_;
+  std::string channels_by_;
+  int output_offset_index_ = -1;
 };
 
 //! A composed model with a fixed causality. Cheap to copy (terms are shared, immutable).
 class Model {
  public:
-  //! Builds "BASE[+term...]" (BASE: 1dof, 2dof). Throws ModelError listing the catalogue.
+  //! Builds "BASE[+term...]" (BASE: 1dof, 2dof, linear-oscillator). Throws ModelError listing
+  //! the catalogue.
   static Model Build(std::string_view composition, Causality causality);
   //! Names of the bases and terms that compositions may use.
   static std::vector<std::string> Catalogue();
@@ -140,8 +153,14 @@ class Model {
   //! Scale of equation j (0: force balance, in N).
   double equation_scale(int j) const;
 
-  //! Output channels: "stroke", "force", then every state ("pressure", "temperature", ...).
+  //! Output channels: the displacement ("stroke"), the drive ("force"), then every state
+  //! ("pressure", "temperature", ...). A generic base names the first two itself ("y", "u").
   std::vector<std::string> output_channels() const;
+  //! The channel that drives the model: the drive ("force") under force input, the
+  //! displacement ("stroke") under stroke input.
+  const std::string& input_channel() const;
+  //! The mechanical output channel: the displacement under force input, the drive under stroke input.
+  const std::string& mechanical_channel() const;
   //! Unit of an output channel.
   std::string channel_unit(std::string_view channel) const;
 
@@ -173,7 +192,8 @@ class Model {
   std::vector<std::shared_ptr<const Term>> terms_;
   std::vector<StateSpec> states_;
   ParameterSet defaults_;
-  int stroke_offset_position_ = -1;  //!< theta12 position, -1 if the model has none
+  StateSpec displacement_, drive_;  //!< the two mechanical slots: stroke and force for dampers
+  int stroke_offset_position_ = -1;  //!< output offset (theta12 for dampers) position, -1 if none
 };
 
 }  // namespace strut::ident

@@ -1,0 +1,51 @@
+// Generic forced oscillators (base linear-oscillator, docs/silverbox.md): starting values from
+// periodic data, and simulation of a sampled record from rest.
+#pragma once
+
+#include <span>
+#include <string>
+#include <vector>
+
+#include "strut/ident/experiment_data.h"
+#include "strut/ident/model.h"
+#include "strut/ident/parameters.h"
+
+namespace strut::ident {
+
+//! Starting values of a linear-oscillator model from periodic experiments: the equation-error
+//! least-squares fit of  u = theta50 y'' + theta51 y' + theta52 y [+ theta53 y^2] [+ theta54 y^3]
+//! [+ theta55]  over all experiments, with y and its derivatives from the Fourier series of the
+//! averaged output (the harmonics above the noise, differentiated exactly) and u the averaged
+//! input at the same phases. With output-offset and no input-offset, the constant of the fit gives
+//! theta56 = -constant / theta52; otherwise theta56 starts at 0. Needs the model's channels (y, u)
+//! in every experiment; throws std::invalid_argument naming the experiment otherwise. `log` gets
+//! one line per parameter.
+ParameterSet OscillatorInitialValues(const Model& model, const std::vector<ExperimentData>& data,
+                                     std::vector<std::string>* log = nullptr);
+
+}  // namespace strut::ident
+
+namespace strut::ident {
+
+//! Band-limited (trigonometric) interpolation of `samples`, taken as one period, onto a grid
+//! `factor` times finer: the zero-padded spectrum (the Nyquist bin of an even length split
+//! evenly). Sample i of the input is value i * factor of the result.
+std::vector<double> BandLimitedUpsample(std::span<const double> samples, int factor);
+
+//! A sampled record (not periodic) on a grid `factor` times finer, band-limited: the record is
+//! extended by a raised-cosine blend from its last value back to its first (at least 256 samples,
+//! to a fast FFT length) so that its periodic extension has no jump, then BandLimitedUpsample.
+//! Value i * factor is sample i; the result covers the extension too.
+std::vector<double> BandLimitedRecord(std::span<const double> samples, int factor);
+
+//! Simulates a force-input model without states (a linear-oscillator composition) from rest,
+//! driven by a sampled input: classical Runge-Kutta 4 with `substeps` steps per sample, the input
+//! between samples by band-limited interpolation (BandLimitedRecord on 2 * substeps points per
+//! sample). Rest: the static equilibrium at the first input
+//! sample, at zero rate. Returns the output channel (the model's first, e.g. y) at every input
+//! sample. Throws std::invalid_argument for other models or bad arguments, std::runtime_error
+//! when the solution stops being finite.
+std::vector<double> SimulateFromRest(const Model& model, std::span<const double> theta, std::span<const double> input,
+                                     double sample_rate, int substeps = 8);
+
+}  // namespace strut::ident

@@ -1,0 +1,208 @@
+#include "strut/ident/oscillator.h"
+
+#include <Eigen/Dense>
+#include <cmath>
+#include <complex>
+#include <fmt/format.h>
+#include <numbers>
+#include <stdexcept>
+#include <unsupported/Eigen/FFT>
+
+namespace strut::ident {
+namespace {
+
+// The `derivative`-th time derivative of a series at `count` equidistant phases (one inverse FFT).
+Eigen::VectorXd SeriesAt(const PeriodicSeries& series, int count, int derivative) {
+  std::vector<std::complex<double>> spectrum(count, 0.0);
+  if (derivative == 0) spectrum[0] = series.coefficients[0] * static_cast<double>(count);
+  const int harmonics = std::min<int>(static_cast<int>(series.coefficients.size()) - 1, (count - 1) / 2);
+  for (int h = 1; h <= harmonics; ++h) {
+    const std::complex<double> factor =
+        std::pow(std::complex<double>(0.0, 2.0 * std::numbers::pi * series.frequency * h), derivative);
+    spectrum[h] = series.coefficients[h] * factor * static_cast<double>(count);
+    spectrum[count - h] = std::conj(spectrum[h]);
+  }
+  Eigen::FFT<double> fft;
+  std::vector<double> values;
+  fft.inv(values, spectrum);
+  return Eigen::Map<const Eigen::VectorXd>(values.data(), count);
+}
+
+}  // namespace
+
+ParameterSet OscillatorInitialValues(const Model& model, const std::vector<ExperimentData>& data,
+                                     std::vector<std::string>* log) {
+  if (!model.has_term("linear-oscillator"))
+    throw std::invalid_argument(fmt::format("model '{}' is not a linear-oscillator model", model.composition()));
+  if (data.empty()) throw std::invalid_argument("oscillator starting values: no experiments");
+  ParameterSet values = model.defaults();
+  const std::string y_name = model.output_channels()[0], u_name = model.output_channels()[1];
+  const bool k2 = model.has_term("quadratic-stiffness"), k3 = model.has_term("cubic-stiffness");
+  const bool u0 = model.has_term("input-offset"), y0 = model.has_term("output-offset");
+  const bool constant = u0 || y0;
+  // Columns: y'', y', y, [y^2], [y^3], [1].
+  const int columns = 3 + k2 + k3 + constant;
+  long rows = 0;
+  for (const ExperimentData& d : data) {
+    for (const std::string& c : {y_name, u_name})
+      if (!d.channels.count(c))
+        throw std::invalid_argument(fmt::format("{}: experiment '{}' has no '{}' channel", d.session, d.label, c));
+    rows += d.channels.at(y_name).mean.size();
+  }
+  Eigen::MatrixXd a(rows, columns);
+  Eigen::VectorXd b(rows);
+  long row = 0;
+  for (const ExperimentData& d : data) {
+    const Eigen::VectorXd& y = d.channels.at(y_name).mean;
+    const int count = static_cast<int>(y.size());
+    const PeriodicSeries series = PeriodicSeries::Fit(y, d.frequency);
+    const Eigen::VectorXd y2 = SeriesAt(series, count, 2), y1 = SeriesAt(series, count, 1);
+    int col = 0;
+    a.block(row, col++, count, 1) = y2;
+    a.block(row, col++, count, 1) = y1;
+    a.block(row, col++, count, 1) = y;
+    if (k2) a.block(row, col++, count, 1) = y.array().square().matrix();
+    if (k3) a.block(row, col++, count, 1) = y.array().cube().matrix();
+    if (constant) a.block(row, col++, count, 1).setOnes();
+    b.segment(row, count) = d.channels.at(u_name).mean;
+    row += count;
+  }
+  // Equilibrate the columns: y'' is 1e5 times y.
+  const Eigen::VectorXd norms = a.colwise().norm().transpose().cwiseMax(1e-300);
+  const Eigen::VectorXd x = (a * norms.cwiseInverse().asDiagonal()).colPivHouseholderQr().solve(b).cwiseQuotient(norms);
+  const double rms = std::sqrt((a * x - b).squaredNorm() / static_cast<double>(rows));
+  int col = 0;
+  const auto set = [&](int index, double value, const std::string& how) {
+    const int position = values.position_of_index(index);
+    values.values()[position] = value;
+    if (log)
+      log->push_back(fmt::format("{} {} = {:.6g} {}", values.spec(position).key(), values.spec(position).name, value, how));
+  };
+  const std::string how = fmt::format("(equation-error least squares over {} experiments, input rms residual {:.3g})",
+                                      data.size(), rms);
+  set(50, x[col++], how);
+  set(51, x[col++], how);
+  set(52, x[col++], how);
+  if (k2) set(53, x[col++], how);
+  if (k3) set(54, x[col++], how);
+  if (u0) set(55, x[col], how);
+  if (y0) set(56, u0 ? 0.0 : -x[col] / x[2], u0 ? "(the input offset takes the constant)" : "(from the fit's constant)");
+  return values;
+}
+
+std::vector<double> BandLimitedUpsample(std::span<const double> samples, int factor) {
+  const int count = static_cast<int>(samples.size());
+  if (count < 2 || factor < 1) throw std::invalid_argument("band-limited upsampling needs 2 samples and factor >= 1");
+  Eigen::FFT<double> fft;
+  std::vector<std::complex<double>> spectrum;
+  fft.fwd(spectrum, std::vector<double>(samples.begin(), samples.end()));
+  const long fine = static_cast<long>(count) * factor;
+  std::vector<std::complex<double>> padded(fine, 0.0);
+  for (int k = 0; k <= (count - 1) / 2; ++k) {
+    padded[k] = spectrum[k] * static_cast<double>(factor);
+    if (k > 0) padded[fine - k] = spectrum[count - k] * static_cast<double>(factor);
+  }
+  if (count % 2 == 0) {  // the Nyquist bin, split between +- count/2 so the result stays real
+    padded[count / 2] = 0.5 * spectrum[count / 2] * static_cast<double>(factor);
+    padded[fine - count / 2] = padded[count / 2];
+  }
+  std::vector<double> values;
+  fft.inv(values, padded);
+  return values;
+}
+
+namespace {
+
+// Smallest 2^a 3^b 5^c >= n (fast FFT lengths).
+long FftLength(long n) {
+  for (long m = n;; ++m) {
+    long r = m;
+    for (long p : {2L, 3L, 5L})
+      while (r % p == 0) r /= p;
+    if (r == 1) return m;
+  }
+}
+
+}  // namespace
+
+std::vector<double> BandLimitedRecord(std::span<const double> samples, int factor) {
+  const long count = static_cast<long>(samples.size());
+  if (count < 2) throw std::invalid_argument("band-limited record: needs 2 samples");
+  const long period = FftLength(count + std::max(256L, count / 64));
+  std::vector<double> extended(samples.begin(), samples.end());
+  extended.resize(period);
+  for (long i = count; i < period; ++i) {
+    const double w = 0.5 - 0.5 * std::cos(std::numbers::pi * (i - count + 1) / (period - count + 1));
+    extended[i] = (1.0 - w) * samples.back() + w * samples.front();
+  }
+  return BandLimitedUpsample(extended, factor);
+}
+
+std::vector<double> SimulateFromRest(const Model& model, std::span<const double> theta, std::span<const double> input,
+                                     double sample_rate, int substeps) {
+  if (model.causality() != Causality::kForceInput || model.unknown_count() != 1)
+    throw std::invalid_argument(fmt::format(
+        "SimulateFromRest integrates force-input models without states; '{}' ({} input) is not one (use "
+        "sim::TransientSimulator)",
+        model.composition(), ToString(model.causality())));
+  if (static_cast<int>(theta.size()) != model.parameter_count())
+    throw std::invalid_argument(
+        fmt::format("SimulateFromRest: {} parameter values for a model with {}", theta.size(), model.parameter_count()));
+  if (input.size() < 2 || !(sample_rate > 0) || substeps < 1)
+    throw std::invalid_argument("SimulateFromRest: needs 2 input samples, a positive rate and substeps >= 1");
+  for (double u : input)
+    if (!std::isfinite(u)) throw std::invalid_argument("SimulateFromRest: the input has non-finite samples");
+
+  // The input on 2 * substeps points per sample (RK4 needs the half steps), band-limited.
+  const long count = static_cast<long>(input.size());
+  const int fine = 2 * substeps;
+  const std::vector<double> u = BandLimitedRecord(input, fine);
+
+  // y'' from the residual, which is affine in y'' (checked): r(a) = r0 + (r1 - r0) a.
+  std::vector<double> x(1), xd(1), xdd(1), r(1);
+  const auto residual = [&](double y, double v, double a, double uu) {
+    x[0] = y, xd[0] = v, xdd[0] = a;
+    model.Residual<double>(x, xd, xdd, uu, 0.0, 0.0, theta, r);
+    return r[0];
+  };
+  const auto accel = [&](double y, double v, double uu) {
+    const double r0 = residual(y, v, 0.0, uu), r1 = residual(y, v, 1.0, uu);
+    return -r0 / (r1 - r0);
+  };
+  const std::vector<double> rest = model.StaticEquilibrium(input.front(), theta);
+  {
+    const double r0 = residual(rest[0], 0.1, 0.0, input.front()), r1 = residual(rest[0], 0.1, 1.0, input.front()),
+                 r2 = residual(rest[0], 0.1, 2.0, input.front());
+    if (std::abs(r2 - 2.0 * r1 + r0) > 1e-9 * (std::abs(r0) + std::abs(r1) + std::abs(r2)) || r1 == r0)
+      throw std::invalid_argument(
+          fmt::format("SimulateFromRest: model '{}' is not affine in the output acceleration", model.composition()));
+  }
+  const double h = 1.0 / (sample_rate * substeps);
+  double y = rest[0], v = 0.0;
+  std::vector<double> output(count), out(model.output_channels().size());
+  const auto record = [&](long i) {
+    x[0] = y;
+    model.Outputs<double>(x, input[i], theta, out);
+    output[i] = out[0];
+  };
+  record(0);
+  for (long i = 0; i + 1 < count; ++i) {
+    for (int k = 0; k < substeps; ++k) {
+      const long at = i * fine + 2 * k;
+      const double u0 = u[at], uh = u[at + 1], u1 = u[at + 2];
+      const double k1y = v, k1v = accel(y, v, u0);
+      const double k2y = v + 0.5 * h * k1v, k2v = accel(y + 0.5 * h * k1y, k2y, uh);
+      const double k3y = v + 0.5 * h * k2v, k3v = accel(y + 0.5 * h * k2y, k3y, uh);
+      const double k4y = v + h * k3v, k4v = accel(y + h * k3y, k4y, u1);
+      y += h / 6.0 * (k1y + 2.0 * k2y + 2.0 * k3y + k4y);
+      v += h / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v);
+    }
+    if (!std::isfinite(y) || !std::isfinite(v))
+      throw std::runtime_error(fmt::format("SimulateFromRest: model '{}' diverged at sample {} (t = {:.6g} s)",
+                                           model.composition(), i + 1, (i + 1) / sample_rate));
+    record(i + 1);
+  }
+  return output;
+}
+
+}  // namespace strut::ident

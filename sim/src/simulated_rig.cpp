@@ -225,7 +225,11 @@ daq::Session SimulatedRig::RunMatrix(const MatrixPlan& plan, const RigRunOptions
   for (const auto& e : plan.experiments) {
     PeriodicRunReport report;
     clock.Start();
-    session.experiments.push_back(RunPeriodic(e, rate, periods, rng, &report, &clock, options.sink));
+    try {
+      session.experiments.push_back(RunPeriodic(e, rate, periods, rng, &report, &clock, options.sink));
+    } catch (const TransientError& error) {
+      throw TransientError(fmt::format("experiment '{}': {}", e.label, error.what()), error.time, error.flag);
+    }
     if (reports) reports->push_back(std::move(report));
   }
   return session;

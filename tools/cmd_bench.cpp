@@ -323,7 +323,7 @@ struct BenchSilverbox {
     const daq::Session session = ident::ReadSilverbox(data_dir);
     const double import_seconds = std::chrono::duration<double>(Clock::now() - start).count();
     ident::SilverboxOptions options;
-    if (!models.empty()) options.models = models;
+    options.models = models.empty() ? ident::SilverboxCandidateModels() : models;
     options.refine = refine;
     options.substeps = substeps;
     options.threads = threads;
@@ -435,7 +435,8 @@ struct BenchSilverbox {
   sb->add_option("--json", silverbox->json_path, "Also write the figures as JSON");
   sb->add_option("--report", silverbox->report_path, "Write a self-contained HTML report");
   sb->add_option("--model", silverbox->models,
-                 "Candidate composition(s); the lowest validation RMS is tested (default: the selected model)");
+                 "Candidate composition(s); the lowest validation RMS is tested (default: linear, Duffing, Duffing "
+                 "with quadratic stiffness, Duffing with an output offset)");
   sb->add_option("--refine", silverbox->refine, "Periodic-solver grid points per sample")
       ->check(CLI::Range(1, 64))
       ->capture_default_str();

@@ -34,6 +34,11 @@ const daq::Channel& ChannelOf(const daq::Session& session, const std::string& la
 
 }  // namespace
 
+std::vector<std::string> SilverboxCandidateModels() {
+  return {"linear-oscillator+input-offset", "linear-oscillator+cubic-stiffness+input-offset", kSilverboxModel,
+          "linear-oscillator+cubic-stiffness+input-offset+output-offset"};
+}
+
 bool SilverboxOptions::IsValid(std::string* error) const {
   const auto fail = [&](const std::string& m) {
     if (error) *error = m;

@@ -28,6 +28,10 @@ struct SilverboxLayout {
 //! The composition the protocol selected on the estimation and validation data (docs/silverbox.md).
 inline constexpr const char* kSilverboxModel = "linear-oscillator+quadratic-stiffness+cubic-stiffness+input-offset";
 
+//! The candidates `strut bench silverbox` compares (docs/silverbox.md): linear, the plain Duffing,
+//! the Duffing with a quadratic stiffness, and its equivalent with an output offset instead.
+std::vector<std::string> SilverboxCandidateModels();
+
 struct SilverboxOptions {
   //! Compositions to fit; the one with the lowest validation RMS is tested. One entry: no choice.
   std::vector<std::string> models = {kSilverboxModel};

@@ -19,10 +19,11 @@ struct TruthOptions {
   std::string truth_path;
   bool ideal_actuator = false;
 
-  void Add(CLI::App& command) {
+  void Add(CLI::App& command, bool with_actuator = false) {
     command.add_option("--truth", truth_path, "Truth file (TOML; default: the built-in F-16-nose-like lab damper)")
         ->check(CLI::ExistingFile);
-    command.add_flag("--ideal-actuator", ideal_actuator, "The stroke follows the set-point exactly (no servo loop)");
+    if (with_actuator)
+      command.add_flag("--ideal-actuator", ideal_actuator, "The stroke follows the set-point exactly (no servo loop)");
   }
   sim::Truth Load() const {
     sim::Truth truth = truth_path.empty() ? sim::DefaultTruth() : sim::ReadTruthFile(truth_path);
@@ -177,7 +178,7 @@ void RegisterSimCommand(CLI::App& app) {
 
   auto matrix = std::make_shared<SimMatrixCommand>();
   CLI::App* m = sim_app->add_subcommand("matrix", "Run a test matrix (default: the 14 standard experiments)");
-  matrix->truth.Add(*m);
+  matrix->truth.Add(*m, true);
   matrix->run.Add(*m);
   m->add_option("--matrix", matrix->matrix_path, "Matrix file (TOML, docs/simulated-rig.md)")->check(CLI::ExistingFile);
   m->add_option("-o,--output", matrix->output, "Session file to write (HDF5)")->required();

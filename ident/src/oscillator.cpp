@@ -38,10 +38,11 @@ ParameterSet OscillatorInitialValues(const Model& model, const std::vector<Exper
   ParameterSet values = model.defaults();
   const std::string y_name = model.output_channels()[0], u_name = model.output_channels()[1];
   const bool k2 = model.has_term("quadratic-stiffness"), k3 = model.has_term("cubic-stiffness");
+  const bool d3 = model.has_term("cubic-damping");
   const bool u0 = model.has_term("input-offset"), y0 = model.has_term("output-offset");
   const bool constant = u0 || y0;
-  // Columns: y'', y', y, [y^2], [y^3], [1].
-  const int columns = 3 + k2 + k3 + constant;
+  // Columns: y'', y', y, [y^2], [y^3], [y'^3], [1].
+  const int columns = 3 + k2 + k3 + d3 + constant;
   long rows = 0;
   for (const ExperimentData& d : data) {
     for (const std::string& c : {y_name, u_name})
@@ -63,6 +64,7 @@ ParameterSet OscillatorInitialValues(const Model& model, const std::vector<Exper
     a.block(row, col++, count, 1) = y;
     if (k2) a.block(row, col++, count, 1) = y.array().square().matrix();
     if (k3) a.block(row, col++, count, 1) = y.array().cube().matrix();
+    if (d3) a.block(row, col++, count, 1) = y1.array().cube().matrix();
     if (constant) a.block(row, col++, count, 1).setOnes();
     b.segment(row, count) = d.channels.at(u_name).mean;
     row += count;
@@ -85,6 +87,7 @@ ParameterSet OscillatorInitialValues(const Model& model, const std::vector<Exper
   set(52, x[col++], how);
   if (k2) set(53, x[col++], how);
   if (k3) set(54, x[col++], how);
+  if (d3) set(58, x[col++], how);
   if (u0) set(55, x[col], how);
   if (y0) set(56, u0 ? 0.0 : -x[col] / x[2], u0 ? "(the input offset takes the constant)" : "(from the fit's constant)");
   return values;

@@ -450,7 +450,7 @@ class RealGas final : public Term {
 };
 
 // ---------------------------------------------------------------------------------------------
-// Generic forced oscillators (docs/silverbox.md): m y'' + d y' + k y + k2 y^2 + k3 y^3 + u0 = u,
+// Generic forced oscillators (docs/silverbox.md): m y'' + d y' + d3 y'^3 + k y + k2 y^2 + k3 y^3 + u0 = u,
 // measured output y + y0. The displacement slot is the output y, the drive slot the input u; both
 // in the units of the record ([y], [u]: volts for the Silverbox circuit). Indices from theta50 on.
 
@@ -528,6 +528,28 @@ class CubicStiffness final : public Term {
   int k3_ = -1;
 };
 
+//! theta58 y'^3: cubic (velocity-cubed) damping, growing with the rate like a saturating
+//! electronic element; odd in y', so it adds only odd harmonics like the cubic spring.
+class CubicDamping final : public Term {
+ public:
+  std::string_view name() const override { return "cubic-damping"; }
+  void Declare(ModelBuilder& b) override {
+    b.add_parameter({58, "cubic_damping", "[u] s^3/[y]^3", 0.0, "cubic damping: input per output rate cubed", true,
+                     1e-12, true});
+  }
+  void Bind(const ModelBuilder& b) override { d3_ = b.parameter_position(58); }
+  template <class S>
+  void Eval(TermContext<S>& c) const {
+    if (c.phase != TermContext<S>::Phase::kBalance) return;
+    const S& v = c.v->stroke_rate;
+    c.force += c.theta[d3_] * v * v * v;
+  }
+  STRUT_TERM_EVALUATE
+
+ private:
+  int d3_ = -1;
+};
+
 //! theta55: input offset, the input reading that moves nothing (measured u = true u + theta55).
 class InputOffset final : public Term {
  public:
@@ -595,6 +617,7 @@ const std::vector<TermEntry>& Catalogue() {
       {"linear-oscillator", &Make<LinearOscillator>, "", "forced oscillator theta50 y'' + theta51 y' + theta52 y = u", "", ""},
       {"quadratic-stiffness", &Make<QuadraticStiffness>, "", "quadratic stiffness theta53 y^2", "", ""},
       {"cubic-stiffness", &Make<CubicStiffness>, "", "cubic (Duffing) stiffness theta54 y^3", "", ""},
+      {"cubic-damping", &Make<CubicDamping>, "", "cubic damping theta58 y'^3", "", ""},
       {"input-offset", &Make<InputOffset>, "", "input sensor offset theta55", "", ""},
       {"output-offset", &Make<OutputOffset>, "", "output sensor offset theta56", "", ""},
   };

@@ -14,7 +14,7 @@ namespace strut::ident {
 
 //! Starting values of a linear-oscillator model from periodic experiments: the equation-error
 //! least-squares fit of  u = theta50 y'' + theta51 y' + theta52 y [+ theta53 y^2] [+ theta54 y^3]
-//! [+ theta55]  over all experiments, with y and its derivatives from the Fourier series of the
+//! [+ theta58 y'^3] [+ theta55]  over all experiments, with y and its derivatives from the Fourier series of the
 //! averaged output (the harmonics above the noise, differentiated exactly) and u the averaged
 //! input at the same phases. With output-offset and no input-offset, the constant of the fit gives
 //! theta56 = -constant / theta52; otherwise theta56 starts at 0. Needs the model's channels (y, u)

@@ -26,10 +26,12 @@ struct SilverboxLayout {
 };
 
 //! The composition the protocol selected on the estimation and validation data (docs/silverbox.md).
-inline constexpr const char* kSilverboxModel = "linear-oscillator+quadratic-stiffness+cubic-stiffness+input-offset";
+inline constexpr const char* kSilverboxModel =
+    "linear-oscillator+quadratic-stiffness+cubic-stiffness+cubic-damping+input-offset";
 
 //! The candidates `strut bench silverbox` compares (docs/silverbox.md): linear, the plain Duffing,
-//! the Duffing with a quadratic stiffness, and its equivalent with an output offset instead.
+//! the Duffing with a quadratic stiffness (and its equivalent with an output offset instead), and
+//! the Duffing with quadratic stiffness and cubic damping.
 std::vector<std::string> SilverboxCandidateModels();
 
 struct SilverboxOptions {

@@ -113,7 +113,7 @@ SilverboxResult RunSilverbox(const daq::Session& session, const SilverboxOptions
     // Converged at a hundredth of a standard deviation; at the optimum the line search cannot
     // improve on the solver's rounding, so few halvings are tried before that is accepted.
     eo.step_tolerance = 1e-2;
-    eo.max_halvings = 4;
+    eo.max_halvings = 2;
     const Estimator estimator(model, eo);
     c.fit = estimator.Fit(estimation, initial, DefaultChoices(model));
     c.fit_seconds = std::chrono::duration<double>(Clock::now() - start).count();

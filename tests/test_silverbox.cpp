@@ -375,6 +375,25 @@ TEST(OscillatorModel, RecoversSimulatedDuffingParametersFromPeriodicData) {
   EXPECT_NEAR(fit.channels.at(0).rms, 3e-4, 3e-5);
 }
 
+TEST(OscillatorModel, LinearResponseColdStartReachesTheSolversSolution) {
+  const Model m = Model::Build("linear-oscillator+quadratic-stiffness+cubic-stiffness+cubic-damping+input-offset",
+                               Causality::kForceInput);
+  const std::vector<double> theta = {5.376e-6, 2.234e-4, 0.99038, -0.0344, 3.96, 0.00543, 1.12e-9};
+  const int n = 4096;
+  PeriodicInput input{610.3515625 / 1024, std::vector<double>(n, 0.006)};
+  for (int h = 1; h < 336; h += 2)
+    for (int mu = 0; mu < n; ++mu) input.values[mu] += 0.002 * std::cos(2 * M_PI * h * mu / n + 0.37 * h * h);
+  PeriodicSolverOptions so;
+  so.scheme = Scheme::kCentral4;
+  so.start_up_periods = 0;
+  PeriodicSolver solver(m, so);
+  OscillatorPredictor predictor(m, so);
+  const PeriodicSolution a = solver.Solve(input, theta), b = predictor.Solve(input, theta);
+  EXPECT_LT((a.channel("y") - b.channel("y")).cwiseAbs().maxCoeff(), 1e-9);
+  EXPECT_LT(b.newton_iterations, a.newton_iterations);
+  EXPECT_GT(a.channel("y").maxCoeff(), 0.05);  // well into the cubic range
+}
+
 TEST(OscillatorModel, SimulationFromRestAgreesWithIda) {
   const Model m = Model::Build("linear-oscillator+quadratic-stiffness+cubic-stiffness+input-offset", Causality::kForceInput);
   const std::vector<double> theta = {5.376e-6, 2.2527e-4, 0.99072, -0.0342, 3.9155, 0.00543};

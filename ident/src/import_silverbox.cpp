@@ -107,7 +107,12 @@ SilverboxResult RunSilverbox(const daq::Session& session, const SilverboxOptions
     EstimatorOptions eo;
     eo.n = n;
     eo.scheme = options.scheme;
-    eo.start_up_periods = 0;  // weakly nonlinear: Newton from the quasi-static guess
+    eo.start_up_periods = 0;
+    eo.predictor = [&eo](const Model& m) {  // cold starts from the linear response
+      PeriodicSolverOptions po;
+      po.scheme = eo.scheme;
+      return std::make_unique<OscillatorPredictor>(m, po);
+    };
     eo.threads = options.threads;
     eo.channels = {"y"};
     // Converged at a hundredth of a standard deviation; at the optimum the line search cannot
@@ -125,7 +130,7 @@ SilverboxResult RunSilverbox(const daq::Session& session, const SilverboxOptions
     PeriodicSolverOptions so;
     so.scheme = options.scheme;
     so.start_up_periods = 0;
-    PeriodicSolver solver(model, so);
+    OscillatorPredictor solver(model, so);
     const PeriodicSolution s = solver.Solve(validation->input, c.fit.parameters.values());
     const Eigen::VectorXd y = s.channel("y");
     const int samples = static_cast<int>(validation->phases.size());

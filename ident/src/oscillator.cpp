@@ -93,6 +93,44 @@ ParameterSet OscillatorInitialValues(const Model& model, const std::vector<Exper
   return values;
 }
 
+OscillatorPredictor::OscillatorPredictor(Model model, PeriodicSolverOptions options)
+    : model_(model), solver_(std::move(model), options) {}
+
+PeriodicSolution OscillatorPredictor::Solve(const PeriodicInput& input, std::span<const double> theta,
+                                            const PeriodicSolution* warm_start) {
+  const int n = static_cast<int>(input.values.size());
+  if (warm_start || !model_.has_term("linear-oscillator") || model_.unknown_count() != 1 ||
+      model_.causality() != Causality::kForceInput || n < 4 || !(input.frequency > 0))
+    return solver_.Solve(input, theta, warm_start);
+  const ParameterSet& p = model_.defaults();
+  const double m = theta[p.position_of_index(50)], d = theta[p.position_of_index(51)],
+               k = theta[p.position_of_index(52)];
+  const int offset = p.position_of_index(55);
+  Eigen::FFT<double> fft;
+  std::vector<std::complex<double>> spectrum;
+  fft.fwd(spectrum, input.values);
+  if (offset >= 0) spectrum[0] -= theta[offset] * static_cast<double>(n);
+  for (int h = 0; h <= n / 2; ++h) {
+    const double w = 2.0 * std::numbers::pi * input.frequency * h;
+    const std::complex<double> dynamic(k - m * w * w, d * w);
+    spectrum[h] = std::abs(dynamic) > 0 ? spectrum[h] / dynamic : 0.0;
+    if (h > 0 && h < n - h) spectrum[n - h] = std::conj(spectrum[h]);
+  }
+  std::vector<double> y;
+  fft.inv(y, spectrum);
+  PeriodicSolution guess;
+  guess.n = n;
+  guess.frequency = input.frequency;
+  guess.unknowns = Eigen::Map<const Eigen::RowVectorXd>(y.data(), n);
+  if (!guess.unknowns.allFinite()) return solver_.Solve(input, theta, nullptr);
+  return solver_.Solve(input, theta, &guess);
+}
+
+std::vector<Eigen::MatrixXd> OscillatorPredictor::OutputSensitivities(const PeriodicSolution& solution,
+                                                                      std::span<const double> theta) {
+  return solver_.OutputSensitivities(solution, theta);
+}
+
 std::vector<double> BandLimitedUpsample(std::span<const double> samples, int factor) {
   const int count = static_cast<int>(samples.size());
   if (count < 2 || factor < 1) throw std::invalid_argument("band-limited upsampling needs 2 samples and factor >= 1");

@@ -8,14 +8,20 @@
 #include <functional>
 #include <iostream>
 #include <nlohmann/json.hpp>
+#include <random>
+#include <time.h>
 
 #include "commands.h"
+#include "strut/ident/estimator.h"
+#include "strut/ident/experiment_data.h"
 #include "strut/ident/oscillator.h"
 #include "strut/ident/periodic.h"
 #include "strut/ident/silverbox.h"
 #include "strut/rig/test_matrix.h"
+#include "strut/sim/periodic_session.h"
 #include "strut/sim/simulated_rig.h"
 #include "strut/sim/transient.h"
+#include "strut/sim/transient_predictor.h"
 
 namespace strut::tools {
 namespace {
@@ -252,6 +258,489 @@ struct BenchPeriodic {
 };
 
 // ---------------------------------------------------------------------------------------------
+// strut bench identify: the identification issue's figures (fit time, interval coverage, and the
+// same fit with transient integration to steady state instead of the periodic solver).
+
+//! Calls and time of one fit's predictors (and the work of TransientPredictors).
+struct PredictorTally {
+  long solves = 0, cold_solves = 0, sensitivity_calls = 0, failures = 0;
+  double solve_ms = 0.0, cold_ms = 0.0, sensitivity_ms = 0.0;
+  sim::TransientPredictorStats transient;
+};
+
+//! Wraps a predictor to count and time its calls; two clock reads per call (microseconds
+//! against milliseconds per solve).
+class TallyingPredictor : public ident::PeriodicPredictor {
+ public:
+  TallyingPredictor(std::unique_ptr<ident::PeriodicPredictor> inner, PredictorTally* tally)
+      : inner_(std::move(inner)), tally_(tally) {}
+  ~TallyingPredictor() override {
+    if (const auto* t = dynamic_cast<const sim::TransientPredictor*>(inner_.get())) tally_->transient += t->stats();
+  }
+  ident::PeriodicSolution Solve(const ident::PeriodicInput& input, std::span<const double> theta,
+                                const ident::PeriodicSolution* warm_start) override {
+    const auto start = Clock::now();
+    try {
+      ident::PeriodicSolution s = inner_->Solve(input, theta, warm_start);
+      const double ms = std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+      tally_->solve_ms += ms;
+      ++tally_->solves;
+      if (!warm_start) {
+        tally_->cold_ms += ms;
+        ++tally_->cold_solves;
+      }
+      return s;
+    } catch (const ident::PeriodicSolverError&) {
+      tally_->solve_ms += std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+      ++tally_->failures;
+      throw;
+    }
+  }
+  std::vector<Eigen::MatrixXd> OutputSensitivities(const ident::PeriodicSolution& solution,
+                                                   std::span<const double> theta) override {
+    const auto start = Clock::now();
+    auto s = inner_->OutputSensitivities(solution, theta);
+    tally_->sensitivity_ms += std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+    ++tally_->sensitivity_calls;
+    return s;
+  }
+
+ private:
+  std::unique_ptr<ident::PeriodicPredictor> inner_;
+  PredictorTally* tally_;
+};
+
+using PredictorFactory = std::function<std::unique_ptr<ident::PeriodicPredictor>(const ident::Model&)>;
+
+PredictorFactory PeriodicFactory(ident::Scheme scheme) {
+  return [scheme](const ident::Model& m) {
+    ident::PeriodicSolverOptions o;
+    o.scheme = scheme;
+    return std::make_unique<ident::PeriodicSolver>(m, o);
+  };
+}
+
+//! CPU time of the calling thread, ms: unlike wall time it does not count the time other
+//! processes of a shared machine take from this one.
+double ThreadCpuMs() {
+  timespec t{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+  return t.tv_sec * 1e3 + t.tv_nsec * 1e-6;
+}
+
+struct TimedFit {
+  ident::FitSummary fit;  //!< of the last run
+  double ms = 0.0;        //!< median wall time of Estimator::Fit
+  double cpu_ms = 0.0;    //!< median CPU time of the fitting thread
+  PredictorTally tally;   //!< of the last run
+  int runs = 0;
+};
+
+TimedFit TimeFit(const ident::Model& model, const std::vector<ident::ExperimentData>& data,
+                 const ident::ParameterSet& initial, const std::vector<ident::ParameterChoice>& choices,
+                 const PredictorFactory& factory, int n, int repeats) {
+  TimedFit out;
+  std::vector<double> times, cpu;
+  for (int r = 0; r < repeats; ++r) {
+    PredictorTally tally;
+    ident::EstimatorOptions options;
+    options.n = n;
+    options.predictor = [&](const ident::Model& m) { return std::make_unique<TallyingPredictor>(factory(m), &tally); };
+    const ident::Estimator estimator(model, options);
+    const auto start = Clock::now();
+    const double cpu_start = ThreadCpuMs();
+    ident::FitSummary fit = estimator.Fit(data, initial, choices);
+    cpu.push_back(ThreadCpuMs() - cpu_start);
+    times.push_back(std::chrono::duration<double, std::milli>(Clock::now() - start).count());
+    out.fit = std::move(fit);
+    out.tally = tally;
+  }
+  std::nth_element(times.begin(), times.begin() + times.size() / 2, times.end());
+  std::nth_element(cpu.begin(), cpu.begin() + cpu.size() / 2, cpu.end());
+  out.ms = times[times.size() / 2];
+  out.cpu_ms = cpu[cpu.size() / 2];
+  out.runs = repeats;
+  return out;
+}
+
+//! Wilson score interval (95 %) of a binomial fraction k / N.
+std::pair<double, double> Wilson(long k, long total) {
+  const double z = 1.959963984540054, p = static_cast<double>(k) / total, nn = static_cast<double>(total);
+  const double centre = (p + z * z / (2 * nn)) / (1 + z * z / nn);
+  const double half = z / (1 + z * z / nn) * std::sqrt(p * (1 - p) / nn + z * z / (4 * nn * nn));
+  return {centre - half, centre + half};
+}
+
+//! Central 95 % range of k / N for k ~ Binomial(N, p): the 2.5 % and 97.5 % quantiles.
+std::pair<double, double> BinomialRange(long total, double p) {
+  double cumulative = 0.0;
+  long lo = -1, hi = total;
+  for (long k = 0; k <= total; ++k) {
+    cumulative += std::exp(std::lgamma(total + 1.0) - std::lgamma(k + 1.0) - std::lgamma(total - k + 1.0) +
+                           k * std::log(p) + (total - k) * std::log1p(-p));
+    if (lo < 0 && cumulative >= 0.025) lo = k;
+    if (cumulative >= 0.975) {
+      hi = k;
+      break;
+    }
+  }
+  return {static_cast<double>(lo) / total, static_cast<double>(hi) / total};
+}
+
+std::vector<ident::ExperimentData> Subset(const std::vector<ident::ExperimentData>& data, const std::string& labels) {
+  if (labels.empty()) return data;
+  std::vector<ident::ExperimentData> out;
+  for (const auto& d : data)
+    if (labels.find(d.label) != std::string::npos) out.push_back(d);
+  return out;
+}
+
+std::string Labels(const std::vector<ident::ExperimentData>& data) {
+  std::string s;
+  for (const auto& d : data) s += d.label;
+  return s;
+}
+
+struct BenchIdentify {
+  std::string json_path;
+  bool quick = false;
+  int realisations = 0;                  // 0: 200 (quick: 20)
+  std::string transient_experiments;     // empty: all (quick: "hi")
+  bool transient_force = false;          // also the force-input transient fit
+  double transient_rtol = 1e-10, transient_atol = 1e-2, transient_steady = 1e-7, transient_sensitivity = 1e-5;
+  std::string sections = "123";          // which of the three figures to measure
+  double transient_off = 0.1;            // start of the transient comparison: the truth this much off
+
+  static constexpr int kN = 800;
+  static constexpr double kTargetMs = 50.0;
+  static constexpr const char* kEstimate = "theta4,theta6,theta16";
+  static constexpr double kZ95 = 1.959963984540054;
+
+  ident::ParameterSet Truth() const {
+    ident::ParameterSet truth = ident::Model::Build("2dof", ident::Causality::kStrokeInput).defaults();
+    truth.set("theta12", 0.0);
+    return truth;
+  }
+
+  //! The truth with every estimated parameter `off` (0.2: 20 %) too large.
+  static ident::ParameterSet Off(const ident::ParameterSet& truth, const std::vector<ident::ParameterChoice>& choices,
+                                 double off = 0.2) {
+    ident::ParameterSet p = truth;
+    for (int i = 0; i < p.size(); ++i)
+      if (choices[i].estimate) p.values()[i] *= 1.0 + off;
+    return p;
+  }
+
+  static nlohmann::json FitJson(const TimedFit& t, const ident::ParameterSet& truth) {
+    nlohmann::json estimates = nlohmann::json::object();
+    for (int i : t.fit.estimated_positions)
+      estimates[truth.spec(i).key()] = {{"value", t.fit.parameters.value(i)},
+                                        {"sd", t.fit.sd[i]},
+                                        {"truth", truth.value(i)},
+                                        {"z", (t.fit.parameters.value(i) - truth.value(i)) / t.fit.sd[i]}};
+    return {{"ms", t.ms},
+            {"cpu_ms", t.cpu_ms},
+            {"runs", t.runs},
+            {"converged", t.fit.converged},
+            {"iterations", t.fit.iterations},
+            {"solves", t.tally.solves},
+            {"cold_solves", t.tally.cold_solves},
+            {"cold_ms", t.tally.cold_ms},
+            {"failed_solves", t.tally.failures},
+            {"sensitivity_calls", t.tally.sensitivity_calls},
+            {"solve_ms", t.tally.solve_ms},
+            {"sensitivity_ms", t.tally.sensitivity_ms},
+            {"estimates", estimates}};
+  }
+
+  // 1. Full fit of the standard matrix: time against the 50 ms target.
+  nlohmann::json FitTimes(const daq::Session& session, const ident::ParameterSet& truth) const {
+    const int repeats = quick ? 3 : 11;
+    std::cout << fmt::format(
+        "1. full fit: 2dof, {} experiments of the standard matrix, estimating {} (the rest fixed at the truth),\n"
+        "   n = {}, backward2, one thread, median of {} fits; target < {:.0f} ms (judged on the CPU time)\n",
+        session.experiments.size(), kEstimate, kN, repeats, kTargetMs);
+    std::cout << fmt::format("   {:<7} {:<9} {:>8} {:>8} {:>7} {:>5} {:>7} {:>5} {:>9} {:>8} {:>8} {:>8}  {}\n", "input",
+                             "start", "fit ms", "cpu ms", "target", "iter", "solves", "sens", "solve ms", "cold ms",
+                             "sens ms", "other ms", "max |estimate - truth| / sd");
+    nlohmann::json rows = nlohmann::json::array();
+    for (const ident::Causality causality : {ident::Causality::kStrokeInput, ident::Causality::kForceInput}) {
+      const ident::Model model = ident::Model::Build("2dof", causality);
+      const auto data = ident::PrepareExperiments(session, causality, kN);
+      const auto choices = ident::ChoicesFromList(model.defaults(), kEstimate);
+      for (const bool from_truth : {true, false}) {
+        const ident::ParameterSet initial = from_truth ? truth : Off(truth, choices);
+        const TimedFit t =
+            TimeFit(model, data, initial, choices, PeriodicFactory(ident::Scheme::kBackward2), kN, repeats);
+        double worst = 0.0;
+        for (int i : t.fit.estimated_positions)
+          worst = std::max(worst, std::abs(t.fit.parameters.value(i) - truth.value(i)) / t.fit.sd[i]);
+        std::cout << fmt::format("   {:<7} {:<9} {:>8.1f} {:>8.1f} {:>7} {:>5} {:>7} {:>5} {:>9.1f} {:>8.1f} {:>8.1f} {:>8.1f}  {:.2f}{}\n",
+                                 ident::ToString(causality), from_truth ? "truth" : "20 % off", t.ms, t.cpu_ms,
+                                 t.cpu_ms < kTargetMs ? "met" : "MISSED", t.fit.iterations, t.tally.solves,
+                                 t.tally.sensitivity_calls, t.tally.solve_ms, t.tally.cold_ms, t.tally.sensitivity_ms,
+                                 t.ms - t.tally.solve_ms - t.tally.sensitivity_ms, worst,
+                                 t.fit.converged ? "" : "  NOT CONVERGED");
+        if (t.tally.failures > 0) std::cout << fmt::format("      ({} solves failed)\n", t.tally.failures);
+        nlohmann::json row = FitJson(t, truth);
+        row["input"] = ident::ToString(causality);
+        row["start"] = from_truth ? "truth" : "20% off";
+        row["target_ms"] = kTargetMs;
+        rows.push_back(row);
+      }
+    }
+    std::cout << "   (solve ms: time inside the periodic solves of the last fit, cold ms the part in the first solve of\n"
+                 "    each experiment (no warm start); sens ms: sensitivity calls; other: the estimator itself)\n";
+    return rows;
+  }
+
+  // 2. Calibration of the reported uncertainty.
+  nlohmann::json Coverage(const ident::ParameterSet& truth) const {
+    const int count = realisations > 0 ? realisations : (quick ? 20 : 200);
+    sim::PeriodicSessionOptions options;
+    options.noise = {0.0, 0.0, 0.0};
+    const daq::Session clean = sim::SimulatePeriodicSession("2dof", truth.values(), rig::StandardMatrix(), options);
+    const ident::Model model = ident::Model::Build("2dof", ident::Causality::kStrokeInput);
+    const auto choices = ident::ChoicesFromList(model.defaults(), kEstimate);
+    // The default scheme, and central4 whose discretisation error at n = 800 is negligible: the
+    // difference separates the scheme's bias from the uncertainty machinery itself.
+    const std::vector<ident::Scheme> schemes = {ident::Scheme::kBackward2, ident::Scheme::kCentral4};
+    std::vector<ident::Estimator> estimators;
+    for (const ident::Scheme scheme : schemes) {
+      ident::EstimatorOptions estimator_options;
+      estimator_options.n = kN;
+      estimator_options.scheme = scheme;
+      estimators.emplace_back(model, estimator_options);
+    }
+    const sim::SensorNoise noise;  // the simulated rig's sensor noise
+    std::mt19937_64 rng(2024);
+    std::normal_distribution<double> unit(0.0, 1.0);
+    std::vector<int> est;
+    for (int i = 0; i < model.parameter_count(); ++i)
+      if (choices[i].estimate) est.push_back(i);
+    const std::size_t ns = schemes.size(), np = est.size();
+    std::vector<std::vector<std::vector<double>>> z(ns, std::vector<std::vector<double>>(np));
+    std::vector<long> all_inside(ns, 0), not_converged(ns, 0);
+    const auto start = Clock::now();
+    for (int r = 0; r < count; ++r) {
+      daq::Session noisy = clean;
+      for (auto& e : noisy.experiments)
+        for (auto& c : e.channels) {
+          const double sd = c.name == "stroke" ? noise.stroke : c.name == "force" ? noise.force : noise.pressure;
+          for (double& v : c.samples) v += sd * unit(rng);
+        }
+      const auto data = ident::PrepareExperiments(noisy, model.causality(), kN);
+      for (std::size_t a = 0; a < ns; ++a) {
+        const ident::FitSummary fit = estimators[a].Fit(data, truth, choices);
+        not_converged[a] += !fit.converged;
+        bool all = true;
+        for (std::size_t k = 0; k < np; ++k) {
+          const double zk = (fit.parameters.value(est[k]) - truth.value(est[k])) / fit.sd[est[k]];
+          z[a][k].push_back(zk);
+          all = all && std::abs(zk) <= kZ95;
+        }
+        all_inside[a] += all;
+      }
+    }
+    const double seconds = std::chrono::duration<double>(Clock::now() - start).count();
+    const auto nominal = BinomialRange(count, 0.95);
+    std::cout << fmt::format(
+        "2. 95 % intervals (estimate +- 1.96 sd) holding the truth: {} noise realisations of the standard matrix\n"
+        "   (stroke input, 14 experiments, sensor noise {:.0e} m / {:.0f} N / {:.0f} Pa, 3 periods at 200 Hz, n = {},\n"
+        "   estimating {}, started at the truth; {:.0f} s for both schemes)\n",
+        count, noise.stroke, noise.force, noise.pressure, kN, kEstimate, seconds);
+    std::cout << fmt::format("   {:<10} {:<16} {:>9} {:>9} {:>18} {:>8} {:>7}\n", "scheme", "parameter", "inside",
+                             "fraction", "Wilson 95 % range", "mean z", "sd z");
+    nlohmann::json out = {{"realisations", count}, {"seconds", seconds}, {"nominal_range95", {nominal.first, nominal.second}}};
+    for (std::size_t a = 0; a < ns; ++a) {
+      const std::string scheme(ident::ToString(schemes[a]));
+      nlohmann::json js = {{"not_converged", not_converged[a]}};
+      long total_inside = 0;
+      for (std::size_t k = 0; k < np; ++k) {
+        long inside = 0;
+        double mean = 0.0, var = 0.0;
+        for (double v : z[a][k]) {
+          inside += std::abs(v) <= kZ95;
+          mean += v / count;
+        }
+        for (double v : z[a][k]) var += (v - mean) * (v - mean) / std::max(1, count - 1);
+        const auto w = Wilson(inside, count);
+        const std::string key = truth.spec(est[k]).key();
+        std::cout << fmt::format("   {:<10} {:<16} {:>4}/{:<4} {:>9.3f}     [{:.3f}, {:.3f}] {:>8.2f} {:>7.2f}\n",
+                                 k == 0 ? scheme : "", key, inside, count, static_cast<double>(inside) / count, w.first,
+                                 w.second, mean, std::sqrt(var));
+        js["parameters"][key] = {{"inside", inside},
+                                 {"fraction", static_cast<double>(inside) / count},
+                                 {"wilson95", {w.first, w.second}},
+                                 {"mean_z", mean},
+                                 {"sd_z", std::sqrt(var)}};
+        total_inside += inside;
+      }
+      const long total = count * static_cast<long>(np);
+      const auto w = Wilson(total_inside, total);
+      std::cout << fmt::format("   {:<10} {:<16} {:>4}/{:<4} {:>9.3f}     [{:.3f}, {:.3f}]   (pooled; intervals of one fit "
+                               "are correlated)\n",
+                               "", "all three", total_inside, total, static_cast<double>(total_inside) / total, w.first,
+                               w.second);
+      const auto wj = Wilson(all_inside[a], count);
+      std::cout << fmt::format("   {:<10} {:<16} {:>4}/{:<4} {:>9.3f}     [{:.3f}, {:.3f}]   (all three at once){}\n", "",
+                               "jointly", all_inside[a], count, static_cast<double>(all_inside[a]) / count, wj.first,
+                               wj.second,
+                               not_converged[a] > 0 ? fmt::format("; {} fits not converged", not_converged[a]) : "");
+      js["overall"] = {{"inside", total_inside}, {"total", total},
+                       {"fraction", static_cast<double>(total_inside) / total}, {"wilson95", {w.first, w.second}}};
+      js["jointly"] = {{"inside", all_inside[a]}, {"fraction", static_cast<double>(all_inside[a]) / count},
+                       {"wilson95", {wj.first, wj.second}}};
+      out[scheme] = js;
+    }
+    std::cout << fmt::format("   a calibrated 95 % interval puts the fraction in [{:.3f}, {:.3f}] with 95 % probability "
+                             "(binomial, {} realisations);\n   z = (estimate - truth) / sd should have mean 0 and sd 1\n",
+                             nominal.first, nominal.second, count);
+    return out;
+  }
+
+  // 3. The same fit with transient integration to steady state.
+  nlohmann::json AgainstTransient(const daq::Session& session, const ident::ParameterSet& truth,
+                                  ident::Causality causality, double off) const {
+    const ident::Model model = ident::Model::Build("2dof", causality);
+    const auto choices = ident::ChoicesFromList(model.defaults(), kEstimate);
+    const auto data = Subset(ident::PrepareExperiments(session, causality, kN),
+                             quick && transient_experiments.empty() ? "hi" : transient_experiments);
+    const ident::ParameterSet initial = Off(truth, choices, off);
+    sim::TransientPredictorOptions transient_options = TransientSettings();
+    for (int i = 0; i < model.parameter_count(); ++i)
+      if (choices[i].estimate) transient_options.parameters.push_back(i);
+    const PredictorFactory transient_factory = [transient_options](const ident::Model& m) {
+      return std::make_unique<sim::TransientPredictor>(m, transient_options);
+    };
+    const int repeats = quick ? 3 : 11;
+    const std::string start = off == 0.0 ? "truth" : fmt::format("{:.0f} % off", 100 * off);
+    std::cout << fmt::format(
+        "3. the same fit with predictions from transient integration to steady state ({} input, experiments {},\n"
+        "   n = {}, start: {}): IDA to periodic steady state (warm-started from the previous one; rtol {:.0e},\n"
+        "   atol {:.0e} x unknown scale, steady when the change between periods and its extrapolation are below\n"
+        "   {:.0e} of each unknown's peak) and IDAS forward sensitivities (exact dF/dtheta from the model's Jets, steps\n"
+        "   by the state's error test) integrated until they are periodic too (relative {:.0e}), for the {} estimated\n"
+        "   parameters only. Periodic: median of {}; transient: one fit.\n",
+        ident::ToString(causality), Labels(data), kN, start, transient_options.integrator.rtol,
+        transient_options.integrator.atol_factor, transient_options.steady.relative_floor * transient_options.steady.tol,
+        transient_options.sensitivity_relative_tol, transient_options.parameters.size(), repeats);
+    nlohmann::json out = {{"input", ident::ToString(causality)},
+                          {"experiments", Labels(data)},
+                          {"start", start},
+                          {"transient_rtol", transient_options.integrator.rtol},
+                          {"transient_atol_factor", transient_options.integrator.atol_factor},
+                          {"transient_steady_relative", transient_options.steady.relative_floor * transient_options.steady.tol},
+                          {"transient_sensitivity_relative", transient_options.sensitivity_relative_tol}};
+    const TimedFit backward = TimeFit(model, data, initial, choices, PeriodicFactory(ident::Scheme::kBackward2), kN, repeats);
+    const TimedFit central = TimeFit(model, data, initial, choices, PeriodicFactory(ident::Scheme::kCentral4), kN, repeats);
+    TimedFit transient;
+    try {
+      transient = TimeFit(model, data, initial, choices, transient_factory, kN, 1);
+    } catch (const std::exception& e) {
+      std::cout << fmt::format("   the transient fit failed: {}\n", e.what());
+      out["transient_error"] = e.what();
+      return out;
+    }
+    // The reference is the most accurate of the three: the periodic solver with central4 (its
+    // discretisation error at n = 800 is about 1e-10 of the range, docs/periodic-solver.md).
+    std::cout << fmt::format("   {:<20} {:>10} {:>10} {:>5} {:>7} {:>5} {:>10} {:>10}  {}\n", "predictor", "fit ms",
+                             "cpu ms", "iter", "solves", "sens", "solve ms", "sens ms",
+                             "(estimate - central4's) / posterior sd");
+    const auto row = [&](const char* name, const TimedFit& t) {
+      std::string diff;
+      double worst = 0.0;
+      for (int i : t.fit.estimated_positions) {
+        const double d = (t.fit.parameters.value(i) - central.fit.parameters.value(i)) / central.fit.sd[i];
+        worst = std::max(worst, std::abs(d));
+        diff += fmt::format(" {} {:+.4f}", truth.spec(i).key(), d);
+      }
+      std::cout << fmt::format("   {:<20} {:>10.1f} {:>10.1f} {:>5} {:>7} {:>5} {:>10.1f} {:>10.1f} {}{}\n", name, t.ms,
+                               t.cpu_ms, t.fit.iterations, t.tally.solves, t.tally.sensitivity_calls, t.tally.solve_ms,
+                               t.tally.sensitivity_ms, diff, t.fit.converged ? "" : "  NOT CONVERGED");
+      if (t.tally.failures > 0) std::cout << fmt::format("      ({} solves failed)\n", t.tally.failures);
+      nlohmann::json j = FitJson(t, truth);
+      j["max_sd_from_central4"] = worst;
+      return j;
+    };
+    out["periodic_backward2"] = row("periodic backward2", backward);
+    out["periodic_central4"] = row("periodic central4", central);
+    out["transient"] = row("transient (IDA/IDAS)", transient);
+    const auto& ts = transient.tally.transient;
+    out["transient"]["periods"] = ts.solve_periods;
+    out["transient"]["ida_steps"] = ts.solve_steps;
+    out["transient"]["sensitivity_periods"] = ts.sensitivity_periods;
+    out["transient"]["idas_steps"] = ts.sensitivity_steps;
+    std::cout << fmt::format(
+        "   transient work: {} steady states, {} periods, {} IDA steps; {} sensitivity runs, {} periods, {} IDAS steps\n",
+        ts.solves, ts.solve_periods, ts.solve_steps, ts.sensitivity_runs, ts.sensitivity_periods, ts.sensitivity_steps);
+    std::cout << fmt::format("   time ratio transient / periodic: {:.0f} wall, {:.0f} CPU (against backward2); {:.0f} wall, "
+                             "{:.0f} CPU (against central4)\n",
+                             transient.ms / backward.ms, transient.cpu_ms / backward.cpu_ms, transient.ms / central.ms,
+                             transient.cpu_ms / central.cpu_ms);
+    out["ratio_backward2"] = transient.ms / backward.ms;
+    out["ratio_central4"] = transient.ms / central.ms;
+    out["cpu_ratio_backward2"] = transient.cpu_ms / backward.cpu_ms;
+    out["cpu_ratio_central4"] = transient.cpu_ms / central.cpu_ms;
+    return out;
+  }
+
+  //! Transient settings that reach the periodic solver's accuracy on these fits (see the docs).
+  sim::TransientPredictorOptions TransientSettings() const {
+    sim::TransientPredictorOptions o;
+    o.integrator.rtol = transient_rtol;
+    o.integrator.atol_factor = transient_atol;
+    o.integrator.max_steps = 20'000'000;  // the 2 Hz experiments near full compression need millions
+    o.steady.tol = 1.0;
+    o.steady.relative_floor = transient_steady;
+    o.steady.periods_max = 5000;
+    o.sensitivity_relative_tol = transient_sensitivity;
+    o.sensitivity_error_control = false;  // steps by the state alone: 20-40 % cheaper, estimates unchanged
+    return o;
+  }
+
+  void Run() const {
+    nlohmann::json report;
+    const auto start = Clock::now();
+    {
+      std::ifstream load("/proc/loadavg");
+      std::string one, five;
+      if (load >> one >> five) {
+        std::cout << fmt::format("load average at the start: {} (1 min), {} (5 min); timings are medians, ratios side by side\n\n",
+                                 one, five);
+        report["load_average"] = {one, five};
+      }
+    }
+    const ident::ParameterSet truth = Truth();
+    const daq::Session session =
+        sim::SimulatePeriodicSession("2dof", truth.values(), rig::StandardMatrix(), sim::PeriodicSessionOptions{});
+    if (sections.find('1') != std::string::npos) {
+      report["fit"] = FitTimes(session, truth);
+      std::cout << "\n";
+    }
+    if (sections.find('2') != std::string::npos) {
+      report["coverage"] = Coverage(truth);
+      std::cout << "\n";
+    }
+    if (sections.find('3') != std::string::npos) {
+      report["transient"].push_back(AgainstTransient(session, truth, ident::Causality::kStrokeInput, transient_off));
+      if (transient_force) {
+        std::cout << "\n";
+        report["transient"].push_back(AgainstTransient(session, truth, ident::Causality::kForceInput, transient_off));
+      }
+    }
+    const double seconds = std::chrono::duration<double>(Clock::now() - start).count();
+    std::cout << fmt::format("\nbench identify: {:.0f} s\n", seconds);
+    report["seconds"] = seconds;
+    if (!json_path.empty()) {
+      std::ofstream out(json_path);
+      out << report.dump(1) << "\n";
+      if (!out) throw std::runtime_error("cannot write " + json_path);
+    }
+  }
+};
+
+// ---------------------------------------------------------------------------------------------
 // strut bench sim: throughput of the simulated rig, the whole standard matrix with settling and
 // every effect on (the default truth), then a 30 s drop test. Single-threaded.
 
@@ -412,7 +901,9 @@ struct BenchSilverbox {
       spdlog::info("wrote {}", report_path);
     }
   }
-};void RegisterBenchCommand(CLI::App& app) {
+};
+
+void RegisterBenchCommand(CLI::App& app) {
   CLI::App* bench = app.add_subcommand("bench", "Benchmarks: figures and ratios measured side by side");
   bench->require_subcommand(1);
   auto periodic = std::make_shared<BenchPeriodic>();
@@ -420,6 +911,34 @@ struct BenchSilverbox {
   sub->add_option("--json", periodic->json_path, "Also write the figures as JSON");
   sub->add_flag("--quick", periodic->quick, "Fewer repeats (for a smoke run)");
   sub->callback([periodic] { periodic->Run(); });
+
+  auto identify = std::make_shared<BenchIdentify>();
+  CLI::App* id = bench->add_subcommand(
+      "identify", "Estimator: fit time of the standard matrix, interval coverage, periodic vs transient predictions");
+  id->add_option("--json", identify->json_path, "Also write the figures as JSON");
+  id->add_flag("--quick", identify->quick, "Fewer repeats and realisations, a two-experiment transient fit (smoke run)");
+  id->add_option("--realisations", identify->realisations, "Noise realisations for the coverage (default 200, quick 20)")
+      ->check(CLI::Range(2, 100000));
+  id->add_option("--transient-experiments", identify->transient_experiments,
+                 "Labels of the experiments for the transient comparison, e.g. dehij (default: all; quick: hi)");
+  id->add_option("--sections", identify->sections, "Which figures: 1 fit time, 2 coverage, 3 transient (e.g. 13)")
+      ->capture_default_str();
+  id->add_flag("--transient-force", identify->transient_force, "Also compare with force input (slow)");
+  id->add_option("--transient-start", identify->transient_off,
+                 "Start of the transient comparison: the estimated parameters this fraction too large (0: the truth)")
+      ->capture_default_str();
+  id->add_option("--transient-rtol", identify->transient_rtol, "IDA/IDAS relative tolerance of the transient fit")
+      ->capture_default_str();
+  id->add_option("--transient-atol", identify->transient_atol,
+                 "IDA/IDAS absolute tolerances as a multiple of each unknown's scale")
+      ->capture_default_str();
+  id->add_option("--transient-steady", identify->transient_steady,
+                 "Steady when the change between periods (extrapolated) is below this fraction of each unknown's peak")
+      ->capture_default_str();
+  id->add_option("--transient-sensitivity", identify->transient_sensitivity,
+                 "Sensitivities periodic when their change is below this fraction of their peak")
+      ->capture_default_str();
+  id->callback([identify] { identify->Run(); });
 
   auto simulated = std::make_shared<BenchSim>();
   CLI::App* sim_bench = bench->add_subcommand(
@@ -445,6 +964,7 @@ struct BenchSilverbox {
       ->capture_default_str();
   sb->add_option("--threads", silverbox->threads, "Estimator threads (0: one per core)")->capture_default_str();
   sb->add_flag("--no-check", silverbox->no_check, "Skip the IDA cross-check of the arrow simulation");
-  sb->callback([silverbox] { silverbox->Run(); });}
+  sb->callback([silverbox] { silverbox->Run(); });
+}
 
 }  // namespace strut::tools

@@ -1,0 +1,523 @@
+#include "strut/sim/transient_predictor.h"
+
+#include <idas/idas.h>
+#include <nvector/nvector_serial.h>
+#include <sundials/sundials_context.h>
+#include <sunlinsol/sunlinsol_dense.h>
+#include <sunmatrix/sunmatrix_dense.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdlib>
+#include <fmt/format.h>
+#include <limits>
+#include <set>
+
+namespace strut::sim {
+
+using ident::Causality;
+using ident::DerivativeVector;
+using ident::Jet;
+using ident::Model;
+using ident::PeriodicSolverError;
+
+bool TransientPredictorOptions::IsValid(std::string* error) const {
+  const auto fail = [&](const std::string& m) {
+    if (error) *error = m;
+    return false;
+  };
+  std::string inner;
+  if (!integrator.IsValid(&inner)) return fail("integrator: " + inner);
+  if (!steady.IsValid(&inner)) return fail("steady state: " + inner);
+  if (!std::isfinite(sensitivity_relative_tol) || !(sensitivity_relative_tol > 0))
+    return fail("sensitivity_relative_tol must be positive");
+  if (std::set<int>(parameters.begin(), parameters.end()).size() != parameters.size())
+    return fail("a parameter is listed twice");
+  return true;
+}
+
+TransientPredictorStats& TransientPredictorStats::operator+=(const TransientPredictorStats& o) {
+  solves += o.solves;
+  solve_periods += o.solve_periods;
+  solve_steps += o.solve_steps;
+  solve_seconds += o.solve_seconds;
+  sensitivity_runs += o.sensitivity_runs;
+  sensitivity_periods += o.sensitivity_periods;
+  sensitivity_steps += o.sensitivity_steps;
+  sensitivity_seconds += o.sensitivity_seconds;
+  return *this;
+}
+
+// ---------------------------------------------------------------------------------------------
+// The sensitivity residuals (the DAE of DaeSystem with the parameters as Jet directions too)
+
+Eigen::MatrixXd SensitivityResiduals(const Model& model, std::span<const double> theta, const InputSignal& input,
+                                     std::span<const int> parameters, double t, std::span<const double> y,
+                                     std::span<const double> yp, const Eigen::MatrixXd& s, const Eigen::MatrixXd& sp,
+                                     Eigen::VectorXd* values) {
+  const int m = model.unknown_count();
+  const bool force_input = model.causality() == Causality::kForceInput;
+  const int size = force_input ? m + 1 : m;
+  const int ns = static_cast<int>(parameters.size());
+  const auto constant = [ns](double v) { return ident::MakeConstant(v, ns); };
+  std::vector<Jet> Y(size), YP(size);
+  for (int j = 0; j < size; ++j) {
+    Y[j] = Jet(y[j], DerivativeVector(s.row(j).transpose()));
+    YP[j] = Jet(yp[j], DerivativeVector(sp.row(j).transpose()));
+  }
+  std::vector<Jet> x(Y.begin(), Y.begin() + m), xd(m), xdd(m, constant(0.0)), r(size);
+  for (int j = 1; j < m; ++j) xd[j] = YP[j];
+  if (force_input) {
+    // First-order form of DaeSystem: the model sees q' = v, q'' = v'; v - q' = 0 closes the system.
+    xd[0] = Y[m];
+    xdd[0] = YP[m];
+    r[m] = Y[m] - YP[0];
+  } else {
+    xd[0] = YP[0];
+  }
+  const InputSample u = input(t);
+  std::vector<Jet> theta_jet;
+  theta_jet.reserve(theta.size());
+  for (double v : theta) theta_jet.push_back(constant(v));
+  for (int k = 0; k < ns; ++k) theta_jet[parameters[k]] = Jet(theta[parameters[k]], DerivativeVector::Unit(ns, k));
+  model.Residual<Jet>(x, xd, xdd, constant(u.value), constant(u.rate), constant(u.accel), theta_jet,
+                      std::span<Jet>(r).first(m));
+  Eigen::MatrixXd out(size, ns);
+  if (values) values->resize(size);
+  for (int i = 0; i < size; ++i) {
+    const auto& d = r[i].derivatives();
+    for (int k = 0; k < ns; ++k) out(i, k) = d.size() == ns ? d[k] : 0.0;
+    if (values) (*values)[i] = r[i].value();
+  }
+  return out;
+}
+
+// ---------------------------------------------------------------------------------------------
+// IDAS plumbing
+
+struct TransientPredictor::Ida {
+  SUNContext ctx = nullptr;
+  Ida() {
+    if (SUNContext_Create(nullptr, &ctx) != 0) throw std::runtime_error("transient predictor: SUNContext_Create failed");
+  }
+  ~Ida() { SUNContext_Free(&ctx); }
+  Ida(const Ida&) = delete;
+  Ida& operator=(const Ida&) = delete;
+};
+
+namespace {
+
+std::string FlagName(int flag) {
+  char* name = IDAGetReturnFlagName(flag);  // malloc'ed by SUNDIALS
+  std::string s = name ? name : fmt::format("IDAS flag {}", flag);
+  std::free(name);
+  return s;
+}
+
+struct UserData {
+  const DaeSystem* system = nullptr;
+  const InputSignal* input = nullptr;
+  std::span<const double> theta;
+  std::span<const int> parameters;
+  std::string failure;      // why a callback gave up
+  std::string ida_message;  // IDAS's last message
+};
+
+int ResidualCallback(double t, N_Vector y, N_Vector yp, N_Vector r, void* user) {
+  auto* data = static_cast<UserData*>(user);
+  const int n = data->system->size();
+  try {
+    std::span<double> rs(N_VGetArrayPointer(r), n);
+    data->system->Residual(t, std::span<const double>(N_VGetArrayPointer(y), n),
+                           std::span<const double>(N_VGetArrayPointer(yp), n), rs);
+    for (double v : rs)
+      if (!std::isfinite(v)) return 1;  // recoverable: a smaller step
+    return 0;
+  } catch (const std::exception& e) {
+    data->failure = fmt::format("residual failed at t = {:.9g} s: {}", t, e.what());
+    return -1;
+  }
+}
+
+int JacobianCallback(double t, double cj, N_Vector y, N_Vector yp, N_Vector, SUNMatrix jac, void* user, N_Vector,
+                     N_Vector, N_Vector) {
+  auto* data = static_cast<UserData*>(user);
+  const int n = data->system->size();
+  try {
+    const Eigen::MatrixXd j = data->system->Jacobian(t, std::span<const double>(N_VGetArrayPointer(y), n),
+                                                     std::span<const double>(N_VGetArrayPointer(yp), n), cj);
+    if (!j.allFinite()) return 1;
+    for (int c = 0; c < n; ++c) std::copy(j.col(c).data(), j.col(c).data() + n, SUNDenseMatrix_Column(jac, c));
+    return 0;
+  } catch (const std::exception& e) {
+    data->failure = fmt::format("Jacobian failed at t = {:.9g} s: {}", t, e.what());
+    return -1;
+  }
+}
+
+int SensitivityCallback(int ns, double t, N_Vector y, N_Vector yp, N_Vector, N_Vector* ys, N_Vector* yps,
+                        N_Vector* rs, void* user, N_Vector, N_Vector, N_Vector) {
+  auto* data = static_cast<UserData*>(user);
+  const int n = data->system->size();
+  try {
+    Eigen::MatrixXd s(n, ns), sp(n, ns);
+    for (int k = 0; k < ns; ++k) {
+      s.col(k) = Eigen::Map<const Eigen::VectorXd>(N_VGetArrayPointer(ys[k]), n);
+      sp.col(k) = Eigen::Map<const Eigen::VectorXd>(N_VGetArrayPointer(yps[k]), n);
+    }
+    const Eigen::MatrixXd r = SensitivityResiduals(
+        data->system->model(), data->theta, *data->input, data->parameters, t,
+        std::span<const double>(N_VGetArrayPointer(y), n), std::span<const double>(N_VGetArrayPointer(yp), n), s, sp);
+    if (!r.allFinite()) return 1;
+    for (int k = 0; k < ns; ++k) Eigen::Map<Eigen::VectorXd>(N_VGetArrayPointer(rs[k]), n) = r.col(k);
+    return 0;
+  } catch (const std::exception& e) {
+    data->failure = fmt::format("sensitivity residual failed at t = {:.9g} s: {}", t, e.what());
+    return -1;
+  }
+}
+
+void ErrorHandler(int, const char* module, const char* function, char* message, void* user) {
+  static_cast<UserData*>(user)->ida_message =
+      fmt::format("{}/{}: {}", module ? module : "IDAS", function ? function : "?", message ? message : "");
+}
+
+// One IDAS run with forward sensitivities; everything freed together.
+class SensitivityIntegrator {
+ public:
+  SensitivityIntegrator(SUNContext ctx, UserData& data, const TransientOptions& options, const Eigen::VectorXd& y0,
+                        const Eigen::MatrixXd& s0, std::span<const double> pbar, bool staggered, bool error_control)
+      : data_(data), n_(data.system->size()), ns_(static_cast<int>(s0.cols())), max_steps_(options.max_steps) {
+    y_ = N_VNew_Serial(n_, ctx);
+    yp_ = N_VNew_Serial(n_, ctx);
+    id_ = N_VNew_Serial(n_, ctx);
+    atol_ = N_VNew_Serial(n_, ctx);
+    matrix_ = SUNDenseMatrix(n_, n_, ctx);
+    mem_ = IDACreate(ctx);
+    if (!y_ || !yp_ || !id_ || !atol_ || !matrix_ || !mem_) throw std::bad_alloc();
+    solver_ = SUNLinSol_Dense(y_, matrix_, ctx);
+    ys_ = N_VCloneVectorArray(ns_, y_);
+    yps_ = N_VCloneVectorArray(ns_, y_);
+    if (!solver_ || !ys_ || !yps_) throw std::bad_alloc();
+    const auto differential = data.system->differential();
+    const Eigen::VectorXd scales = data.system->scales();
+    for (int j = 0; j < n_; ++j) {
+      NV_Ith_S(y_, j) = y0[j];
+      NV_Ith_S(yp_, j) = 0.0;  // IDACalcIC completes Y'
+      NV_Ith_S(id_, j) = differential[j] ? 1.0 : 0.0;
+      NV_Ith_S(atol_, j) = options.atol_factor * scales[j];
+    }
+    if (data.system->has_stroke_rate()) NV_Ith_S(yp_, 0) = y0[n_ - 1];
+    for (int k = 0; k < ns_; ++k)
+      for (int j = 0; j < n_; ++j) {
+        NV_Ith_S(ys_[k], j) = s0(j, k);
+        NV_Ith_S(yps_[k], j) = 0.0;
+      }
+    pbar_.assign(pbar.begin(), pbar.end());
+    Check(IDASetErrHandlerFn(mem_, ErrorHandler, &data_), "IDASetErrHandlerFn");
+    Check(IDAInit(mem_, ResidualCallback, 0.0, y_, yp_), "IDAInit");
+    Check(IDASVtolerances(mem_, options.rtol, atol_), "IDASVtolerances");
+    Check(IDASetUserData(mem_, &data_), "IDASetUserData");
+    Check(IDASetLinearSolver(mem_, solver_, matrix_), "IDASetLinearSolver");
+    Check(IDASetJacFn(mem_, JacobianCallback), "IDASetJacFn");
+    Check(IDASetId(mem_, id_), "IDASetId");
+    Check(IDASetMaxOrd(mem_, options.max_order), "IDASetMaxOrd");
+    if (options.max_step > 0) Check(IDASetMaxStep(mem_, options.max_step), "IDASetMaxStep");
+    Check(IDASensInit(mem_, ns_, staggered ? IDA_STAGGERED : IDA_SIMULTANEOUS, SensitivityCallback, ys_, yps_),
+          "IDASensInit");
+    // p is not needed (the sensitivity residual is exact); pbar scales the sensitivity tolerances.
+    Check(IDASetSensParams(mem_, nullptr, pbar_.data(), nullptr), "IDASetSensParams");
+    Check(IDASensEEtolerances(mem_), "IDASensEEtolerances");
+    Check(IDASetSensErrCon(mem_, error_control ? SUNTRUE : SUNFALSE), "IDASetSensErrCon");
+  }
+  ~SensitivityIntegrator() {
+    IDAFree(&mem_);
+    if (ys_) N_VDestroyVectorArray(ys_, ns_);
+    if (yps_) N_VDestroyVectorArray(yps_, ns_);
+    if (solver_) SUNLinSolFree(solver_);
+    if (matrix_) SUNMatDestroy(matrix_);
+    for (N_Vector v : {y_, yp_, id_, atol_})
+      if (v) N_VDestroy(v);
+  }
+  SensitivityIntegrator(const SensitivityIntegrator&) = delete;
+  SensitivityIntegrator& operator=(const SensitivityIntegrator&) = delete;
+
+  void ConsistentStart(double tout1) {
+    Check(IDACalcIC(mem_, IDA_YA_YDP_INIT, tout1), "IDACalcIC (consistent initial conditions)");
+    Check(IDAGetConsistentIC(mem_, y_, yp_), "IDAGetConsistentIC");
+    Check(IDAGetSensConsistentIC(mem_, ys_, yps_), "IDAGetSensConsistentIC");
+  }
+
+  //! Integrates to `tout` without passing `tstop`; y() and s() then hold the solution there.
+  void AdvanceTo(double tout, double tstop) {
+    const long remaining = max_steps_ - steps();
+    if (remaining <= 0) Fail(IDA_TOO_MUCH_WORK, fmt::format("the step budget of {} steps", max_steps_));
+    Check(IDASetMaxNumSteps(mem_, remaining), "IDASetMaxNumSteps");
+    if (tstop != tstop_) {
+      Check(IDASetStopTime(mem_, tstop), "IDASetStopTime");
+      tstop_ = tstop;
+    }
+    double reached = 0.0;
+    const int flag = IDASolve(mem_, tout, &reached, y_, yp_, IDA_NORMAL);
+    if (flag < 0) Fail(flag, fmt::format("IDASolve towards t = {:.9g} s", tout));
+    Check(IDAGetSens(mem_, &reached, ys_), "IDAGetSens");
+  }
+
+  double y(int j) const { return NV_Ith_S(y_, j); }
+  double s(int j, int k) const { return NV_Ith_S(ys_[k], j); }
+  long steps() const {
+    long value = 0;
+    IDAGetNumSteps(mem_, &value);
+    return value;
+  }
+
+ private:
+  void Check(int flag, const char* what) {
+    if (flag < 0) Fail(flag, what);
+  }
+  [[noreturn]] void Fail(int flag, const std::string& what) {
+    double t = NAN;
+    IDAGetCurrentTime(mem_, &t);
+    const std::string detail = !data_.failure.empty() ? data_.failure : data_.ida_message;
+    throw PeriodicSolverError(fmt::format("transient predictor (IDAS sensitivities): {} failed at t = {:.9g} s with "
+                                          "{}{}{}",
+                                          what, t, FlagName(flag), detail.empty() ? "" : ": ", detail),
+                              NAN, 0);
+  }
+
+  UserData& data_;
+  int n_, ns_;
+  long max_steps_;
+  std::vector<double> pbar_;
+  N_Vector y_ = nullptr, yp_ = nullptr, id_ = nullptr, atol_ = nullptr;
+  N_Vector* ys_ = nullptr;
+  N_Vector* yps_ = nullptr;
+  SUNMatrix matrix_ = nullptr;
+  SUNLinearSolver solver_ = nullptr;
+  void* mem_ = nullptr;
+  double tstop_ = NAN;
+};
+
+//! q'(t_mu) from the stroke on the periodic grid (fourth-order central differences), m/s.
+double GridRate(const Eigen::MatrixXd& unknowns, int row, int mu, double frequency) {
+  const int n = static_cast<int>(unknowns.cols());
+  const ident::Stencil stencil = ident::Stencil::For(ident::Scheme::kCentral4, n);
+  double rate = 0.0;
+  for (int k = stencil.kmin; k <= stencil.kmax; ++k)
+    rate += stencil.first[k - stencil.kmin] * unknowns(row, ((mu + k) % n + n) % n);
+  return rate * frequency;
+}
+
+//! IDA integrates straight through the pole of the gas law when the stroke passes full compression
+//! (gas volume through zero), so a "steady state" may hold a negative absolute pressure where the
+//! periodic solver finds none. States that are positive by nature (positive typical value:
+//! absolute pressure, temperature) must stay positive.
+void CheckPhysical(const Model& model, const ident::PeriodicSolution& s) {
+  if (!s.unknowns.allFinite() || !s.outputs.allFinite())
+    throw PeriodicSolverError("transient predictor: the steady state is not finite", NAN, 0);
+  for (int j = 1; j < model.unknown_count(); ++j) {
+    const ident::StateSpec spec = model.unknown_spec(j);
+    if (!(spec.typical_value > 0)) continue;
+    Eigen::Index mu = 0;
+    const double lowest = s.unknowns.row(j).minCoeff(&mu);
+    if (lowest <= 0)
+      throw PeriodicSolverError(fmt::format("transient predictor: no physical steady state: the {} reaches {:.4g} {} at "
+                                            "t = {:.6g} s of the period (past full compression?)",
+                                            spec.name, lowest, spec.unit, mu / (s.n * s.frequency)),
+                                NAN, 0);
+  }
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------------
+// The predictor
+
+TransientPredictor::TransientPredictor(Model model, TransientPredictorOptions options)
+    : model_(model), options_(std::move(options)), simulator_(model, options_.integrator) {
+  std::string error;
+  if (!options_.IsValid(&error)) throw std::invalid_argument("transient predictor options: " + error);
+  for (int p : options_.parameters)
+    if (p < 0 || p >= model_.parameter_count())
+      throw std::invalid_argument(fmt::format("transient predictor: parameter position {} is not one of model '{}'", p,
+                                              model_.composition()));
+  if (options_.parameters.empty())
+    for (int p = 0; p < model_.parameter_count(); ++p) options_.parameters.push_back(p);
+  if (static_cast<int>(options_.parameters.size()) > ident::kMaxDerivatives)
+    throw std::invalid_argument("transient predictor: too many parameters for the sensitivity Jets");
+  ida_ = std::make_unique<Ida>();
+}
+
+TransientPredictor::~TransientPredictor() = default;
+
+ident::PeriodicSolution TransientPredictor::Solve(const ident::PeriodicInput& input, std::span<const double> theta,
+                                                  const ident::PeriodicSolution* warm_start) {
+  const int n = static_cast<int>(input.values.size());
+  const int m = model_.unknown_count();
+  InitialState initial;
+  if (warm_start && warm_start->n == n && warm_start->unknowns.rows() == m && warm_start->unknowns.cols() == n &&
+      warm_start->unknowns.allFinite()) {
+    initial.unknowns.assign(warm_start->unknowns.col(0).data(), warm_start->unknowns.col(0).data() + m);
+    if (model_.causality() == Causality::kForceInput)
+      initial.stroke_rate = GridRate(warm_start->unknowns, 0, 0, warm_start->frequency);
+  }
+  const auto run = [&](const InitialState& start) {
+    PeriodicSteadyStateResult r = simulator_.PeriodicSteadyState(theta, input, options_.steady, start);
+    ++stats_.solves;
+    stats_.solve_periods += r.periods;
+    stats_.solve_steps += r.steps;
+    stats_.solve_seconds += r.wall_seconds;
+    r.solution.newton_iterations = r.periods;  // the closest analogue: periods integrated
+    r.solution.residual_norm = r.estimated_error;
+    CheckPhysical(model_, r.solution);
+    return std::move(r.solution);
+  };
+  try {
+    try {
+      return run(initial);
+    } catch (const TransientError&) {
+      if (initial.unknowns.empty()) throw;
+      return run({});  // the warm start may be too far off for IDACalcIC: start from rest
+    }
+  } catch (const TransientError& e) {
+    throw PeriodicSolverError(fmt::format("transient predictor: {}", e.what()), NAN, 0);
+  } catch (const ident::ModelError& e) {
+    throw PeriodicSolverError(fmt::format("transient predictor: no starting state: {}", e.what()), NAN, 0);
+  }
+}
+
+std::vector<Eigen::MatrixXd> TransientPredictor::OutputSensitivities(const ident::PeriodicSolution& solution,
+                                                                     std::span<const double> theta) {
+  const auto start = std::chrono::steady_clock::now();
+  const int n = solution.n;
+  const int m = model_.unknown_count();
+  const int np = model_.parameter_count();
+  if (static_cast<int>(theta.size()) != np)
+    throw std::invalid_argument(fmt::format("transient predictor: {} parameter values for model '{}' with {}",
+                                            theta.size(), model_.composition(), np));
+  if (n < 5 || solution.unknowns.rows() != m || solution.unknowns.cols() != n || !solution.unknowns.allFinite())
+    throw std::invalid_argument("transient predictor: sensitivities need a periodic solution of this model");
+  const std::vector<int>& parameters = options_.parameters;
+  const int ns = static_cast<int>(parameters.size());
+  const double f = solution.frequency;
+
+  const InputSignal signal = InputSignal::FromPeriodic(solution.input);
+  const DaeSystem system(model_, std::vector<double>(theta.begin(), theta.end()), signal);
+  const int size = system.size();
+  Eigen::VectorXd y0(size);
+  y0.head(m) = solution.unknowns.col(0);
+  if (system.has_stroke_rate()) y0[m] = GridRate(solution.unknowns, 0, 0, f);
+  const bool warm = sensitivity_start_.rows() == size && sensitivity_start_.cols() == ns && sensitivity_frequency_ == f &&
+                    sensitivity_start_.allFinite();
+  const Eigen::MatrixXd s0 = warm ? sensitivity_start_ : Eigen::MatrixXd::Zero(size, ns);
+  std::vector<double> pbar(ns);
+  for (int k = 0; k < ns; ++k) {
+    const int i = parameters[k];
+    pbar[k] = std::max({std::abs(theta[i]), model_.defaults().spec(i).typical_size(), 1e-300});
+    if (pbar[k] == 1e-300) pbar[k] = 1.0;
+  }
+
+  UserData data;
+  data.system = &system;
+  data.input = &signal;
+  data.theta = theta;
+  data.parameters = parameters;
+  SensitivityIntegrator ida(ida_->ctx, data, options_.integrator, y0, s0, pbar, options_.staggered,
+                            options_.sensitivity_error_control);
+  ida.ConsistentStart(1.0 / (n * f));
+
+  // Samples of one period: state (m x n), all sensitivities (size x n per parameter).
+  Eigen::MatrixXd state(m, n), previous_state(m, n);
+  std::vector<Eigen::MatrixXd> sens(ns, Eigen::MatrixXd(size, n)), previous_sens(ns);
+  const auto store = [&](int mu) {
+    for (int j = 0; j < m; ++j) state(j, mu) = ida.y(j);
+    for (int k = 0; k < ns; ++k)
+      for (int j = 0; j < size; ++j) sens[k](j, mu) = ida.s(j, k);
+  };
+  const auto grid_time = [&](long period, int mu) { return static_cast<double>(period * n + mu) / (n * f); };
+  Eigen::VectorXd scale(size);
+  scale = system.scales() * options_.integrator.atol_factor;  // absolute tolerances of Y
+  Eigen::VectorXd state_scale(m);
+  for (int j = 0; j < m; ++j) state_scale[j] = model_.unknown_spec(j).scale;
+
+  std::vector<double> changes;
+  double change = INFINITY, estimate = INFINITY;
+  bool converged = false;
+  int period = 0;
+  store(0);
+  try {
+    for (; period < options_.steady.periods_max && !converged; ++period) {
+      const double period_end = grid_time(period + 1, 0);
+      for (int mu = 1; mu < n; ++mu) {
+        ida.AdvanceTo(grid_time(period, mu), period_end);
+        store(mu);
+      }
+      if (period > 0) {
+        // State: as TransientSimulator::PeriodicSteadyState measures it; sensitivities: in their
+        // absolute tolerance or a fraction of their peak. The worse of the two, relative to its tolerance.
+        const Eigen::VectorXd peak = state.cwiseAbs().rowwise().maxCoeff();
+        const Eigen::VectorXd w = state_scale.cwiseMax(options_.steady.relative_floor * peak);
+        double d = ((state - previous_state).cwiseAbs().array().colwise() / w.array()).maxCoeff() / options_.steady.tol;
+        for (int k = 0; k < ns; ++k) {
+          const Eigen::VectorXd speak = sens[k].cwiseAbs().rowwise().maxCoeff();
+          const Eigen::VectorXd ws = (scale / pbar[k]).cwiseMax(options_.sensitivity_relative_tol * speak);
+          d = std::max(d, ((sens[k] - previous_sens[k]).cwiseAbs().array().colwise() / ws.array()).maxCoeff());
+        }
+        change = d;
+        changes.push_back(change);
+        const int window = std::min<int>(4, static_cast<int>(changes.size()) - 1);
+        const double rho = window > 0 && changes[changes.size() - 1 - window] > 0
+                               ? std::pow(change / changes[changes.size() - 1 - window], 1.0 / window)
+                               : INFINITY;
+        estimate = rho < 1.0 ? change * rho / (1.0 - rho) : change;
+        converged = window > 0 && change <= 1.0 && estimate <= 1.0;
+      }
+      if (converged) break;
+      previous_state = state;
+      previous_sens = sens;
+      ida.AdvanceTo(period_end, period_end);
+      store(0);
+    }
+  } catch (const ident::PeriodicSolverError&) {
+    throw;
+  } catch (const std::exception& e) {
+    throw PeriodicSolverError(fmt::format("transient predictor: sensitivities: {}", e.what()), NAN, 0);
+  }
+  if (!converged)
+    throw PeriodicSolverError(fmt::format("transient predictor: the sensitivities are not periodic after {} periods of "
+                                          "{:.6g} s (last change {:.3g} of the tolerance)",
+                                          options_.steady.periods_max, 1.0 / f, change),
+                              change, period);
+
+  sensitivity_start_.resize(size, ns);
+  for (int k = 0; k < ns; ++k) sensitivity_start_.col(k) = sens[k].col(0);
+  sensitivity_frequency_ = f;
+
+  // d yhat / d theta = dOut/dx s_x + dOut/dtheta (the outputs of PeriodicSolution: grid input values).
+  const int channels = static_cast<int>(solution.channels.size());
+  std::vector<Eigen::MatrixXd> out(channels, Eigen::MatrixXd::Constant(n, np, NAN));
+  std::vector<Jet> theta_jet;
+  for (double v : theta) theta_jet.push_back(ident::MakeConstant(v, ns));
+  for (int k = 0; k < ns; ++k) theta_jet[parameters[k]] = Jet(theta[parameters[k]], DerivativeVector::Unit(ns, k));
+  std::vector<Jet> xs(m), y(channels);
+  for (int mu = 0; mu < n; ++mu) {
+    for (int j = 0; j < m; ++j) {
+      DerivativeVector d(ns);
+      for (int k = 0; k < ns; ++k) d[k] = sens[k](j, mu);
+      xs[j] = Jet(state(j, mu), d);
+    }
+    model_.Outputs<Jet>(xs, ident::MakeConstant(solution.input.values[mu], ns), theta_jet, y);
+    for (int c = 0; c < channels; ++c) {
+      const auto& d = y[c].derivatives();
+      for (int k = 0; k < ns; ++k) out[c](mu, parameters[k]) = d.size() == ns ? d[k] : 0.0;
+    }
+  }
+  ++stats_.sensitivity_runs;
+  stats_.sensitivity_periods += period + 1;
+  stats_.sensitivity_steps += ida.steps();
+  stats_.sensitivity_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return out;
+}
+
+}  // namespace strut::sim

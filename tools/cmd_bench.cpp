@@ -410,6 +410,7 @@ struct BenchIdentify {
   double transient_rtol = 1e-10, transient_atol = 1e-2, transient_steady = 1e-7, transient_sensitivity = 1e-5;
   std::string sections = "123";          // which of the three figures to measure
   double transient_off = 0.1;            // start of the transient comparison: the truth this much off
+  double coverage_stroke_noise = -1.0;   // m; < 0: the simulated rig's (a diagnostic: 0 removes input noise)
 
   static constexpr int kN = 800;
   static constexpr double kTargetMs = 50.0;
@@ -512,7 +513,8 @@ struct BenchIdentify {
       estimator_options.scheme = scheme;
       estimators.emplace_back(model, estimator_options);
     }
-    const sim::SensorNoise noise;  // the simulated rig's sensor noise
+    sim::SensorNoise noise;  // the simulated rig's sensor noise
+    if (coverage_stroke_noise >= 0) noise.stroke = coverage_stroke_noise;
     std::mt19937_64 rng(2024);
     std::normal_distribution<double> unit(0.0, 1.0);
     std::vector<int> est;
@@ -527,7 +529,8 @@ struct BenchIdentify {
       for (auto& e : noisy.experiments)
         for (auto& c : e.channels) {
           const double sd = c.name == "stroke" ? noise.stroke : c.name == "force" ? noise.force : noise.pressure;
-          for (double& v : c.samples) v += sd * unit(rng);
+          if (sd > 0)
+            for (double& v : c.samples) v += sd * unit(rng);
         }
       const auto data = ident::PrepareExperiments(noisy, model.causality(), kN);
       for (std::size_t a = 0; a < ns; ++a) {
@@ -924,6 +927,8 @@ void RegisterBenchCommand(CLI::App& app) {
   id->add_option("--sections", identify->sections, "Which figures: 1 fit time, 2 coverage, 3 transient (e.g. 13)")
       ->capture_default_str();
   id->add_flag("--transient-force", identify->transient_force, "Also compare with force input (slow)");
+  id->add_option("--coverage-stroke-noise", identify->coverage_stroke_noise,
+                 "Stroke sensor noise (m) of the coverage realisations; default the simulated rig's (0: an exact input)");
   id->add_option("--transient-start", identify->transient_off,
                  "Start of the transient comparison: the estimated parameters this fraction too large (0: the truth)")
       ->capture_default_str();

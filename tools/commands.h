@@ -12,6 +12,8 @@ void RegisterDemoCommand(CLI::App& app);
 void RegisterBenchCommand(CLI::App& app);
 void RegisterIdentifyCommand(CLI::App& app);
 void RegisterDiscoverCommand(CLI::App& app);
+//! Adds `discover` under the `bench` subcommand.
+void RegisterBenchDiscover(CLI::App& bench);
 void RegisterSimCommand(CLI::App& app);
 void RegisterImportCommand(CLI::App& app);
 

@@ -36,6 +36,7 @@ int main(int argc, char** argv) {
   strut::tools::RegisterIdentifyCommand(app);
   strut::tools::RegisterDiscoverCommand(app);
   strut::tools::RegisterBenchCommand(app);
+  strut::tools::RegisterBenchDiscover(*app.get_subcommand("bench"));
   strut::tools::RegisterSimCommand(app);
   strut::tools::RegisterImportCommand(app);
 

@@ -297,9 +297,10 @@ class TallyingPredictor : public ident::PeriodicPredictor {
     }
   }
   std::vector<Eigen::MatrixXd> OutputSensitivities(const ident::PeriodicSolution& solution,
-                                                   std::span<const double> theta) override {
+                                                   std::span<const double> theta,
+                                                   std::span<const int> parameters) override {
     const auto start = Clock::now();
-    auto s = inner_->OutputSensitivities(solution, theta);
+    auto s = inner_->OutputSensitivities(solution, theta, parameters);
     tally_->sensitivity_ms += std::chrono::duration<double, std::milli>(Clock::now() - start).count();
     ++tally_->sensitivity_calls;
     return s;

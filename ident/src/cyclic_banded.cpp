@@ -277,7 +277,7 @@ void CyclicBandedLU::SolveInterior(Eigen::Ref<Eigen::MatrixXd> b) const {
   }
 }
 
-Eigen::MatrixXd CyclicBandedLU::BorderTimes(const Eigen::MatrixXd& x) const {
+Eigen::MatrixXd CyclicBandedLU::BorderTimes(const Eigen::Ref<const Eigen::MatrixXd>& x) const {
   // Border rows touch only the last `lower_` interior points and (wrapping) the first `upper_`.
   const int nb = border_ * m_;
   Eigen::MatrixXd y = Eigen::MatrixXd::Zero(nb, x.cols());
@@ -306,12 +306,11 @@ void CyclicBandedLU::Solve(Eigen::Ref<Eigen::MatrixXd> b) const {
     return;
   }
   const int nb = border_ * m_;
-  Eigen::MatrixXd w = b.topRows(interior_rows_);
+  auto w = b.topRows(interior_rows_);
   SolveInterior(w);
   const Eigen::MatrixXd yb = schur_.Solve(b.bottomRows(nb) - BorderTimes(w));
   for (std::size_t c = 0; c < border_columns_.size(); ++c)
     w.noalias() -= interior_border_.col(c) * yb.row(border_columns_[c]);
-  b.topRows(interior_rows_) = w;
   b.bottomRows(nb) = yb;
 }
 

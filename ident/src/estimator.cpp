@@ -116,6 +116,7 @@ bool EstimatorOptions::IsValid(std::string* error) const {
   if (!(damping_relative_sd > 0)) return fail("damping_relative_sd must be positive");
   if (max_halvings < 0) return fail("max_halvings must not be negative");
   if (start_up_periods < 0) return fail("start_up_periods must not be negative");
+  if (coarse_points < 0) return fail("coarse_points must not be negative");
   if (threads < 0) return fail("threads must not be negative");
   return true;
 }
@@ -179,6 +180,7 @@ FitSummary Estimator::Fit(const std::vector<ExperimentData>& data, const Paramet
   PeriodicSolverOptions solver_options;
   solver_options.scheme = options_.scheme;
   solver_options.start_up_periods = options_.start_up_periods;
+  solver_options.coarse_points = options_.coarse_points;
   std::vector<ExperimentState> states;
   states.reserve(data.size());
   for (const ExperimentData& d : data) {
@@ -306,7 +308,7 @@ FitSummary Estimator::Fit(const std::vector<ExperimentData>& data, const Paramet
     ParallelFor(static_cast<int>(states.size()), threads, [&](int a) {
       ExperimentState& s = states[a];
       if (!s.active) return;
-      const auto sens = s.solver->OutputSensitivities(s.solution, theta);
+      const auto sens = s.solver->OutputSensitivities(s.solution, theta, est);
       for (int b = 0; b < nc; ++b) {
         if (!s.channel_fitted[b]) continue;
         Eigen::MatrixXd j(s.j0.size(), l);

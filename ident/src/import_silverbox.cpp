@@ -108,9 +108,11 @@ SilverboxResult RunSilverbox(const daq::Session& session, const SilverboxOptions
     eo.n = n;
     eo.scheme = options.scheme;
     eo.start_up_periods = 0;
+    eo.coarse_points = 0;
     eo.predictor = [&eo](const Model& m) {  // cold starts from the linear response
       PeriodicSolverOptions po;
       po.scheme = eo.scheme;
+      po.coarse_points = 0;
       return std::make_unique<OscillatorPredictor>(m, po);
     };
     eo.threads = options.threads;
@@ -130,6 +132,7 @@ SilverboxResult RunSilverbox(const daq::Session& session, const SilverboxOptions
     PeriodicSolverOptions so;
     so.scheme = options.scheme;
     so.start_up_periods = 0;
+    so.coarse_points = 0;
     OscillatorPredictor solver(model, so);
     const PeriodicSolution s = solver.Solve(validation->input, c.fit.parameters.values());
     const Eigen::VectorXd y = s.channel("y");

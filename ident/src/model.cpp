@@ -143,6 +143,9 @@ Model Model::Build(std::string_view composition, Causality causality) {
 
   model.term_names_ = builder.term_names_;
   model.terms_.assign(terms.begin(), terms.end());
+  for (int phase = 0; phase < 3; ++phase)
+    for (const auto& t : model.terms_)
+      if (t->phases() & (1u << phase)) model.phase_terms_[phase].push_back(t.get());
   model.states_ = builder.states_;
   model.defaults_ = ParameterSet(builder.parameters_);
   model.displacement_ = builder.displacement_.value_or(kStrokeSlot);
@@ -228,9 +231,10 @@ void Model::Residual(std::span<const S> x, std::span<const S> xd, std::span<cons
   c.gas_amount = zero;
   c.state_residuals = r.subspan(1);
   using Phase = typename TermContext<S>::Phase;
+  static_assert(static_cast<int>(Phase::kGasState) == 0 && static_cast<int>(Phase::kBalance) == 2);
   for (const Phase phase : {Phase::kGasState, Phase::kGasLaw, Phase::kBalance}) {
     c.phase = phase;
-    for (const auto& t : terms_) t->Evaluate(c);
+    for (const Term* t : phase_terms_[static_cast<int>(phase)]) t->Evaluate(c);
   }
   r[0] = c.force - v.force;
 }

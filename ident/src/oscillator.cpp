@@ -127,8 +127,9 @@ PeriodicSolution OscillatorPredictor::Solve(const PeriodicInput& input, std::spa
 }
 
 std::vector<Eigen::MatrixXd> OscillatorPredictor::OutputSensitivities(const PeriodicSolution& solution,
-                                                                      std::span<const double> theta) {
-  return solver_.OutputSensitivities(solution, theta);
+                                                                      std::span<const double> theta,
+                                                                      std::span<const int> parameters) {
+  return solver_.OutputSensitivities(solution, theta, parameters);
 }
 
 std::vector<double> BandLimitedUpsample(std::span<const double> samples, int factor) {

@@ -123,6 +123,9 @@ bool PeriodicSolverOptions::IsValid(std::string* error) const {
   if (max_iterations < 1) return fail("max_iterations must be at least 1");
   if (max_halvings < 0) return fail("max_halvings must not be negative");
   if (!(tolerance > 0)) return fail("tolerance must be positive");
+  if (start_up_periods < 0) return fail("start_up_periods must not be negative");
+  if (coarse_points < 0) return fail("coarse_points must not be negative");
+  if (!(reuse_contraction >= 0 && reuse_contraction < 1)) return fail("reuse_contraction must be in [0, 1)");
   return true;
 }
 
@@ -142,6 +145,9 @@ PeriodicSolver::PeriodicSolver(Model model, PeriodicSolverOptions options)
     : model_(std::move(model)), options_(options) {
   std::string error;
   if (!options_.IsValid(&error)) throw std::invalid_argument("periodic solver options: " + error);
+  const int m = model_.unknown_count();
+  equation_weight_.resize(m);
+  for (int j = 0; j < m; ++j) equation_weight_[j] = 1.0 / model_.equation_scale(j);
 }
 
 void PeriodicSolver::Prepare(int n) {
@@ -151,12 +157,11 @@ void PeriodicSolver::Prepare(int n) {
   stencil_ = Stencil::For(options_.scheme, n);
   jacobian_ = CyclicBlockBanded(n, model_.unknown_count(), stencil_.kmin, stencil_.kmax);
   prepared_n_ = n;
-  lu_valid_ = false;
 }
 
 namespace {
 
-// Time derivatives (real time) of a periodic grid function at point mu.
+// Time derivatives (real time) of a periodic grid function at point mu (one point, for marching).
 struct Rates {
   double first, second;
 };
@@ -175,22 +180,56 @@ Rates RatesAt(const Stencil& s, const Row& values, int mu, int n, double frequen
   return {d1 * frequency, d2 * frequency * frequency};
 }
 
-std::vector<Rates> InputRates(const Stencil& s, const PeriodicInput& input) {
-  const int n = static_cast<int>(input.values.size());
-  const Eigen::Map<const Eigen::VectorXd> u(input.values.data(), n);
-  std::vector<Rates> rates(n);
-  for (int mu = 0; mu < n; ++mu) rates[mu] = RatesAt(s, u, mu, n, input.frequency);
-  return rates;
+// First and second time derivatives of every row of z at every point: whole shifted columns per
+// stencil offset, so the work is a few vector sweeps rather than an indexed loop per point.
+void GridRates(const Stencil& s, const Eigen::MatrixXd& z, double frequency, Eigen::MatrixXd& first,
+               Eigen::MatrixXd& second) {
+  const int n = static_cast<int>(z.cols());
+  first.setZero(z.rows(), n);
+  second.setZero(z.rows(), n);
+  for (int k = s.kmin; k <= s.kmax; ++k) {
+    const double c1 = s.first[k - s.kmin] * frequency, c2 = s.second[k - s.kmin] * frequency * frequency;
+    const int shift = ((k % n) + n) % n;  // column mu reads column (mu + shift) mod n
+    if (c1 != 0.0) {
+      first.leftCols(n - shift) += c1 * z.rightCols(n - shift);
+      if (shift > 0) first.rightCols(shift) += c1 * z.leftCols(shift);
+    }
+    if (c2 != 0.0) {
+      second.leftCols(n - shift) += c2 * z.rightCols(n - shift);
+      if (shift > 0) second.rightCols(shift) += c2 * z.leftCols(shift);
+    }
+  }
+}
+
+// Periodic cubic (Catmull-Rom) resampling of every row onto `points` equidistant points of the
+// same period: the coarse-grid start's interpolation in both directions.
+Eigen::MatrixXd PeriodicResample(const Eigen::MatrixXd& rows, int points) {
+  const int n = static_cast<int>(rows.cols());
+  Eigen::MatrixXd out(rows.rows(), points);
+  const auto at = [&](int i) { return rows.col(((i % n) + n) % n); };
+  for (int mu = 0; mu < points; ++mu) {
+    const double x = static_cast<double>(mu) * n / points;
+    const int i = static_cast<int>(std::floor(x));
+    const double w = x - i;
+    const auto p0 = at(i - 1), p1 = at(i), p2 = at(i + 1), p3 = at(i + 2);
+    out.col(mu) = p1 + 0.5 * w * (p2 - p0 + w * (2.0 * p0 - 5.0 * p1 + 4.0 * p2 - p3 + w * (3.0 * (p1 - p2) + p3 - p0)));
+  }
+  return out;
 }
 
 // Residual of one grid point and its derivatives with respect to the unknowns and their rates,
 // scaled like G: r, dr/dx, dr/dx', dr/dx''. J is the Jet type that carries the directions.
 template <class J>
 struct PointLinearization {
-  PointLinearization(const Model& model, std::span<const double> theta) : model(model) {
+  PointLinearization(const Model& model, std::span<const double> theta, const Eigen::VectorXd& weight)
+      : model(model), weight(weight) {
     const int m = model.unknown_count();
     first_direction.assign(m + 1, 0);
-    for (int j = 0; j < m; ++j) first_direction[j + 1] = first_direction[j] + model.derivative_order(j) + 1;
+    order.resize(m);
+    for (int j = 0; j < m; ++j) {
+      order[j] = model.derivative_order(j);
+      first_direction[j + 1] = first_direction[j] + order[j] + 1;
+    }
     using Derivatives = typename J::DerType;
     directions = Derivatives::RowsAtCompileTime == Eigen::Dynamic ? first_direction[m]
                                                                  : int(Derivatives::RowsAtCompileTime);
@@ -207,83 +246,121 @@ struct PointLinearization {
   // All Jets carry every direction (see autodiff.h).
   J Constant(double v) const { return J(v, J::DerType::Zero(directions)); }
 
-  void Evaluate(const Stencil& stencil, const Eigen::MatrixXd& z, int mu, double f, double u, double ud, double udd) {
+  //! At one point: the unknowns, their rates, and the input with its rates.
+  void Evaluate(const double* z, const double* zd, const double* zdd, double u, double ud, double udd) {
     using Derivatives = typename J::DerType;
     const int m = model.unknown_count();
-    const int n = static_cast<int>(z.cols());
     for (int j = 0; j < m; ++j) {
-      const Rates rate = RatesAt(stencil, z.row(j), mu, n, f);
-      const int order = model.derivative_order(j), d0 = first_direction[j];
-      x[j] = J(z(j, mu), Derivatives::Unit(directions, d0));
-      xd[j] = order >= 1 ? J(rate.first, Derivatives::Unit(directions, d0 + 1)) : Constant(rate.first);
-      xdd[j] = order >= 2 ? J(rate.second, Derivatives::Unit(directions, d0 + 2)) : Constant(rate.second);
+      const int d0 = first_direction[j];
+      x[j] = J(z[j], Derivatives::Unit(directions, d0));
+      xd[j] = order[j] >= 1 ? J(zd[j], Derivatives::Unit(directions, d0 + 1)) : Constant(zd[j]);
+      xdd[j] = order[j] >= 2 ? J(zdd[j], Derivatives::Unit(directions, d0 + 2)) : Constant(zdd[j]);
     }
     model.Residual<J>(x, xd, xdd, Constant(u), Constant(ud), Constant(udd), theta_jet, residual);
     for (int i = 0; i < m; ++i) {
-      const double scale = 1.0 / model.equation_scale(i);
+      const double scale = weight[i];
       const auto& d = residual[i].derivatives();
       r[i] = residual[i].value() * scale;
       for (int j = 0; j < m; ++j) {
-        const int order = model.derivative_order(j), d0 = first_direction[j];
+        const int d0 = first_direction[j];
         rx(i, j) = d[d0] * scale;
-        rxd(i, j) = order >= 1 ? d[d0 + 1] * scale : 0.0;
-        rxdd(i, j) = order >= 2 ? d[d0 + 2] * scale : 0.0;
+        rxd(i, j) = order[j] >= 1 ? d[d0 + 1] * scale : 0.0;
+        rxdd(i, j) = order[j] >= 2 ? d[d0 + 2] * scale : 0.0;
       }
     }
   }
 
   const Model& model;
-  std::vector<int> first_direction;
+  const Eigen::VectorXd& weight;
+  std::vector<int> first_direction, order;
   int directions = 0;
   std::vector<J> theta_jet, x, xd, xdd, residual;
   Eigen::VectorXd r;
   Eigen::MatrixXd rx, rxd, rxdd;
 };
 
+// Size of a grid correction in units of its unknowns' scales: largest component and 2-norm.
+struct StepSize {
+  double max = 0.0, norm = 0.0;
+};
+StepSize Measure(const Eigen::MatrixXd& dz, const Eigen::VectorXd& inverse_scale) {
+  const int m = static_cast<int>(dz.rows());
+  double largest = 0.0, squares = 0.0;
+  const double* d = dz.data();
+  for (Eigen::Index mu = 0; mu < dz.cols(); ++mu, d += m)
+    for (int j = 0; j < m; ++j) {
+      const double v = d[j] * inverse_scale[j];
+      largest = std::max(largest, std::abs(v));
+      squares += v * v;
+    }
+  return {largest, std::sqrt(squares)};
+}
+
 }  // namespace
+
+//! The input and its first and second time derivatives on the grid (1 x n each).
+struct PeriodicSolver::InputRates {
+  InputRates(const Stencil& stencil, const PeriodicInput& input) {
+    GridRates(stencil, Eigen::Map<const Eigen::RowVectorXd>(input.values.data(), input.values.size()), input.frequency,
+              first, second);
+  }
+  Eigen::MatrixXd first, second;
+};
 
 Eigen::MatrixXd PeriodicSolver::Residual(const Eigen::MatrixXd& z, const PeriodicInput& input,
                                          std::span<const double> theta) const {
-  const int m = model_.unknown_count();
   const int n = static_cast<int>(z.cols());
-  const Stencil stencil = n == prepared_n_ ? stencil_ : Stencil::For(options_.scheme, n);
-  const auto input_rates = InputRates(stencil, input);
-  Eigen::MatrixXd g(m, n);
-  std::vector<double> xd(m), xdd(m), r(m);
-  for (int mu = 0; mu < n; ++mu) {
-    for (int j = 0; j < m; ++j) {
-      const Rates rate = RatesAt(stencil, z.row(j), mu, n, input.frequency);
-      xd[j] = rate.first;
-      xdd[j] = rate.second;
-    }
-    model_.Residual<double>(std::span<const double>(z.col(mu).data(), m), xd, xdd, input.values[mu],
-                            input_rates[mu].first, input_rates[mu].second, theta, r);
-    for (int j = 0; j < m; ++j) g(j, mu) = r[j] / model_.equation_scale(j);
-  }
-  return g;
+  if (n == prepared_n_) return ResidualAt(z, input, InputRates(stencil_, input), theta);
+  PeriodicSolver other(model_, options_);
+  other.Prepare(n);
+  return other.ResidualAt(z, input, InputRates(other.stencil_, input), theta);
 }
 
-void PeriodicSolver::AssembleJacobian(const Eigen::MatrixXd& z, const PeriodicInput& input,
-                                      std::span<const double> theta) {
+Eigen::MatrixXd PeriodicSolver::ResidualAt(const Eigen::MatrixXd& z, const PeriodicInput& input,
+                                           const InputRates& rates, std::span<const double> theta) const {
+  const int m = model_.unknown_count();
+  const int n = static_cast<int>(z.cols());
+  Eigen::MatrixXd zd, zdd;
+  GridRates(stencil_, z, input.frequency, zd, zdd);
+  Eigen::MatrixXd g(m, n);
+  for (int mu = 0; mu < n; ++mu) {
+    model_.Residual<double>(std::span<const double>(z.col(mu).data(), m), std::span<const double>(zd.col(mu).data(), m),
+                            std::span<const double>(zdd.col(mu).data(), m), input.values[mu], rates.first(0, mu),
+                            rates.second(0, mu), theta, std::span<double>(g.col(mu).data(), m));
+  }
+  return equation_weight_.asDiagonal() * g;
+}
+
+std::shared_ptr<const CyclicBandedLU> PeriodicSolver::Factorize(const Eigen::MatrixXd& z, const PeriodicInput& input,
+                                                                const InputRates& rates, std::span<const double> theta,
+                                                                int iteration, double norm) {
   const int m = model_.unknown_count();
   int directions = 0;
   for (int j = 0; j < m; ++j) directions += model_.derivative_order(j) + 1;
   if (directions <= kStateDirections) {
-    AssembleJacobianWith<StateJet>(z, input, theta);
+    AssembleJacobianWith<StateJet>(z, input, rates, theta);
   } else {
-    AssembleJacobianWith<Jet>(z, input, theta);
+    AssembleJacobianWith<Jet>(z, input, rates, theta);
   }
+  auto lu = std::make_shared<CyclicBandedLU>();
+  if (!lu->Factorize(jacobian_))
+    throw PeriodicSolverError(
+        fmt::format("periodic solver: singular Jacobian at iteration {} (residual {:.3g})", iteration, norm), norm,
+        iteration);
+  return lu;
 }
 
 template <class J>
-void PeriodicSolver::AssembleJacobianWith(const Eigen::MatrixXd& z, const PeriodicInput& input,
+void PeriodicSolver::AssembleJacobianWith(const Eigen::MatrixXd& z, const PeriodicInput& input, const InputRates& rates,
                                           std::span<const double> theta) {
   const int n = static_cast<int>(z.cols());
   const double f = input.frequency;
-  const auto input_rates = InputRates(stencil_, input);
-  PointLinearization<J> point(model_, theta);
+  Eigen::MatrixXd zd, zdd;
+  GridRates(stencil_, z, f, zd, zdd);
+  PointLinearization<J> point(model_, theta, equation_weight_);
   for (int mu = 0; mu < n; ++mu) {
-    point.Evaluate(stencil_, z, mu, f, input.values[mu], input_rates[mu].first, input_rates[mu].second);
+    point.Evaluate(z.col(mu).data(), zd.col(mu).data(), zdd.col(mu).data(), input.values[mu], rates.first(0, mu),
+                   rates.second(0, mu));
     for (int k = stencil_.kmin; k <= stencil_.kmax; ++k) {
       auto block = jacobian_.block(mu, k);
       const double a = stencil_.first[k - stencil_.kmin] * f;
@@ -303,16 +380,23 @@ Eigen::MatrixXd PeriodicSolver::MarchGuess(Eigen::MatrixXd z, const PeriodicInpu
   const int m = model_.unknown_count();
   const double f = input.frequency;
   const Stencil march = Stencil::For(Scheme::kBackward2, n);
-  const auto input_rates = InputRates(march, input);
-  PointLinearization<Jet> point(model_, theta);
+  const InputRates input_rates(march, input);
+  PointLinearization<Jet> point(model_, theta, equation_weight_);
   const double a0 = march.first[-march.kmin] * f, b0 = march.second[-march.kmin] * f * f;
   Eigen::VectorXd step_scale(m);
   for (int j = 0; j < m; ++j) step_scale[j] = model_.unknown_spec(j).scale;
+  std::vector<double> zd(m), zdd(m);
   for (int pass = 0; pass < periods; ++pass)
     for (int mu = 0; mu < n; ++mu) {
       if (mu > 0) z.col(mu) = z.col(mu - 1);  // predictor: hold the previous point
       for (int iteration = 0; iteration < 20; ++iteration) {
-        point.Evaluate(march, z, mu, f, input.values[mu], input_rates[mu].first, input_rates[mu].second);
+        for (int j = 0; j < m; ++j) {
+          const Rates rate = RatesAt(march, z.row(j), mu, n, f);
+          zd[j] = rate.first;
+          zdd[j] = rate.second;
+        }
+        point.Evaluate(z.col(mu).data(), zd.data(), zdd.data(), input.values[mu], input_rates.first(0, mu),
+                       input_rates.second(0, mu));
         const Eigen::MatrixXd jac = point.rx + a0 * point.rxd + b0 * point.rxdd;
         const Eigen::VectorXd step = jac.partialPivLu().solve(-point.r);
         if (!step.allFinite()) break;
@@ -337,6 +421,38 @@ Eigen::MatrixXd PeriodicSolver::QuasiStaticGuess(const PeriodicInput& input, std
   return z;
 }
 
+Eigen::MatrixXd PeriodicSolver::ColdStart(const PeriodicInput& input, std::span<const double> theta) const {
+  const int n = static_cast<int>(input.values.size());
+  const int coarse_n = options_.coarse_points;
+  if (coarse_n >= 8 && n >= 2 * coarse_n) {
+    // Solve on the coarse grid (where the quasi-static guess and the march are cheap and Newton
+    // converges in a few steps), then interpolate: the fine Newton starts close to its solution.
+    PeriodicSolverOptions options = options_;
+    options.scheme = Scheme::kBackward2;
+    options.coarse_points = 0;
+    PeriodicSolver coarse(model_, options);
+    const PeriodicInput coarse_input{
+        input.frequency, [&] {
+          const Eigen::MatrixXd u = PeriodicResample(
+              Eigen::Map<const Eigen::RowVectorXd>(input.values.data(), input.values.size()), coarse_n);
+          return std::vector<double>(u.data(), u.data() + coarse_n);
+        }()};
+    PeriodicSolution guess;
+    guess.n = coarse_n;
+    guess.frequency = input.frequency;
+    guess.unknowns = coarse.MarchGuess(coarse.QuasiStaticGuess(coarse_input, theta), coarse_input, theta,
+                                       options_.start_up_periods);
+    try {
+      const PeriodicSolution s = coarse.Solve(coarse_input, theta, &guess);
+      spdlog::trace("periodic cold start: {} Newton steps on {} points", s.newton_iterations, coarse_n);
+      return PeriodicResample(s.unknowns, n);
+    } catch (const PeriodicSolverError& e) {
+      spdlog::debug("periodic cold start: no solution on {} points ({}); starting on all {}", coarse_n, e.what(), n);
+    }
+  }
+  return MarchGuess(QuasiStaticGuess(input, theta), input, theta, options_.start_up_periods);
+}
+
 PeriodicSolution PeriodicSolver::Solve(const PeriodicInput& input, std::span<const double> theta,
                                        const PeriodicSolution* warm_start) {
   const int n = static_cast<int>(input.values.size());
@@ -348,64 +464,83 @@ PeriodicSolution PeriodicSolver::Solve(const PeriodicInput& input, std::span<con
   for (double v : input.values)
     if (!std::isfinite(v)) throw std::invalid_argument("periodic solver: the input has non-finite values");
   Prepare(n);
-  lu_valid_ = false;
+  const InputRates rates(stencil_, input);
 
   Eigen::MatrixXd z;
-  if (warm_start && warm_start->n == n && warm_start->unknowns.rows() == m) {
+  std::shared_ptr<const CyclicBandedLU> lu;  // the factorisation the next step uses (null: assemble one)
+  if (warm_start && warm_start->n == n && warm_start->unknowns.rows() == m && warm_start->unknowns.cols() == n) {
     z = warm_start->unknowns;
+    if (options_.reuse_contraction > 0 && warm_start->jacobian && warm_start->jacobian->rows() == n * m)
+      lu = warm_start->jacobian;
   } else {
     try {
-      z = MarchGuess(QuasiStaticGuess(input, theta), input, theta, options_.start_up_periods);
+      z = ColdStart(input, theta);
     } catch (const ModelError& e) {
       throw PeriodicSolverError(fmt::format("periodic solver: no static-equilibrium guess: {}", e.what()), NAN, 0);
     }
   }
-  Eigen::VectorXd step_scale(m);
-  for (int j = 0; j < m; ++j) step_scale[j] = model_.unknown_spec(j).scale * options_.tolerance;
+  Eigen::VectorXd inverse_scale(m);  // Newton's tolerance per unknown, inverted
+  for (int j = 0; j < m; ++j) inverse_scale[j] = 1.0 / (model_.unknown_spec(j).scale * options_.tolerance);
 
-  Eigen::MatrixXd g = Residual(z, input, theta);
+  Eigen::MatrixXd g = ResidualAt(z, input, rates, theta);
   double norm = g.allFinite() ? g.norm() : INFINITY;
-  int iteration = 0;
-  bool converged = false;
+  int iteration = 0, factorizations = 0;
+  bool converged = false, fresh = false;
+  Eigen::MatrixXd step;  // the next Newton direction when the last step left one (simplified Newton)
   for (; iteration < options_.max_iterations && !converged; ++iteration) {
     if (!std::isfinite(norm))
       throw PeriodicSolverError(
           fmt::format("periodic solver: non-finite residual at iteration {} (the guess is outside the model's range)",
                       iteration),
           norm, iteration);
-    AssembleJacobian(z, input, theta);
-    if (!lu_.Factorize(jacobian_))
-      throw PeriodicSolverError(
-          fmt::format("periodic solver: singular Jacobian at iteration {} (residual {:.3g})", iteration, norm), norm,
-          iteration);
-    lu_valid_ = true;
-    Eigen::MatrixXd step = -g;
-    lu_.Solve(Eigen::Map<Eigen::VectorXd>(step.data(), step.size()));
-    converged = (step.array().abs().colwise() / step_scale.array()).maxCoeff() <= 1.0;
+    fresh = !lu;
+    if (fresh) {
+      lu = Factorize(z, input, rates, theta, iteration, norm);
+      ++factorizations;
+      step.resize(0, 0);
+    }
+    if (step.size() == 0) {
+      step = -g;
+      lu->Solve(Eigen::Map<Eigen::VectorXd>(step.data(), step.size()));
+    }
+    const StepSize step_size = Measure(step, inverse_scale);
+    converged = step_size.max <= 1.0;
     // Step halving (Fey) with Deuflhard's natural monotonicity test: accept the first fraction
     // whose simplified Newton correction J^-1 G(trial) (same factorisation, scaled by the unknowns'
     // scales) shrinks. Unlike the residual norm this test does not depend on how the equations are
     // scaled, and it lets Newton cross the friction switches of force-driven problems in few steps.
-    const auto scaled_norm = [&](const Eigen::MatrixXd& dz) {
-      return (dz.array().colwise() / step_scale.array()).matrix().norm();
-    };
-    const double step_norm = scaled_norm(step);
+    // A factorisation carried over from earlier iterates is not halved with: it is replaced.
+    const double step_norm = step_size.norm;
+    const int halvings = fresh ? options_.max_halvings : 0;
     double lambda = 1.0;
     bool accepted = false;
-    for (int halving = 0; halving <= options_.max_halvings; ++halving, lambda *= 0.5) {
+    Eigen::MatrixXd correction;
+    double contraction = INFINITY;
+    for (int halving = 0; halving <= halvings; ++halving, lambda *= 0.5) {
       Eigen::MatrixXd trial = z + lambda * step;
-      Eigen::MatrixXd g_trial = Residual(trial, input, theta);
+      Eigen::MatrixXd g_trial = ResidualAt(trial, input, rates, theta);
       const double trial_norm = g_trial.allFinite() ? g_trial.norm() : INFINITY;
       bool descent = converged;
       if (!descent && std::isfinite(trial_norm)) {
-        Eigen::MatrixXd correction = -g_trial;
-        lu_.Solve(Eigen::Map<Eigen::VectorXd>(correction.data(), correction.size()));
-        descent = scaled_norm(correction) <= (1.0 - 0.25 * lambda) * step_norm;
-        // After a full step the simplified correction is the size of the next Newton step: when it
-        // is below the tolerance already, that step need not be taken.
-        if (descent && lambda == 1.0 &&
-            (correction.array().abs().colwise() / step_scale.array()).maxCoeff() <= 1.0)
+        correction = -g_trial;
+        lu->Solve(Eigen::Map<Eigen::VectorXd>(correction.data(), correction.size()));
+        const StepSize correction_size = Measure(correction, inverse_scale);
+        contraction = correction_size.norm / step_norm;
+        descent = contraction <= 1.0 - 0.25 * lambda;
+        // After a full step the simplified correction is the next simplified Newton step; it is
+        // applied and Newton stops when the error left after it is below the tolerance. After a
+        // step with a new Jacobian that is when the correction itself is (what remains is a
+        // fraction of it). After a simplified step, the ratio of consecutive corrections is the
+        // chord's contraction Theta and the error left about Theta / (1 - Theta) times the
+        // correction (Deuflhard); the largest components (near friction switches) may contract
+        // slower than the norm, so Theta is the larger of the two ratios.
+        const double theta_max = std::max(contraction, correction_size.max / step_size.max);
+        const double error_left = fresh ? correction_size.max
+                                        : (theta_max < 0.5 ? theta_max / (1.0 - theta_max) * correction_size.max : INFINITY);
+        if (descent && lambda == 1.0 && error_left <= 1.0) {
           converged = true;
+          trial += correction;
+        }
       }
       if (descent) {
         z = std::move(trial);
@@ -415,20 +550,34 @@ PeriodicSolution PeriodicSolver::Solve(const PeriodicInput& input, std::span<con
         break;
       }
     }
+    if (!accepted && !fresh) {  // the carried factorisation does not fit here: assemble a new one
+      lu.reset();
+      step.resize(0, 0);
+      converged = false;
+      continue;
+    }
     if (!accepted)
       throw PeriodicSolverError(
           fmt::format("periodic solver: no descent after {} step halvings at iteration {}; scaled residual {:.3g} "
                       "(no periodic solution near the guess)",
                       options_.max_halvings, iteration, norm),
           norm, iteration);
-    spdlog::trace("periodic Newton {}: residual {:.3e} step {}", iteration, norm, lambda);
+    spdlog::trace("periodic Newton {}: residual {:.3e} step {}{}", iteration, norm, lambda, fresh ? "" : " (simplified)");
+    if (converged) break;
+    // Simplified Newton: while a full step's correction contracts fast, it is the next step.
+    if (lambda == 1.0 && correction.size() > 0 && contraction <= options_.reuse_contraction) {
+      step = std::move(correction);
+    } else {
+      lu.reset();
+      step.resize(0, 0);
+    }
   }
+  if (converged) ++iteration;  // the loop left before counting the converged step
   if (!converged || !g.allFinite())
     throw PeriodicSolverError(fmt::format("periodic solver: not converged after {} iterations; scaled residual {:.3g}",
                                           iteration, norm),
                               norm, iteration);
 
-  last_unknowns_ = z;
   PeriodicSolution solution;
   solution.scheme = options_.scheme;
   solution.frequency = input.frequency;
@@ -436,7 +585,10 @@ PeriodicSolution PeriodicSolver::Solve(const PeriodicInput& input, std::span<con
   solution.unknowns = std::move(z);
   solution.input = input;
   solution.newton_iterations = iteration;
+  solution.factorizations = factorizations;
   solution.residual_norm = g.lpNorm<Eigen::Infinity>();
+  solution.jacobian = std::move(lu);
+  solution.jacobian_current = fresh;
   solution.channels = model_.output_channels();
   solution.outputs.resize(static_cast<int>(solution.channels.size()), n);
   std::vector<double> y(solution.channels.size());
@@ -450,52 +602,61 @@ PeriodicSolution PeriodicSolver::Solve(const PeriodicInput& input, std::span<con
 }
 
 std::vector<Eigen::MatrixXd> PeriodicSolver::OutputSensitivities(const PeriodicSolution& solution,
-                                                                 std::span<const double> theta) {
+                                                                 std::span<const double> theta,
+                                                                 std::span<const int> parameters) {
   const int m = model_.unknown_count();
   const int n = solution.n;
   const int np = model_.parameter_count();
+  if (solution.unknowns.rows() != m || solution.unknowns.cols() != n || static_cast<int>(theta.size()) != np)
+    throw std::invalid_argument("periodic solver: sensitivities of a solution of another model or grid");
+  std::vector<int> wanted(parameters.begin(), parameters.end());
+  if (wanted.empty())
+    for (int i = 0; i < np; ++i) wanted.push_back(i);
+  for (int i : wanted)
+    if (i < 0 || i >= np) throw std::invalid_argument(fmt::format("periodic solver: no parameter at position {}", i));
+  const int nd = static_cast<int>(wanted.size());
+  if (nd > kMaxDerivatives)
+    throw std::invalid_argument(fmt::format("periodic solver: at most {} sensitivities at once", kMaxDerivatives));
   Prepare(n);
-  if (!lu_valid_ || last_unknowns_.cols() != n || last_unknowns_ != solution.unknowns) {
-    // Not the solution of the last Solve (a caller restored an older one): factorise at it.
-    AssembleJacobian(solution.unknowns, solution.input, theta);
-    if (!lu_.Factorize(jacobian_))
-      throw PeriodicSolverError("periodic solver: singular Jacobian at the solution (sensitivities)", 0.0, 0);
-    lu_valid_ = true;
-    last_unknowns_ = solution.unknowns;
-  }
   const PeriodicInput& input = solution.input;
-  const auto input_rates = InputRates(stencil_, input);
+  const InputRates rates(stencil_, input);
+  if (!solution.jacobian || !solution.jacobian_current || solution.jacobian->rows() != n * m) {
+    // Simplified Newton steps (or a guess) led here: eq. 14 wants the Jacobian at the solution.
+    solution.jacobian = Factorize(solution.unknowns, input, rates, theta, 0, 0.0);
+    solution.jacobian_current = true;
+  }
   std::vector<Jet> theta_jet(np);
-  for (int i = 0; i < np; ++i) theta_jet[i] = Jet(theta[i], DerivativeVector::Unit(np, i));
+  for (int i = 0; i < np; ++i) theta_jet[i] = MakeConstant(theta[i], nd);
+  for (int k = 0; k < nd; ++k) theta_jet[wanted[k]] = Jet(theta[wanted[k]], DerivativeVector::Unit(nd, k));
   // dG/dtheta at the solution, scaled like G.
-  Eigen::MatrixXd rhs(n * m, np);
-  std::vector<Jet> x(m), xd(m), xdd(m), r(m);
   const auto& z = solution.unknowns;
+  Eigen::MatrixXd zd, zdd;
+  GridRates(stencil_, z, input.frequency, zd, zdd);
+  Eigen::MatrixXd rhs(n * m, nd);
+  std::vector<Jet> x(m), xd(m), xdd(m), r(m);
   for (int mu = 0; mu < n; ++mu) {
     for (int j = 0; j < m; ++j) {
-      const Rates rate = RatesAt(stencil_, z.row(j), mu, n, input.frequency);
-      x[j] = MakeConstant(z(j, mu), np);
-      xd[j] = MakeConstant(rate.first, np);
-      xdd[j] = MakeConstant(rate.second, np);
+      x[j] = MakeConstant(z(j, mu), nd);
+      xd[j] = MakeConstant(zd(j, mu), nd);
+      xdd[j] = MakeConstant(zdd(j, mu), nd);
     }
-    model_.Residual<Jet>(x, xd, xdd, MakeConstant(input.values[mu], np), MakeConstant(input_rates[mu].first, np),
-                         MakeConstant(input_rates[mu].second, np), theta_jet, r);
+    model_.Residual<Jet>(x, xd, xdd, MakeConstant(input.values[mu], nd), MakeConstant(rates.first(0, mu), nd),
+                         MakeConstant(rates.second(0, mu), nd), theta_jet, r);
     for (int i = 0; i < m; ++i) {
       const auto& d = r[i].derivatives();
-      for (int p = 0; p < np; ++p)
-        rhs(mu * m + i, p) = d.size() == np ? -d[p] / model_.equation_scale(i) : 0.0;
+      for (int p = 0; p < nd; ++p) rhs(mu * m + i, p) = d.size() == nd ? -d[p] * equation_weight_[i] : 0.0;
     }
   }
-  lu_.Solve(rhs);  // rhs now holds dz/dtheta (eq. 14)
+  solution.jacobian->Solve(rhs);  // rhs now holds dz/dtheta (eq. 14)
   const int channels = static_cast<int>(solution.channels.size());
-  std::vector<Eigen::MatrixXd> sens(channels, Eigen::MatrixXd(n, np));
+  std::vector<Eigen::MatrixXd> sens(channels, Eigen::MatrixXd::Constant(n, np, NAN));
   std::vector<Jet> xs(m), y(channels);
   for (int mu = 0; mu < n; ++mu) {
     for (int j = 0; j < m; ++j) xs[j] = Jet(z(j, mu), rhs.row(mu * m + j).transpose());
-    model_.Outputs<Jet>(xs, MakeConstant(input.values[mu], np), theta_jet, y);  // eq. 15
+    model_.Outputs<Jet>(xs, MakeConstant(input.values[mu], nd), theta_jet, y);  // eq. 15
     for (int c = 0; c < channels; ++c) {
       const auto& d = y[c].derivatives();
-      for (int p = 0; p < np; ++p) sens[c](mu, p) = d.size() == np ? d[p] : 0.0;
+      for (int p = 0; p < nd; ++p) sens[c](mu, wanted[p]) = d.size() == nd ? d[p] : 0.0;
     }
   }
   return sens;

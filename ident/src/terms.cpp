@@ -19,6 +19,7 @@ constexpr double kAmbientK = 293.15;
 //! theta1 (q'' + theta2): moving mass under gravity.
 class Inertia final : public Term {
  public:
+  unsigned phases() const override { return kBalancePhase; }
   std::string_view name() const override { return "inertia"; }
   void Declare(ModelBuilder& b) override {
     b.add_parameter({1, "moving_mass", "kg", 40.0, "mass moving with the stroke (piston, axle, fixture)"});
@@ -42,6 +43,7 @@ class Inertia final : public Term {
 //! theta4 p: gas force on the piston.
 class GasForce final : public Term {
  public:
+  unsigned phases() const override { return kBalancePhase; }
   std::string_view name() const override { return "gas-force"; }
   void Declare(ModelBuilder& b) override {
     b.add_parameter({4, "gas_area", "m^2", 5.0e-3, "pneumatic piston area", true});
@@ -64,6 +66,7 @@ class GasForce final : public Term {
 //! theta3 q'|q'|: orifice damping.
 class QuadraticDamping final : public Term {
  public:
+  unsigned phases() const override { return kBalancePhase; }
   std::string_view name() const override { return "quadratic-damping"; }
   void Declare(ModelBuilder& b) override {
     b.add_parameter({3, "orifice_damping", "N s^2/m^2", 8.0e3, "quadratic (orifice) damping coefficient"});
@@ -84,6 +87,7 @@ class QuadraticDamping final : public Term {
 //! (theta8 + theta9 p) atan(theta10 q'): seal friction growing with pressure, smoothed by atan.
 class PressureFriction final : public Term {
  public:
+  unsigned phases() const override { return kBalancePhase; }
   std::string_view name() const override { return "pressure-friction"; }
   void Declare(ModelBuilder& b) override {
     b.add_parameter({8, "friction_base", "N", 190.0, "pressure-independent friction amplitude"});
@@ -111,6 +115,7 @@ class PressureFriction final : public Term {
 //! theta11: constant force offset (atmospheric pressure on the piston, load-cell zero).
 class ForceOffset final : public Term {
  public:
+  unsigned phases() const override { return kBalancePhase; }
   std::string_view name() const override { return "force-offset"; }
   void Declare(ModelBuilder& b) override {
     b.add_parameter({11, "force_offset", "N", -507.0, "constant force offset (-p_atm A plus load-cell zero)", true});
@@ -129,6 +134,7 @@ class ForceOffset final : public Term {
 //! theta12: stroke sensor offset, y = q + theta12. Used by Model for inputs and outputs.
 class StrokeOffset final : public Term {
  public:
+  unsigned phases() const override { return 0; }
   std::string_view name() const override { return "stroke-offset"; }
   void Declare(ModelBuilder& b) override {
     b.add_parameter({12, "stroke_offset", "m", 0.0, "stroke sensor offset: measured = true + offset", true, 1e-3});
@@ -143,6 +149,7 @@ class StrokeOffset final : public Term {
 //! 1 + theta6 q: gas volume relative to full extension (theta6 = -A/V0).
 class GasVolume final : public Term {
  public:
+  unsigned phases() const override { return kGasStatePhase; }
   std::string_view name() const override { return "gas-volume"; }
   void Declare(ModelBuilder& b) override {
     b.add_parameter({6, "volume_per_stroke", "1/m", -1.0 / 0.3, "relative gas-volume change per stroke, -A/V0", true});
@@ -161,6 +168,7 @@ class GasVolume final : public Term {
 //! 1 dof gas law p = theta5 (N/V)^theta7 (eq. 22; N = 1 without further terms).
 class PolytropicGas final : public Term {
  public:
+  unsigned phases() const override { return kGasStatePhase | kGasLawPhase; }
   std::string_view name() const override { return "polytropic-gas"; }
   void Declare(ModelBuilder& b) override {
     b.add_parameter({5, "extended_pressure", "Pa", 7.0e5, "absolute gas pressure at full extension"});
@@ -193,6 +201,7 @@ class PolytropicGas final : public Term {
 //! Replaces the polytropic law.
 class HeatExchange final : public Term {
  public:
+  unsigned phases() const override { return kGasStatePhase | kGasLawPhase | kBalancePhase; }
   std::string_view name() const override { return "heat-exchange"; }
   void Declare(ModelBuilder& b) override {
     b.add_parameter({5, "pressure_per_temperature", "Pa/K", 7.0e5 * (1.0 + 2.0e-5 * kAmbientK) / kAmbientK,
@@ -244,6 +253,7 @@ class HeatExchange final : public Term {
 //! i.e. the free gas falls linearly with pressure: N = 1 - theta7 p / theta5.
 class GasSolubility final : public Term {
  public:
+  unsigned phases() const override { return kGasStatePhase; }
   std::string_view name() const override { return "gas-solubility"; }
   void Declare(ModelBuilder& b) override {
     b.add_parameter({7, "gas_solubility", "1/K", 2.0e-5, "linear gas solubility coefficient", false, 0.0, true});
@@ -283,6 +293,7 @@ S Softplus(const S& x) {
 //! theta18 q': linear (viscous) damping of the seals and laminar flow.
 class ViscousDamping final : public Term {
  public:
+  unsigned phases() const override { return kBalancePhase; }
   std::string_view name() const override { return "viscous-damping"; }
   void Declare(ModelBuilder& b) override {
     b.add_parameter({18, "viscous_damping", "N s/m", 300.0, "linear (viscous) damping of seals and laminar flow", false, 0.0, true});
@@ -304,6 +315,7 @@ class ViscousDamping final : public Term {
 //! (sgn smoothed by atan), i.e. theta19 = F_S / F_C - 1 (damper-physics.md §2.8).
 class StribeckFriction final : public Term {
  public:
+  unsigned phases() const override { return kBalancePhase; }
   std::string_view name() const override { return "stribeck-friction"; }
   void Declare(ModelBuilder& b) override {
     b.add_parameter({19, "stribeck_excess", "-", 0.25, "static over kinetic friction minus one, F_S / F_C - 1", false, 0.0, true});
@@ -340,6 +352,7 @@ class StribeckFriction final : public Term {
 //! position leaves k theta24 exp(-s / theta24): 0.02 N at 10 theta24 (damper-physics.md §2.9).
 class EndStop final : public Term {
  public:
+  unsigned phases() const override { return kBalancePhase; }
   std::string_view name() const override { return "end-stop"; }
   void Declare(ModelBuilder& b) override {
     b.add_parameter({21, "end_stop_stiffness", "N/m", 5.0e6, "top-out stop contact stiffness (elastomer snubber)", false, 0.0, true});
@@ -372,6 +385,7 @@ class EndStop final : public Term {
 //! (damper-physics.md §2.3). Softens the gas spring at deep compression.
 class OilCompressibility final : public Term {
  public:
+  unsigned phases() const override { return kGasStatePhase; }
   std::string_view name() const override { return "oil-compressibility"; }
   void Declare(ModelBuilder& b) override {
     b.add_parameter({25, "oil_volume_ratio", "-", 1.0, "oil volume over the gas volume at full extension, V_oil / V0"});
@@ -404,6 +418,7 @@ class OilCompressibility final : public Term {
 //! the free gas amount by Z (by Z^(1/theta7) under the polytropic law), so every gas law gets p Z.
 class RealGas final : public Term {
  public:
+  unsigned phases() const override { return kGasStatePhase; }
   std::string_view name() const override { return "real-gas"; }
   void Declare(ModelBuilder& b) override {
     b.add_parameter({28, "virial_b0", "m^3/mol", 4.88e-5, "N2 second virial coefficient B(T) = b0 - a / T: b0", false, 0.0, true});
@@ -463,6 +478,7 @@ const StateSpec kInputU{"u", "[u]", 0, 0.1, 1e-9, 1e-9};
 //! driven by the input u. The base of the generic models; it names the channels y and u.
 class LinearOscillator final : public Term {
  public:
+  unsigned phases() const override { return kBalancePhase; }
   std::string_view name() const override { return "linear-oscillator"; }
   void Declare(ModelBuilder& b) override {
     // Tiny typical sizes: the estimator scales these by their (data-derived) starting values, whatever
@@ -492,6 +508,7 @@ class LinearOscillator final : public Term {
 //! theta53 y^2: quadratic (asymmetric) stiffness.
 class QuadraticStiffness final : public Term {
  public:
+  unsigned phases() const override { return kBalancePhase; }
   std::string_view name() const override { return "quadratic-stiffness"; }
   void Declare(ModelBuilder& b) override {
     b.add_parameter({53, "quadratic_stiffness", "[u]/[y]^2", 0.0, "quadratic stiffness: input per output squared",
@@ -511,6 +528,7 @@ class QuadraticStiffness final : public Term {
 //! theta54 y^3: cubic (hardening when positive) stiffness, the Duffing term.
 class CubicStiffness final : public Term {
  public:
+  unsigned phases() const override { return kBalancePhase; }
   std::string_view name() const override { return "cubic-stiffness"; }
   void Declare(ModelBuilder& b) override {
     b.add_parameter({54, "cubic_stiffness", "[u]/[y]^3", 0.0, "cubic stiffness: input per output cubed",
@@ -532,6 +550,7 @@ class CubicStiffness final : public Term {
 //! electronic element; odd in y', so it adds only odd harmonics like the cubic spring.
 class CubicDamping final : public Term {
  public:
+  unsigned phases() const override { return kBalancePhase; }
   std::string_view name() const override { return "cubic-damping"; }
   void Declare(ModelBuilder& b) override {
     b.add_parameter({58, "cubic_damping", "[u] s^3/[y]^3", 0.0, "cubic damping: input per output rate cubed", true,
@@ -553,6 +572,7 @@ class CubicDamping final : public Term {
 //! theta55: input offset, the input reading that moves nothing (measured u = true u + theta55).
 class InputOffset final : public Term {
  public:
+  unsigned phases() const override { return kBalancePhase; }
   std::string_view name() const override { return "input-offset"; }
   void Declare(ModelBuilder& b) override {
     b.add_parameter({55, "input_offset", "[u]", 0.0, "input sensor offset: measured = true + offset", true, 1e-3});
@@ -571,6 +591,7 @@ class InputOffset final : public Term {
 //! theta56: output offset, measured y = true y + theta56 (like stroke-offset for dampers).
 class OutputOffset final : public Term {
  public:
+  unsigned phases() const override { return 0; }
   std::string_view name() const override { return "output-offset"; }
   void Declare(ModelBuilder& b) override {
     b.add_parameter({56, "output_offset", "[y]", 0.0, "output sensor offset: measured = true + offset", true, 1e-3});

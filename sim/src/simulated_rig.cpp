@@ -269,6 +269,7 @@ daq::Experiment SimulatedRig::RunPeriodic(const rig::MatrixEntry& entry, double 
   const TransientSimulator simulator(model_, transient_options);
   ident::PeriodicSolverOptions solver_options;
   solver_options.scheme = ident::Scheme::kCentral4;
+  solver_options.tolerance = 0.1;  // the damper's start: below what the settling then leaves
   ident::PeriodicSolver solver(model_, solver_options);
 
   // 1. The periodic steady state at the set-point gives the load for settling the actuator; 2. the

@@ -388,7 +388,8 @@ ident::PeriodicSolution TransientPredictor::Solve(const ident::PeriodicInput& in
 }
 
 std::vector<Eigen::MatrixXd> TransientPredictor::OutputSensitivities(const ident::PeriodicSolution& solution,
-                                                                     std::span<const double> theta) {
+                                                                     std::span<const double> theta,
+                                                                     std::span<const int> wanted) {
   const auto start = std::chrono::steady_clock::now();
   const int n = solution.n;
   const int m = model_.unknown_count();
@@ -398,7 +399,13 @@ std::vector<Eigen::MatrixXd> TransientPredictor::OutputSensitivities(const ident
                                             theta.size(), model_.composition(), np));
   if (n < 5 || solution.unknowns.rows() != m || solution.unknowns.cols() != n || !solution.unknowns.allFinite())
     throw std::invalid_argument("transient predictor: sensitivities need a periodic solution of this model");
-  const std::vector<int>& parameters = options_.parameters;
+  const std::vector<int> parameters = wanted.empty() ? options_.parameters : std::vector<int>(wanted.begin(), wanted.end());
+  for (int p : parameters)
+    if (p < 0 || p >= np)
+      throw std::invalid_argument(fmt::format("transient predictor: parameter position {} is not one of model '{}'", p,
+                                              model_.composition()));
+  if (static_cast<int>(parameters.size()) > ident::kMaxDerivatives)
+    throw std::invalid_argument("transient predictor: too many parameters for the sensitivity Jets");
   const int ns = static_cast<int>(parameters.size());
   const double f = solution.frequency;
 

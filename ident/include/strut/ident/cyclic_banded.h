@@ -62,6 +62,7 @@ class CyclicBandedLU {
   //! Factorises; returns false when the matrix is (numerically) singular.
   bool Factorize(const CyclicBlockBanded& a);
   bool ok() const { return ok_; }
+  int rows() const { return n_ * m_; }
   //! Solves A X = B in place (B: rows() x any number of columns).
   void Solve(Eigen::Ref<Eigen::MatrixXd> b) const;
   //! Smallest over largest pivot of the equilibrated border (or dense) LU: a singularity hint.
@@ -74,7 +75,7 @@ class CyclicBandedLU {
   bool FactorizeInterior(const CyclicBlockBanded& a);
   void SolveInterior(Eigen::Ref<Eigen::MatrixXd> b) const;
   //! border_interior_ * x, using only its nonzero column ranges.
-  Eigen::MatrixXd BorderTimes(const Eigen::MatrixXd& x) const;
+  Eigen::MatrixXd BorderTimes(const Eigen::Ref<const Eigen::MatrixXd>& x) const;
 
   int n_ = 0, m_ = 0, border_ = 0, interior_rows_ = 0, kl_ = 0, ku_ = 0, lower_ = 0, upper_ = 0;
   bool ok_ = false;

@@ -30,6 +30,9 @@ struct EstimatorOptions {
   //! (PeriodicSolverOptions::start_up_periods). The damper default 2 settles friction; a weakly
   //! nonlinear oscillator needs none (Newton from the quasi-static guess converges in a few steps).
   int start_up_periods = 2;
+  //! Points of the coarse grid the first solve of an experiment starts on
+  //! (PeriodicSolverOptions::coarse_points); 0 starts on the full grid (multisine inputs).
+  int coarse_points = 50;
   //! Threads that solve the experiments of one iterate side by side (each has its own solver);
   //! 0: one per core. The sums run in experiment order, so the fit is the same for any count.
   int threads = 1;

@@ -75,8 +75,13 @@ class ModelBuilder;
 //! A term is pure logic: all values come through the context; it keeps only resolved positions.
 class Term {
  public:
+  //! Bits of phases(): the TermContext phases a term acts in.
+  static constexpr unsigned kGasStatePhase = 1, kGasLawPhase = 2, kBalancePhase = 4;
   virtual ~Term() = default;
   virtual std::string_view name() const = 0;
+  //! The phases the term acts in; the model calls Evaluate only in those (a residual evaluation
+  //! is a few dozen flops per term, so calls that do nothing would cost as much as the physics).
+  virtual unsigned phases() const { return kGasStatePhase | kGasLawPhase | kBalancePhase; }
   //! Declares parameters and states (first pass) ...
   virtual void Declare(ModelBuilder& builder) = 0;
   //! ... then resolves the positions of what it reads (second pass, all terms declared).
@@ -190,6 +195,7 @@ class Model {
   Causality causality_ = Causality::kForceInput;
   std::vector<std::string> term_names_;
   std::vector<std::shared_ptr<const Term>> terms_;
+  std::vector<const Term*> phase_terms_[3];  //!< the terms acting in each phase, in evaluation order
   std::vector<StateSpec> states_;
   ParameterSet defaults_;
   StateSpec displacement_, drive_;  //!< the two mechanical slots: stroke and force for dampers

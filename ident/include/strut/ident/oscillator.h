@@ -39,8 +39,8 @@ class OscillatorPredictor : public PeriodicPredictor {
   OscillatorPredictor(Model model, PeriodicSolverOptions options = {});
   PeriodicSolution Solve(const PeriodicInput& input, std::span<const double> theta,
                          const PeriodicSolution* warm_start = nullptr) override;
-  std::vector<Eigen::MatrixXd> OutputSensitivities(const PeriodicSolution& solution,
-                                                   std::span<const double> theta) override;
+  std::vector<Eigen::MatrixXd> OutputSensitivities(const PeriodicSolution& solution, std::span<const double> theta,
+                                                   std::span<const int> parameters = {}) override;
 
  private:
   Model model_;

@@ -7,6 +7,7 @@
 #pragma once
 
 #include <Eigen/Dense>
+#include <memory>
 #include <optional>
 #include <span>
 #include <stdexcept>
@@ -73,6 +74,16 @@ struct PeriodicSolverOptions {
   //! Cold start: periods of time marching (backward scheme) from the quasi-static guess before
   //! Newton; 0 starts Newton from the quasi-static guess itself.
   int start_up_periods = 2;
+  //! Cold start on a coarse grid: the periodic solution on this many points (backward2, from the
+  //! quasi-static guess and the start-up march) is interpolated onto the grid and starts Newton
+  //! there. Used when n >= 2 coarse_points; 0 never. On the coarse grid the friction switches are
+  //! smooth, so its Newton needs few steps, and the fine Newton starts within its quadratic range.
+  //! Multisine inputs with harmonics the coarse grid cannot carry want 0.
+  int coarse_points = 50;
+  //! Jacobian reuse: after a full Newton step whose simplified correction shrank by at least this
+  //! factor, the next steps reuse the factorisation (simplified Newton) until the contraction is
+  //! slower; a warm start first tries the factorisation it carries. 0: a new Jacobian every step.
+  double reuse_contraction = 0.25;
   bool IsValid(std::string* error) const;
 };
 
@@ -85,8 +96,18 @@ struct PeriodicSolution {
   std::vector<std::string> channels;  //!< output channel names
   Eigen::MatrixXd outputs;            //!< channels x n
   PeriodicInput input;
-  int newton_iterations = 0;
-  double residual_norm = 0.0;  //!< max scaled residual at the solution
+  int newton_iterations = 0;    //!< Newton steps on this grid (full and simplified)
+  int factorizations = 0;      //!< Jacobians assembled and factorised on this grid
+  double residual_norm = 0.0;  //!< max scaled residual at the last iterate evaluated (before the final correction)
+
+  //! The factorised Newton Jacobian this solution was reached with (null for a guess): warm starts
+  //! from this solution take simplified Newton steps with it, and sensitivities (eq. 14) reuse it
+  //! when it is current. A cache, so OutputSensitivities may replace it by one at the solution.
+  mutable std::shared_ptr<const CyclicBandedLU> jacobian;
+  //! True when `jacobian` was factorised for the final Newton step (at the last iterate but one,
+  //! a step below the tolerance away): sensitivities are then exact with it. False when simplified
+  //! steps carried an older factorisation along.
+  mutable bool jacobian_current = false;
 
   std::vector<double> time() const;  //!< t_mu = mu / (n f), s
   //! Row of `outputs` for a channel; std::out_of_range if absent.
@@ -101,9 +122,11 @@ class PeriodicPredictor {
   //! Periodic outputs for the input on its grid; `warm_start` (same n) may speed it up.
   virtual PeriodicSolution Solve(const PeriodicInput& input, std::span<const double> theta,
                                  const PeriodicSolution* warm_start = nullptr) = 0;
-  //! d outputs / d theta at a solution: one (n x parameters) matrix per output channel.
+  //! d outputs / d theta at a solution: one (n x all parameters) matrix per output channel, with
+  //! the columns of `parameters` (positions in model order; empty: all) filled and the others NaN.
   virtual std::vector<Eigen::MatrixXd> OutputSensitivities(const PeriodicSolution& solution,
-                                                           std::span<const double> theta) = 0;
+                                                           std::span<const double> theta,
+                                                           std::span<const int> parameters = {}) = 0;
 };
 
 //! Solves periodic equilibria of one model; keeps the last factorisation for sensitivities.
@@ -119,19 +142,29 @@ class PeriodicSolver : public PeriodicPredictor {
   PeriodicSolution Solve(const PeriodicInput& input, std::span<const double> theta,
                          const PeriodicSolution* warm_start = nullptr) override;
 
-  //! d outputs / d theta at a solution (eqs. 14, 15): one (n x parameters) matrix per channel. Reuses
-  //! the last Newton factorisation when `solution` is the last one solved, else factorises anew.
+  //! d outputs / d theta at a solution (eqs. 14, 15): one (n x parameters) matrix per channel, the
+  //! columns of `parameters` (empty: all) filled, the others NaN. Reuses the solution's Newton
+  //! factorisation when it is current, else factorises at the solution (and keeps that in it).
   std::vector<Eigen::MatrixXd> OutputSensitivities(const PeriodicSolution& solution,
-                                                   std::span<const double> theta) override;
+                                                   std::span<const double> theta,
+                                                   std::span<const int> parameters = {}) override;
 
   //! The scaled residual G(z) of the discretised equations (m x n), for tests.
   Eigen::MatrixXd Residual(const Eigen::MatrixXd& unknowns, const PeriodicInput& input,
                            std::span<const double> theta) const;
 
  private:
-  void AssembleJacobian(const Eigen::MatrixXd& z, const PeriodicInput& input, std::span<const double> theta);
+  struct InputRates;  // the input's time derivatives on the grid
+  Eigen::MatrixXd ResidualAt(const Eigen::MatrixXd& z, const PeriodicInput& input, const InputRates& rates,
+                             std::span<const double> theta) const;
+  //! Assembles dG/dz at z and factorises it; throws PeriodicSolverError when singular.
+  std::shared_ptr<const CyclicBandedLU> Factorize(const Eigen::MatrixXd& z, const PeriodicInput& input,
+                                                  const InputRates& rates, std::span<const double> theta,
+                                                  int iteration, double norm);
   template <class J>
-  void AssembleJacobianWith(const Eigen::MatrixXd& z, const PeriodicInput& input, std::span<const double> theta);
+  void AssembleJacobianWith(const Eigen::MatrixXd& z, const PeriodicInput& input, const InputRates& rates,
+                            std::span<const double> theta);
+  Eigen::MatrixXd ColdStart(const PeriodicInput& input, std::span<const double> theta) const;
   Eigen::MatrixXd QuasiStaticGuess(const PeriodicInput& input, std::span<const double> theta) const;
   Eigen::MatrixXd MarchGuess(Eigen::MatrixXd z, const PeriodicInput& input, std::span<const double> theta,
                              int periods) const;
@@ -141,10 +174,8 @@ class PeriodicSolver : public PeriodicPredictor {
   PeriodicSolverOptions options_;
   Stencil stencil_;
   int prepared_n_ = -1;
-  CyclicBlockBanded jacobian_;
-  CyclicBandedLU lu_;
-  bool lu_valid_ = false;
-  Eigen::MatrixXd last_unknowns_;  //!< the solution the factorisation belongs to
+  Eigen::VectorXd equation_weight_;  //!< 1 / equation scale, per unknown
+  CyclicBlockBanded jacobian_;       //!< assembly buffer
 };
 
 }  // namespace strut::ident

@@ -30,9 +30,9 @@ struct TransientPredictorOptions {
   //! periods, and its extrapolation, are below max(atol_j / |theta_i|, this * max_mu |dY_j/dtheta_i|).
   //! Sensitivities steer Gauss-Newton and give the posterior sd: 1e-6 of their size is plenty.
   double sensitivity_relative_tol = 1e-6;
-  //! Positions (model order) of the parameters to differentiate; empty: all. Columns of the others
-  //! are NaN in OutputSensitivities. Forward sensitivities cost one extra DAE per parameter, so a
-  //! fit differentiates only what it estimates (the periodic solver gets all for one solve each).
+  //! Positions (model order) of the parameters to differentiate when a call names none; empty: all.
+  //! Columns of the others are NaN in OutputSensitivities. Forward sensitivities cost one extra DAE
+  //! per parameter; the estimator asks for the parameters it estimates.
   std::vector<int> parameters;
   //! IDAS's staggered corrector (sensitivities corrected after the state, each step); false: simultaneous.
   bool staggered = true;
@@ -77,8 +77,10 @@ class TransientPredictor : public ident::PeriodicPredictor {
   //! d outputs / d theta on the solution's grid: IDAS forward sensitivities integrated with the
   //! state, from the solution's state at t = 0 (and the last steady sensitivities when there are
   //! some), until the sensitivities are periodic too.
+  //! `parameters` (positions; empty: options().parameters) are the ones differentiated.
   std::vector<Eigen::MatrixXd> OutputSensitivities(const ident::PeriodicSolution& solution,
-                                                   std::span<const double> theta) override;
+                                                   std::span<const double> theta,
+                                                   std::span<const int> parameters = {}) override;
 
  private:
   struct Ida;

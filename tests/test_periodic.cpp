@@ -80,6 +80,30 @@ TEST(PeriodicSolver, NewtonStopsWithinItsToleranceFromEveryStart) {
   }
 }
 
+TEST(PeriodicSolver, WarmStartWithSensitivitiesStartsAtTheTangentPrediction) {
+  const Model model = Model::Build("2dof", Causality::kForceInput);
+  auto theta = model.defaults().values();
+  const PeriodicInput force = ForceOf(PeriodicSolver(Model::Build("2dof", Causality::kStrokeInput)).Solve(StrokeH(800), theta));
+  PeriodicSolver solver(model);
+  const PeriodicSolution base = solver.Solve(force, theta);
+  const PeriodicSolution plain = base;  // unknowns and factorisation, no sensitivities
+  const std::vector<int> estimated = {model.defaults().position("theta4"), model.defaults().position("theta6"),
+                                      model.defaults().position("theta16")};
+  solver.OutputSensitivities(base, theta, estimated);
+  ASSERT_EQ(base.unknown_sensitivities.cols(), 3);
+  auto changed = theta;
+  for (int i : estimated) changed[i] *= 1.01;
+  const PeriodicSolution tangent = solver.Solve(force, changed, &base), chord = solver.Solve(force, changed, &plain);
+  EXPECT_LT(tangent.newton_iterations, chord.newton_iterations);
+  EXPECT_LE(ErrorInScales(model, tangent, chord).maxCoeff(), 2.0);
+  // A parameter without a sensitivity changed too: no prediction, still the solution.
+  changed[model.defaults().position("theta3")] *= 1.01;
+  const PeriodicSolution other = solver.Solve(force, changed, &base);
+  PeriodicSolverOptions tight;
+  tight.tolerance = 1e-2;
+  EXPECT_LE(ErrorInScales(model, other, PeriodicSolver(model, tight).Solve(force, changed)).maxCoeff(), 1.0);
+}
+
 TEST(PeriodicSolver, CoarseGridStartReachesTheSameSolution) {
   const Model model = Model::Build("2dof", Causality::kForceInput);
   const auto theta = model.defaults().values();

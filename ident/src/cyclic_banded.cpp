@@ -196,7 +196,8 @@ bool CyclicBandedLU::FactorizeBorder(const CyclicBlockBanded& a) {
   const int ni = n_ - border_;  // interior points
   interior_rows_ = ni * m_;
   const int nb = border_ * m_;
-  Eigen::MatrixXd interior_border = Eigen::MatrixXd::Zero(interior_rows_, nb);
+  Eigen::MatrixXd& interior_border = interior_border_all_;  // reused between factorisations
+  interior_border.setZero(interior_rows_, nb);
   border_interior_.setZero(nb, interior_rows_);
   Eigen::MatrixXd border_border = Eigen::MatrixXd::Zero(nb, nb);
 

@@ -2,9 +2,11 @@
 
 #include <Eigen/Dense>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <fmt/format.h>
 #include <set>
+#include <type_traits>
 
 #include "terms.h"
 
@@ -219,24 +221,55 @@ PointVariables<S> Model::Assemble(std::span<const S> x, std::span<const S> xd, s
 }
 
 template <typename S>
-void Model::Residual(std::span<const S> x, std::span<const S> xd, std::span<const S> xdd, const S& u, const S& ud,
-                     const S& udd, std::span<const S> theta, std::span<S> r) const {
-  const PointVariables<S> v = Assemble(x, xd, xdd, u, ud, udd, theta);
-  TermContext<S> c;
-  c.v = &v;
-  c.theta = theta;
-  const S zero = x[0] * 0.0;  // a Jet zero with the callers' derivative size
-  c.force = zero;
-  c.gas_volume = zero;
-  c.gas_amount = zero;
-  c.state_residuals = r.subspan(1);
+void Model::Residuals(std::span<const S> x, std::span<const S> xd, std::span<const S> xdd, std::span<const S> u,
+                      std::span<const S> ud, std::span<const S> udd, std::span<const S> theta, std::span<S> r) const {
+  // Batches small enough for the stack and the cache; every term runs over a whole batch per phase.
+  // Single instants (static solves, marching, the integrators) and the large runtime-size Jets go
+  // one by one: a batch's arrays would cost more to set up than the calls they save.
+  if (u.size() == 1 || std::is_same_v<S, Jet>) {
+    ResidualBatches<S, 1>(x, xd, xdd, u, ud, udd, theta, r);
+  } else {
+    ResidualBatches<S, 32>(x, xd, xdd, u, ud, udd, theta, r);
+  }
+}
+
+template <typename S, int kBatch>
+void Model::ResidualBatches(std::span<const S> x, std::span<const S> xd, std::span<const S> xdd,
+                            std::span<const S> u, std::span<const S> ud, std::span<const S> udd,
+                            std::span<const S> theta, std::span<S> r) const {
+  const int m = unknown_count();
+  const int count = static_cast<int>(u.size());
   using Phase = typename TermContext<S>::Phase;
   static_assert(static_cast<int>(Phase::kGasState) == 0 && static_cast<int>(Phase::kBalance) == 2);
-  for (const Phase phase : {Phase::kGasState, Phase::kGasLaw, Phase::kBalance}) {
-    c.phase = phase;
-    for (const Term* t : phase_terms_[static_cast<int>(phase)]) t->Evaluate(c);
+  std::array<PointVariables<S>, kBatch> v;
+  std::array<TermContext<S>, kBatch> c;
+  for (int start = 0; start < count; start += kBatch) {
+    const int size = std::min(kBatch, count - start);
+    for (int k = 0; k < size; ++k) {
+      const std::size_t i = static_cast<std::size_t>(start + k), at = i * m;
+      v[k] = Assemble(x.subspan(at, m), xd.subspan(at, m), xdd.subspan(at, m), u[i], ud[i], udd[i], theta);
+      c[k].v = &v[k];
+      c[k].theta = theta;
+      const S zero = x[at] * 0.0;  // a Jet zero with the callers' derivative size
+      c[k].force = zero;
+      c[k].gas_volume = zero;
+      c[k].gas_amount = zero;
+      c[k].state_residuals = r.subspan(at + 1, m - 1);
+    }
+    const std::span<TermContext<S>> batch(c.data(), size);
+    for (const Phase phase : {Phase::kGasState, Phase::kGasLaw, Phase::kBalance}) {
+      for (auto& point : batch) point.phase = phase;
+      for (const Term* t : phase_terms_[static_cast<int>(phase)]) t->Evaluate(batch);
+    }
+    for (int k = 0; k < size; ++k) r[static_cast<std::size_t>(start + k) * m] = c[k].force - v[k].force;
   }
-  r[0] = c.force - v.force;
+}
+
+template <typename S>
+void Model::Residual(std::span<const S> x, std::span<const S> xd, std::span<const S> xdd, const S& u, const S& ud,
+                     const S& udd, std::span<const S> theta, std::span<S> r) const {
+  Residuals<S>(x, xd, xdd, std::span<const S>(&u, 1), std::span<const S>(&ud, 1), std::span<const S>(&udd, 1), theta,
+               r);
 }
 
 template <typename S>
@@ -315,6 +348,16 @@ std::vector<double> Model::StaticEquilibrium(double input, std::span<const doubl
                                composition_, input, res.lpNorm<Eigen::Infinity>()));
 }
 
+template void Model::Residuals<double>(std::span<const double>, std::span<const double>, std::span<const double>,
+                                       std::span<const double>, std::span<const double>, std::span<const double>,
+                                       std::span<const double>, std::span<double>) const;
+template void Model::Residuals<Jet>(std::span<const Jet>, std::span<const Jet>, std::span<const Jet>,
+                                    std::span<const Jet>, std::span<const Jet>, std::span<const Jet>,
+                                    std::span<const Jet>, std::span<Jet>) const;
+template void Model::Residuals<StateJet>(std::span<const StateJet>, std::span<const StateJet>,
+                                         std::span<const StateJet>, std::span<const StateJet>,
+                                         std::span<const StateJet>, std::span<const StateJet>,
+                                         std::span<const StateJet>, std::span<StateJet>) const;
 template void Model::Residual<double>(std::span<const double>, std::span<const double>, std::span<const double>,
                                       const double&, const double&, const double&, std::span<const double>,
                                       std::span<double>) const;

@@ -217,13 +217,14 @@ Eigen::MatrixXd PeriodicResample(const Eigen::MatrixXd& rows, int points) {
   return out;
 }
 
-// Residual of one grid point and its derivatives with respect to the unknowns and their rates,
-// scaled like G: r, dr/dx, dr/dx', dr/dx''. J is the Jet type that carries the directions.
+// Residuals of a batch of grid points and their derivatives with respect to the unknowns and their
+// rates, scaled like G: r, dr/dx, dr/dx', dr/dx'' per point. J is the Jet type that carries the
+// directions (each unknown and the rates its equations use).
 template <class J>
-struct PointLinearization {
-  PointLinearization(const Model& model, std::span<const double> theta, const Eigen::VectorXd& weight)
-      : model(model), weight(weight) {
-    const int m = model.unknown_count();
+struct Linearization {
+  static constexpr int kBatch = 32;
+  Linearization(const Model& model, std::span<const double> theta, const Eigen::VectorXd& weight)
+      : model(model), weight(weight), m(model.unknown_count()) {
     first_direction.assign(m + 1, 0);
     order.resize(m);
     for (int j = 0; j < m; ++j) {
@@ -234,49 +235,65 @@ struct PointLinearization {
     directions = Derivatives::RowsAtCompileTime == Eigen::Dynamic ? first_direction[m]
                                                                  : int(Derivatives::RowsAtCompileTime);
     for (double t : theta) theta_jet.push_back(Constant(t));
-    x.resize(m);
-    xd.resize(m);
-    xdd.resize(m);
-    residual.resize(m);
-    r.resize(m);
-    rx.resize(m, m);
-    rxd.resize(m, m);
-    rxdd.resize(m, m);
+    for (auto* v : {&x, &xd, &xdd, &residual}) v->resize(static_cast<std::size_t>(kBatch) * m);
+    for (auto* v : {&u, &ud, &udd}) v->resize(kBatch);
+    r.resize(m, kBatch);
+    rx.resize(m, m * kBatch);
+    rxd.resize(m, m * kBatch);
+    rxdd.resize(m, m * kBatch);
   }
   // All Jets carry every direction (see autodiff.h).
   J Constant(double v) const { return J(v, J::DerType::Zero(directions)); }
 
-  //! At one point: the unknowns, their rates, and the input with its rates.
-  void Evaluate(const double* z, const double* zd, const double* zdd, double u, double ud, double udd) {
+  //! Point k of the batch: the unknowns, their rates, and the input with its rates.
+  void Load(int k, const double* z, const double* zd, const double* zdd, double input, double input_rate,
+            double input_accel) {
     using Derivatives = typename J::DerType;
-    const int m = model.unknown_count();
     for (int j = 0; j < m; ++j) {
       const int d0 = first_direction[j];
-      x[j] = J(z[j], Derivatives::Unit(directions, d0));
-      xd[j] = order[j] >= 1 ? J(zd[j], Derivatives::Unit(directions, d0 + 1)) : Constant(zd[j]);
-      xdd[j] = order[j] >= 2 ? J(zdd[j], Derivatives::Unit(directions, d0 + 2)) : Constant(zdd[j]);
+      const std::size_t i = static_cast<std::size_t>(k) * m + j;
+      x[i] = J(z[j], Derivatives::Unit(directions, d0));
+      xd[i] = order[j] >= 1 ? J(zd[j], Derivatives::Unit(directions, d0 + 1)) : Constant(zd[j]);
+      xdd[i] = order[j] >= 2 ? J(zdd[j], Derivatives::Unit(directions, d0 + 2)) : Constant(zdd[j]);
     }
-    model.Residual<J>(x, xd, xdd, Constant(u), Constant(ud), Constant(udd), theta_jet, residual);
-    for (int i = 0; i < m; ++i) {
-      const double scale = weight[i];
-      const auto& d = residual[i].derivatives();
-      r[i] = residual[i].value() * scale;
-      for (int j = 0; j < m; ++j) {
-        const int d0 = first_direction[j];
-        rx(i, j) = d[d0] * scale;
-        rxd(i, j) = order[j] >= 1 ? d[d0 + 1] * scale : 0.0;
-        rxdd(i, j) = order[j] >= 2 ? d[d0 + 2] * scale : 0.0;
-      }
-    }
+    u[k] = Constant(input);
+    ud[k] = Constant(input_rate);
+    udd[k] = Constant(input_accel);
   }
+
+  //! Evaluates the first `count` loaded points.
+  void Evaluate(int count) {
+    const std::size_t values = static_cast<std::size_t>(count) * m;
+    model.Residuals<J>(std::span<const J>(x.data(), values), std::span<const J>(xd.data(), values),
+                       std::span<const J>(xdd.data(), values), std::span<const J>(u.data(), count),
+                       std::span<const J>(ud.data(), count), std::span<const J>(udd.data(), count), theta_jet,
+                       std::span<J>(residual.data(), values));
+    for (int k = 0; k < count; ++k)
+      for (int i = 0; i < m; ++i) {
+        const J& res = residual[static_cast<std::size_t>(k) * m + i];
+        const double scale = weight[i];
+        const auto& d = res.derivatives();
+        r(i, k) = res.value() * scale;
+        for (int j = 0; j < m; ++j) {
+          const int d0 = first_direction[j];
+          rx(i, k * m + j) = d[d0] * scale;
+          rxd(i, k * m + j) = order[j] >= 1 ? d[d0 + 1] * scale : 0.0;
+          rxdd(i, k * m + j) = order[j] >= 2 ? d[d0 + 2] * scale : 0.0;
+        }
+      }
+  }
+  auto Rx(int k) const { return rx.middleCols(k * m, m); }
+  auto Rxd(int k) const { return rxd.middleCols(k * m, m); }
+  auto Rxdd(int k) const { return rxdd.middleCols(k * m, m); }
 
   const Model& model;
   const Eigen::VectorXd& weight;
+  const int m;
   std::vector<int> first_direction, order;
   int directions = 0;
-  std::vector<J> theta_jet, x, xd, xdd, residual;
-  Eigen::VectorXd r;
-  Eigen::MatrixXd rx, rxd, rxdd;
+  std::vector<J> theta_jet, x, xd, xdd, u, ud, udd, residual;
+  Eigen::MatrixXd r;             //!< m x batch
+  Eigen::MatrixXd rx, rxd, rxdd;  //!< m x (m batch): point k's block in columns k m .. k m + m - 1
 };
 
 // Size of a grid correction in units of its unknowns' scales: largest component and 2-norm.
@@ -284,16 +301,8 @@ struct StepSize {
   double max = 0.0, norm = 0.0;
 };
 StepSize Measure(const Eigen::MatrixXd& dz, const Eigen::VectorXd& inverse_scale) {
-  const int m = static_cast<int>(dz.rows());
-  double largest = 0.0, squares = 0.0;
-  const double* d = dz.data();
-  for (Eigen::Index mu = 0; mu < dz.cols(); ++mu, d += m)
-    for (int j = 0; j < m; ++j) {
-      const double v = d[j] * inverse_scale[j];
-      largest = std::max(largest, std::abs(v));
-      squares += v * v;
-    }
-  return {largest, std::sqrt(squares)};
+  const Eigen::ArrayXXd scaled = dz.array().colwise() * inverse_scale.array();
+  return {scaled.abs().maxCoeff(), std::sqrt(scaled.square().sum())};
 }
 
 }  // namespace
@@ -323,11 +332,11 @@ Eigen::MatrixXd PeriodicSolver::ResidualAt(const Eigen::MatrixXd& z, const Perio
   Eigen::MatrixXd zd, zdd;
   GridRates(stencil_, z, input.frequency, zd, zdd);
   Eigen::MatrixXd g(m, n);
-  for (int mu = 0; mu < n; ++mu) {
-    model_.Residual<double>(std::span<const double>(z.col(mu).data(), m), std::span<const double>(zd.col(mu).data(), m),
-                            std::span<const double>(zdd.col(mu).data(), m), input.values[mu], rates.first(0, mu),
-                            rates.second(0, mu), theta, std::span<double>(g.col(mu).data(), m));
-  }
+  const std::size_t values = static_cast<std::size_t>(m) * n;
+  model_.Residuals<double>(std::span<const double>(z.data(), values), std::span<const double>(zd.data(), values),
+                           std::span<const double>(zdd.data(), values), input.values,
+                           std::span<const double>(rates.first.data(), n),
+                           std::span<const double>(rates.second.data(), n), theta, std::span<double>(g.data(), values));
   return equation_weight_.asDiagonal() * g;
 }
 
@@ -342,7 +351,13 @@ std::shared_ptr<const CyclicBandedLU> PeriodicSolver::Factorize(const Eigen::Mat
   } else {
     AssembleJacobianWith<Jet>(z, input, rates, theta);
   }
-  auto lu = std::make_shared<CyclicBandedLU>();
+  std::shared_ptr<CyclicBandedLU> lu;
+  for (const auto& spare : lu_pool_)
+    if (spare.use_count() == 1) lu = spare;
+  if (!lu) {
+    lu = std::make_shared<CyclicBandedLU>();
+    if (lu_pool_.size() < 4) lu_pool_.push_back(lu);
+  }
   if (!lu->Factorize(jacobian_))
     throw PeriodicSolverError(
         fmt::format("periodic solver: singular Jacobian at iteration {} (residual {:.3g})", iteration, norm), norm,
@@ -357,17 +372,24 @@ void PeriodicSolver::AssembleJacobianWith(const Eigen::MatrixXd& z, const Period
   const double f = input.frequency;
   Eigen::MatrixXd zd, zdd;
   GridRates(stencil_, z, f, zd, zdd);
-  PointLinearization<J> point(model_, theta, equation_weight_);
-  for (int mu = 0; mu < n; ++mu) {
-    point.Evaluate(z.col(mu).data(), zd.col(mu).data(), zdd.col(mu).data(), input.values[mu], rates.first(0, mu),
-                   rates.second(0, mu));
-    for (int k = stencil_.kmin; k <= stencil_.kmax; ++k) {
-      auto block = jacobian_.block(mu, k);
-      const double a = stencil_.first[k - stencil_.kmin] * f;
-      const double b = stencil_.second[k - stencil_.kmin] * f * f;
-      block = a * point.rxd + b * point.rxdd;
-      if (k == 0) block += point.rx;
+  Linearization<J> points(model_, theta, equation_weight_);
+  constexpr int kBatch = Linearization<J>::kBatch;
+  for (int start = 0; start < n; start += kBatch) {
+    const int size = std::min(kBatch, n - start);
+    for (int k = 0; k < size; ++k) {
+      const int mu = start + k;
+      points.Load(k, z.col(mu).data(), zd.col(mu).data(), zdd.col(mu).data(), input.values[mu], rates.first(0, mu),
+                  rates.second(0, mu));
     }
+    points.Evaluate(size);
+    for (int k = 0; k < size; ++k)
+      for (int offset = stencil_.kmin; offset <= stencil_.kmax; ++offset) {
+        auto block = jacobian_.block(start + k, offset);
+        const double a = stencil_.first[offset - stencil_.kmin] * f;
+        const double b = stencil_.second[offset - stencil_.kmin] * f * f;
+        block = a * points.Rxd(k) + b * points.Rxdd(k);
+        if (offset == 0) block += points.Rx(k);
+      }
   }
 }
 
@@ -381,7 +403,7 @@ Eigen::MatrixXd PeriodicSolver::MarchGuess(Eigen::MatrixXd z, const PeriodicInpu
   const double f = input.frequency;
   const Stencil march = Stencil::For(Scheme::kBackward2, n);
   const InputRates input_rates(march, input);
-  PointLinearization<Jet> point(model_, theta, equation_weight_);
+  Linearization<Jet> point(model_, theta, equation_weight_);
   const double a0 = march.first[-march.kmin] * f, b0 = march.second[-march.kmin] * f * f;
   Eigen::VectorXd step_scale(m);
   for (int j = 0; j < m; ++j) step_scale[j] = model_.unknown_spec(j).scale;
@@ -395,10 +417,11 @@ Eigen::MatrixXd PeriodicSolver::MarchGuess(Eigen::MatrixXd z, const PeriodicInpu
           zd[j] = rate.first;
           zdd[j] = rate.second;
         }
-        point.Evaluate(z.col(mu).data(), zd.data(), zdd.data(), input.values[mu], input_rates.first(0, mu),
-                       input_rates.second(0, mu));
-        const Eigen::MatrixXd jac = point.rx + a0 * point.rxd + b0 * point.rxdd;
-        const Eigen::VectorXd step = jac.partialPivLu().solve(-point.r);
+        point.Load(0, z.col(mu).data(), zd.data(), zdd.data(), input.values[mu], input_rates.first(0, mu),
+                   input_rates.second(0, mu));
+        point.Evaluate(1);
+        const Eigen::MatrixXd jac = point.Rx(0) + a0 * point.Rxd(0) + b0 * point.Rxdd(0);
+        const Eigen::VectorXd step = jac.partialPivLu().solve(-point.r.col(0));
         if (!step.allFinite()) break;
         z.col(mu) += step;
         if ((step.array().abs() / step_scale.array()).maxCoeff() <= 1.0) break;
@@ -453,6 +476,29 @@ Eigen::MatrixXd PeriodicSolver::ColdStart(const PeriodicInput& input, std::span<
   return MarchGuess(QuasiStaticGuess(input, theta), input, theta, options_.start_up_periods);
 }
 
+void PeriodicSolver::TangentPrediction(const PeriodicSolution& from, std::span<const double> theta,
+                                       Eigen::MatrixXd& z) const {
+  // First order in the parameter change: the Newton start is then O(dtheta^2) from the solution
+  // instead of O(dtheta). Only when every parameter that changed has its dz/dtheta in `from`.
+  const auto& dz = from.unknown_sensitivities;
+  if (from.theta.size() != theta.size() || dz.rows() != z.size() ||
+      dz.cols() != static_cast<Eigen::Index>(from.sensitivity_parameters.size()))
+    return;
+  Eigen::VectorXd change = Eigen::VectorXd::Zero(dz.cols());
+  std::vector<bool> covered(theta.size(), false);
+  for (std::size_t k = 0; k < from.sensitivity_parameters.size(); ++k) {
+    const int i = from.sensitivity_parameters[k];
+    covered[i] = true;
+    change[static_cast<Eigen::Index>(k)] = theta[i] - from.theta[i];
+  }
+  for (std::size_t i = 0; i < theta.size(); ++i)
+    if (!covered[i] && theta[i] != from.theta[i]) return;
+  if (change.isZero()) return;
+  Eigen::MatrixXd predicted = z;
+  Eigen::Map<Eigen::VectorXd>(predicted.data(), predicted.size()) += dz * change;
+  if (predicted.allFinite()) z = std::move(predicted);
+}
+
 PeriodicSolution PeriodicSolver::Solve(const PeriodicInput& input, std::span<const double> theta,
                                        const PeriodicSolution* warm_start) {
   const int n = static_cast<int>(input.values.size());
@@ -470,6 +516,7 @@ PeriodicSolution PeriodicSolver::Solve(const PeriodicInput& input, std::span<con
   std::shared_ptr<const CyclicBandedLU> lu;  // the factorisation the next step uses (null: assemble one)
   if (warm_start && warm_start->n == n && warm_start->unknowns.rows() == m && warm_start->unknowns.cols() == n) {
     z = warm_start->unknowns;
+    TangentPrediction(*warm_start, theta, z);
     if (options_.reuse_contraction > 0 && warm_start->jacobian && warm_start->jacobian->rows() == n * m)
       lu = warm_start->jacobian;
   } else {
@@ -584,6 +631,7 @@ PeriodicSolution PeriodicSolver::Solve(const PeriodicInput& input, std::span<con
   solution.n = n;
   solution.unknowns = std::move(z);
   solution.input = input;
+  solution.theta.assign(theta.begin(), theta.end());
   solution.newton_iterations = iteration;
   solution.factorizations = factorizations;
   solution.residual_norm = g.lpNorm<Eigen::Infinity>();
@@ -648,6 +696,8 @@ std::vector<Eigen::MatrixXd> PeriodicSolver::OutputSensitivities(const PeriodicS
     }
   }
   solution.jacobian->Solve(rhs);  // rhs now holds dz/dtheta (eq. 14)
+  solution.unknown_sensitivities = rhs;
+  solution.sensitivity_parameters = wanted;
   const int channels = static_cast<int>(solution.channels.size());
   std::vector<Eigen::MatrixXd> sens(channels, Eigen::MatrixXd::Constant(n, np, NAN));
   std::vector<Jet> xs(m), y(channels);

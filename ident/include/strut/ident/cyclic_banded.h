@@ -85,6 +85,7 @@ class CyclicBandedLU {
   std::vector<double> sub_;    // border: the interior blocks below the diagonal, row point major
   std::vector<int> position_;  // folded: row position of each point
   std::vector<int> pivots_;
+  Eigen::MatrixXd interior_border_all_;  // A_IB, all border columns (scratch)
   Eigen::MatrixXd interior_border_;  // A_II^-1 A_IB, only the columns in border_columns_
   std::vector<int> border_columns_;  // border unknowns that interior rows couple to (others: zero columns)
   Eigen::MatrixXd border_interior_;  // A_BI

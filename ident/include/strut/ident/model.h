@@ -86,16 +86,24 @@ class Term {
   virtual void Declare(ModelBuilder& builder) = 0;
   //! ... then resolves the positions of what it reads (second pass, all terms declared).
   virtual void Bind(const ModelBuilder& builder) = 0;
-  virtual void Evaluate(TermContext<double>& c) const = 0;
-  virtual void Evaluate(TermContext<Jet>& c) const = 0;
-  virtual void Evaluate(TermContext<StateJet>& c) const = 0;
+  //! Adds the term's part at every point of a batch (all in the same phase). One call per batch,
+  //! not per point: the term's arithmetic is then inlined in the loop and the call costs nothing.
+  virtual void Evaluate(std::span<TermContext<double>> points) const = 0;
+  virtual void Evaluate(std::span<TermContext<Jet>> points) const = 0;
+  virtual void Evaluate(std::span<TermContext<StateJet>> points) const = 0;
 };
 
 //! Implements the Evaluate overloads with the term's `template <class S> void Eval(TermContext<S>&) const`.
-#define STRUT_TERM_EVALUATE                                                           \
-  void Evaluate(TermContext<double>& c) const override { Eval(c); }                   \
-  void Evaluate(TermContext<::strut::ident::Jet>& c) const override { Eval(c); }      \
-  void Evaluate(TermContext<::strut::ident::StateJet>& c) const override { Eval(c); }
+#define STRUT_TERM_EVALUATE                                                                     \
+  void Evaluate(std::span<TermContext<double>> points) const override {                         \
+    for (auto& c : points) Eval(c);                                                             \
+  }                                                                                             \
+  void Evaluate(std::span<TermContext<::strut::ident::Jet>> points) const override {            \
+    for (auto& c : points) Eval(c);                                                             \
+  }                                                                                             \
+  void Evaluate(std::span<TermContext<::strut::ident::StateJet>> points) const override {       \
+    for (auto& c : points) Eval(c);                                                             \
+  }
 
 //! Collects what the terms declare and resolves names to positions.
 class ModelBuilder {
@@ -173,6 +181,11 @@ class Model {
   //! x, xd, xdd: unknowns and their first and second time derivatives; u, ud, udd: the input
   //! (force or measured stroke) and its time derivatives. All spans have unknown_count() entries
   //! except the input.
+  //! The residuals of many instants at once (the periodic solver's grid): x, xd, xdd and r hold
+  //! unknown_count() entries per instant one instant after the other, u, ud, udd one each.
+  template <typename S>
+  void Residuals(std::span<const S> x, std::span<const S> xd, std::span<const S> xdd, std::span<const S> u,
+                 std::span<const S> ud, std::span<const S> udd, std::span<const S> theta, std::span<S> r) const;
   template <typename S>
   void Residual(std::span<const S> x, std::span<const S> xd, std::span<const S> xdd, const S& u,
                 const S& ud, const S& udd, std::span<const S> theta, std::span<S> r) const;
@@ -187,6 +200,9 @@ class Model {
                                         std::span<const double> guess = {}) const;
 
  private:
+  template <typename S, int kBatch>
+  void ResidualBatches(std::span<const S> x, std::span<const S> xd, std::span<const S> xdd, std::span<const S> u,
+                       std::span<const S> ud, std::span<const S> udd, std::span<const S> theta, std::span<S> r) const;
   template <typename S>
   PointVariables<S> Assemble(std::span<const S> x, std::span<const S> xd, std::span<const S> xdd,
                              const S& u, const S& ud, const S& udd, std::span<const S> theta) const;

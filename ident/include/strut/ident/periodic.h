@@ -96,6 +96,7 @@ struct PeriodicSolution {
   std::vector<std::string> channels;  //!< output channel names
   Eigen::MatrixXd outputs;            //!< channels x n
   PeriodicInput input;
+  std::vector<double> theta;          //!< the parameter values it was solved for
   int newton_iterations = 0;    //!< Newton steps on this grid (full and simplified)
   int factorizations = 0;      //!< Jacobians assembled and factorised on this grid
   double residual_norm = 0.0;  //!< max scaled residual at the last iterate evaluated (before the final correction)
@@ -108,6 +109,11 @@ struct PeriodicSolution {
   //! a step below the tolerance away): sensitivities are then exact with it. False when simplified
   //! steps carried an older factorisation along.
   mutable bool jacobian_current = false;
+  //! dz/dtheta (unknowns of every point stacked, m n rows) for the parameters at these positions,
+  //! when OutputSensitivities computed them: a warm start from this solution then begins at the
+  //! tangent prediction z + dz/dtheta (theta_new - theta) when only these parameters changed.
+  mutable Eigen::MatrixXd unknown_sensitivities;
+  mutable std::vector<int> sensitivity_parameters;
 
   std::vector<double> time() const;  //!< t_mu = mu / (n f), s
   //! Row of `outputs` for a channel; std::out_of_range if absent.
@@ -165,6 +171,8 @@ class PeriodicSolver : public PeriodicPredictor {
   void AssembleJacobianWith(const Eigen::MatrixXd& z, const PeriodicInput& input, const InputRates& rates,
                             std::span<const double> theta);
   Eigen::MatrixXd ColdStart(const PeriodicInput& input, std::span<const double> theta) const;
+  //! Moves a warm start's unknowns z along its sensitivities to `theta` (when it has them).
+  void TangentPrediction(const PeriodicSolution& from, std::span<const double> theta, Eigen::MatrixXd& z) const;
   Eigen::MatrixXd QuasiStaticGuess(const PeriodicInput& input, std::span<const double> theta) const;
   Eigen::MatrixXd MarchGuess(Eigen::MatrixXd z, const PeriodicInput& input, std::span<const double> theta,
                              int periods) const;
@@ -176,6 +184,9 @@ class PeriodicSolver : public PeriodicPredictor {
   int prepared_n_ = -1;
   Eigen::VectorXd equation_weight_;  //!< 1 / equation scale, per unknown
   CyclicBlockBanded jacobian_;       //!< assembly buffer
+  //! Factorisations to reuse: one no solution holds any more is refactorised in place, which
+  //! saves its allocation (hundreds of kB at n = 800).
+  std::vector<std::shared_ptr<CyclicBandedLU>> lu_pool_;
 };
 
 }  // namespace strut::ident

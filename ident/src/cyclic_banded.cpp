@@ -72,7 +72,10 @@ bool CyclicBandedLU::FactorizeDense(const CyclicBlockBanded& a) {
 namespace {
 
 // In-place LU with partial pivoting of a small column-major m x m block; false if singular.
-bool SmallLuFactor(double* a, int m, int* pivots) {
+// M > 0 fixes the size at compile time (the loops unroll), M = 0 takes m at run time.
+template <int M = 0>
+bool SmallLuFactor(double* a, int m_runtime, int* pivots) {
+  const int m = M > 0 ? M : m_runtime;
   for (int c = 0; c < m; ++c) {
     int p = c;
     for (int r = c + 1; r < m; ++r)
@@ -92,7 +95,9 @@ bool SmallLuFactor(double* a, int m, int* pivots) {
 }
 
 // Solves with the factors of SmallLuFactor; b is m x cols, column-major with leading dim ld.
-void SmallLuSolve(const double* lu, const int* pivots, int m, double* b, int cols, int ld) {
+template <int M = 0>
+void SmallLuSolve(const double* lu, const int* pivots, int m_runtime, double* b, int cols, int ld) {
+  const int m = M > 0 ? M : m_runtime;
   for (int j = 0; j < cols; ++j) {
     double* x = b + static_cast<std::size_t>(j) * ld;
     for (int c = 0; c < m; ++c)
@@ -111,12 +116,14 @@ void SmallLuSolve(const double* lu, const int* pivots, int m, double* b, int col
 template <int M>
 void ForwardSubstitute(int m_runtime, const double* inverse_diagonal, const double* sub, int lower, int points,
                        double* b, int cols, std::size_t ld) {
+  // Points outer, right-hand sides inner: each block is loaded once for all columns.
   const int m = M > 0 ? M : m_runtime;
   const std::size_t mm = static_cast<std::size_t>(m) * m;
   double acc[16];
-  for (int j = 0; j < cols; ++j) {
-    double* column = b + j * ld;
-    for (int mu = 0; mu < points; ++mu) {
+  for (int mu = 0; mu < points; ++mu) {
+    const double* inverse = inverse_diagonal + mu * mm;
+    for (int j = 0; j < cols; ++j) {
+      double* column = b + j * ld;
       double* y = column + static_cast<std::size_t>(mu) * m;
       for (int r = 0; r < m; ++r) acc[r] = y[r];
       for (int k = std::max(-lower, -mu); k < 0; ++k) {
@@ -125,7 +132,6 @@ void ForwardSubstitute(int m_runtime, const double* inverse_diagonal, const doub
         for (int c = 0; c < m; ++c)
           for (int r = 0; r < m; ++r) acc[r] -= blk[r + c * m] * x[c];
       }
-      const double* inverse = inverse_diagonal + mu * mm;
       for (int r = 0; r < m; ++r) {
         double v = 0.0;
         for (int c = 0; c < m; ++c) v += inverse[r + c * m] * acc[c];
@@ -133,6 +139,29 @@ void ForwardSubstitute(int m_runtime, const double* inverse_diagonal, const doub
       }
     }
   }
+}
+
+// The inverse of every interior diagonal block and a copy of the blocks below it.
+template <int M>
+bool InvertDiagonal(const CyclicBlockBanded& a, int m_runtime, int points, int lower, double* inverses, double* sub,
+                    int* pivots) {
+  const int m = M > 0 ? M : m_runtime;
+  const std::size_t mm = static_cast<std::size_t>(m) * m;
+  double lu[256];  // m <= 16 on this path
+  for (int mu = 0; mu < points; ++mu) {
+    const auto diag = a.block(mu, 0);
+    std::copy(diag.data(), diag.data() + mm, lu);
+    if (!SmallLuFactor<M>(lu, m, pivots + mu * m)) return false;
+    double* inverse = inverses + mu * mm;
+    std::fill(inverse, inverse + mm, 0.0);
+    for (int r = 0; r < m; ++r) inverse[r + r * m] = 1.0;
+    SmallLuSolve<M>(lu, pivots + mu * m, m, inverse, m, m);
+    for (int k = -lower; k < 0; ++k) {
+      const auto blk = a.block(mu, k);
+      std::copy(blk.data(), blk.data() + mm, sub + (static_cast<std::size_t>(mu) * lower + (k + lower)) * mm);
+    }
+  }
+  return true;
 }
 
 }  // namespace
@@ -240,29 +269,18 @@ bool CyclicBandedLU::FactorizeBorder(const CyclicBlockBanded& a) {
 
 bool CyclicBandedLU::FactorizeInterior(const CyclicBlockBanded& a) {
   const int ni = n_ - border_;
-  if (upper_ == 0) {
-    const std::size_t mm = static_cast<std::size_t>(m_) * m_;
-    band_.resize(ni * mm);
-    sub_.resize(ni * lower_ * mm);
-    pivots_.resize(interior_rows_);
-    for (int mu = 0; mu < ni; ++mu) {
-      // The inverse of each diagonal block: forward substitution is then a small product.
-      const auto diag = a.block(mu, 0);
-      double lu[256];  // m <= 16 on this path
-      std::copy(diag.data(), diag.data() + mm, lu);
-      if (!SmallLuFactor(lu, m_, pivots_.data() + mu * m_)) return false;
-      double* inverse = band_.data() + mu * mm;
-      std::fill(inverse, inverse + mm, 0.0);
-      for (int r = 0; r < m_; ++r) inverse[r + r * m_] = 1.0;
-      SmallLuSolve(lu, pivots_.data() + mu * m_, m_, inverse, m_, m_);
-      for (int k = -lower_; k < 0; ++k) {
-        const auto blk = a.block(mu, k);
-        std::copy(blk.data(), blk.data() + mm, sub_.data() + (static_cast<std::size_t>(mu) * lower_ + (k + lower_)) * mm);
-      }
-    }
-    return true;
+  if (upper_ != 0) return false;
+  const std::size_t mm = static_cast<std::size_t>(m_) * m_;
+  band_.resize(ni * mm);
+  sub_.resize(ni * lower_ * mm);
+  pivots_.resize(interior_rows_);
+  switch (m_) {
+    case 1: return InvertDiagonal<1>(a, m_, ni, lower_, band_.data(), sub_.data(), pivots_.data());
+    case 2: return InvertDiagonal<2>(a, m_, ni, lower_, band_.data(), sub_.data(), pivots_.data());
+    case 3: return InvertDiagonal<3>(a, m_, ni, lower_, band_.data(), sub_.data(), pivots_.data());
+    case 4: return InvertDiagonal<4>(a, m_, ni, lower_, band_.data(), sub_.data(), pivots_.data());
+    default: return InvertDiagonal<0>(a, m_, ni, lower_, band_.data(), sub_.data(), pivots_.data());
   }
-  return false;
 }
 
 void CyclicBandedLU::SolveInterior(Eigen::Ref<Eigen::MatrixXd> b) const {

@@ -372,7 +372,12 @@ FitSummary Estimator::Fit(const std::vector<ExperimentData>& data, const Paramet
           const double gain = value - objective;
           objective = value;
           accepted = true;
-          spdlog::debug("fit iteration {}: loglik {:.6g} (+{:.3g}), step {}", iteration + 1, objective, gain, lambda);
+          spdlog::debug("fit iteration {}: loglik {:.6g} (+{:.3g}), step {}, damping sd {:.3g}, relative steps {}",
+                        iteration + 1, objective, gain, lambda, damping_sd, [&] {
+                          std::string s;
+                          for (int k = 0; k < l; ++k) s += fmt::format(" {:.3g}", lambda * step[k] * scale[est[k]] / theta[est[k]]);
+                          return s;
+                        }());
           break;
         }
       }

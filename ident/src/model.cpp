@@ -368,6 +368,8 @@ template void Model::Residual<StateJet>(std::span<const StateJet>, std::span<con
                                         std::span<const StateJet>, std::span<StateJet>) const;
 template void Model::Outputs<double>(std::span<const double>, const double&, std::span<const double>,
                                      std::span<double>) const;
+template void Model::Outputs<StateJet>(std::span<const StateJet>, const StateJet&, std::span<const StateJet>,
+                                       std::span<StateJet>) const;
 template void Model::Outputs<Jet>(std::span<const Jet>, const Jet&, std::span<const Jet>, std::span<Jet>) const;
 
 }  // namespace strut::ident

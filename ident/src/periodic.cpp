@@ -382,14 +382,21 @@ void PeriodicSolver::AssembleJacobianWith(const Eigen::MatrixXd& z, const Period
                   rates.second(0, mu));
     }
     points.Evaluate(size);
-    for (int k = 0; k < size; ++k)
+    const int m = model_.unknown_count();
+    const int mm = m * m;
+    for (int k = 0; k < size; ++k) {
+      const double* rx = points.rx.data() + k * mm;  // column-major m x m blocks of point k
+      const double* rxd = points.rxd.data() + k * mm;
+      const double* rxdd = points.rxdd.data() + k * mm;
       for (int offset = stencil_.kmin; offset <= stencil_.kmax; ++offset) {
-        auto block = jacobian_.block(start + k, offset);
+        double* block = jacobian_.block(start + k, offset).data();
         const double a = stencil_.first[offset - stencil_.kmin] * f;
         const double b = stencil_.second[offset - stencil_.kmin] * f * f;
-        block = a * points.Rxd(k) + b * points.Rxdd(k);
-        if (offset == 0) block += points.Rx(k);
+        for (int e = 0; e < mm; ++e) block[e] = a * rxd[e] + b * rxdd[e];
+        if (offset == 0)
+          for (int e = 0; e < mm; ++e) block[e] += rx[e];
       }
+    }
   }
 }
 
@@ -476,14 +483,14 @@ Eigen::MatrixXd PeriodicSolver::ColdStart(const PeriodicInput& input, std::span<
   return MarchGuess(QuasiStaticGuess(input, theta), input, theta, options_.start_up_periods);
 }
 
-void PeriodicSolver::TangentPrediction(const PeriodicSolution& from, std::span<const double> theta,
+bool PeriodicSolver::TangentPrediction(const PeriodicSolution& from, std::span<const double> theta,
                                        Eigen::MatrixXd& z) const {
   // First order in the parameter change: the Newton start is then O(dtheta^2) from the solution
   // instead of O(dtheta). Only when every parameter that changed has its dz/dtheta in `from`.
   const auto& dz = from.unknown_sensitivities;
   if (from.theta.size() != theta.size() || dz.rows() != z.size() ||
       dz.cols() != static_cast<Eigen::Index>(from.sensitivity_parameters.size()))
-    return;
+    return false;
   Eigen::VectorXd change = Eigen::VectorXd::Zero(dz.cols());
   std::vector<bool> covered(theta.size(), false);
   for (std::size_t k = 0; k < from.sensitivity_parameters.size(); ++k) {
@@ -492,11 +499,13 @@ void PeriodicSolver::TangentPrediction(const PeriodicSolution& from, std::span<c
     change[static_cast<Eigen::Index>(k)] = theta[i] - from.theta[i];
   }
   for (std::size_t i = 0; i < theta.size(); ++i)
-    if (!covered[i] && theta[i] != from.theta[i]) return;
-  if (change.isZero()) return;
+    if (!covered[i] && theta[i] != from.theta[i]) return false;
+  if (change.isZero()) return false;
   Eigen::MatrixXd predicted = z;
   Eigen::Map<Eigen::VectorXd>(predicted.data(), predicted.size()) += dz * change;
-  if (predicted.allFinite()) z = std::move(predicted);
+  if (!predicted.allFinite()) return false;
+  z = std::move(predicted);
+  return true;
 }
 
 PeriodicSolution PeriodicSolver::Solve(const PeriodicInput& input, std::span<const double> theta,
@@ -512,20 +521,35 @@ PeriodicSolution PeriodicSolver::Solve(const PeriodicInput& input, std::span<con
   Prepare(n);
   const InputRates rates(stencil_, input);
 
-  Eigen::MatrixXd z;
-  std::shared_ptr<const CyclicBandedLU> lu;  // the factorisation the next step uses (null: assemble one)
   if (warm_start && warm_start->n == n && warm_start->unknowns.rows() == m && warm_start->unknowns.cols() == n) {
-    z = warm_start->unknowns;
-    TangentPrediction(*warm_start, theta, z);
+    std::shared_ptr<const CyclicBandedLU> lu;
     if (options_.reuse_contraction > 0 && warm_start->jacobian && warm_start->jacobian->rows() == n * m)
       lu = warm_start->jacobian;
-  } else {
-    try {
-      z = ColdStart(input, theta);
-    } catch (const ModelError& e) {
-      throw PeriodicSolverError(fmt::format("periodic solver: no static-equilibrium guess: {}", e.what()), NAN, 0);
+    Eigen::MatrixXd predicted = warm_start->unknowns;
+    if (TangentPrediction(*warm_start, theta, predicted)) {
+      try {
+        return Newton(std::move(predicted), lu, input, rates, theta);
+      } catch (const PeriodicSolverError& e) {  // a long step: the tangent overshot the model's range
+        spdlog::debug("periodic solver: no solution from the tangent prediction ({}); from the warm start itself",
+                      e.what());
+      }
     }
+    return Newton(warm_start->unknowns, lu, input, rates, theta);
   }
+  Eigen::MatrixXd z;
+  try {
+    z = ColdStart(input, theta);
+  } catch (const ModelError& e) {
+    throw PeriodicSolverError(fmt::format("periodic solver: no static-equilibrium guess: {}", e.what()), NAN, 0);
+  }
+  return Newton(std::move(z), nullptr, input, rates, theta);
+}
+
+PeriodicSolution PeriodicSolver::Newton(Eigen::MatrixXd z, std::shared_ptr<const CyclicBandedLU> lu,
+                                        const PeriodicInput& input, const InputRates& rates,
+                                        std::span<const double> theta) {
+  const int n = static_cast<int>(input.values.size());
+  const int m = model_.unknown_count();
   Eigen::VectorXd inverse_scale(m);  // Newton's tolerance per unknown, inverted
   for (int j = 0; j < m; ++j) inverse_scale[j] = 1.0 / (model_.unknown_spec(j).scale * options_.tolerance);
 
@@ -649,6 +673,67 @@ PeriodicSolution PeriodicSolver::Solve(const PeriodicInput& input, std::span<con
   return solution;
 }
 
+template <class J>
+Eigen::MatrixXd PeriodicSolver::ParameterDerivatives(const PeriodicSolution& solution, const InputRates& rates,
+                                                     std::span<const double> theta, const std::vector<int>& wanted,
+                                                     const Eigen::MatrixXd* dz, std::vector<Eigen::MatrixXd>* sens) const {
+  // Jets in the parameter directions (the unknowns carry dz/dtheta when it is given): without dz,
+  // -dG/dtheta scaled like G (the right-hand side of eq. 14); with it, the outputs' derivatives.
+  const int m = model_.unknown_count(), n = solution.n, nd = static_cast<int>(wanted.size());
+  const int directions = J::DerType::RowsAtCompileTime == Eigen::Dynamic ? nd : int(J::DerType::RowsAtCompileTime);
+  const auto constant = [&](double v) { return J(v, J::DerType::Zero(directions)); };
+  std::vector<J> theta_jet;
+  for (double t : theta) theta_jet.push_back(constant(t));
+  for (int k = 0; k < nd; ++k) theta_jet[wanted[k]] = J(theta[wanted[k]], J::DerType::Unit(directions, k));
+  const auto& z = solution.unknowns;
+  const PeriodicInput& input = solution.input;
+  if (dz) {
+    std::vector<J> x(m), y(solution.channels.size());
+    for (int mu = 0; mu < n; ++mu) {
+      for (int j = 0; j < m; ++j) {
+        typename J::DerType d = J::DerType::Zero(directions);
+        d.head(nd) = dz->row(mu * m + j).transpose();
+        x[j] = J(z(j, mu), d);
+      }
+      model_.Outputs<J>(x, constant(input.values[mu]), theta_jet, y);
+      for (std::size_t c = 0; c < y.size(); ++c)
+        for (int k = 0; k < nd; ++k) (*sens)[c](mu, wanted[k]) = y[c].derivatives()[k];
+    }
+    return {};
+  }
+  Eigen::MatrixXd zd, zdd;
+  GridRates(stencil_, z, input.frequency, zd, zdd);
+  Eigen::MatrixXd rhs(n * m, nd);
+  constexpr int kBatch = 32;
+  std::vector<J> x(kBatch * m), xd(kBatch * m), xdd(kBatch * m), r(kBatch * m), u(kBatch), ud(kBatch), udd(kBatch);
+  for (int start = 0; start < n; start += kBatch) {
+    const int size = std::min(kBatch, n - start);
+    for (int k = 0; k < size; ++k) {
+      const int mu = start + k;
+      for (int j = 0; j < m; ++j) {
+        x[k * m + j] = constant(z(j, mu));
+        xd[k * m + j] = constant(zd(j, mu));
+        xdd[k * m + j] = constant(zdd(j, mu));
+      }
+      u[k] = constant(input.values[mu]);
+      ud[k] = constant(rates.first(0, mu));
+      udd[k] = constant(rates.second(0, mu));
+    }
+    const std::size_t values = static_cast<std::size_t>(size) * m;
+    model_.Residuals<J>(std::span<const J>(x.data(), values), std::span<const J>(xd.data(), values),
+                        std::span<const J>(xdd.data(), values), std::span<const J>(u.data(), size),
+                        std::span<const J>(ud.data(), size), std::span<const J>(udd.data(), size), theta_jet,
+                        std::span<J>(r.data(), values));
+    for (int k = 0; k < size; ++k)
+      for (int i = 0; i < m; ++i) {
+        const auto& d = r[k * m + i].derivatives();
+        for (int p = 0; p < nd; ++p)
+          rhs((start + k) * m + i, p) = d.size() >= nd ? -d[p] * equation_weight_[i] : 0.0;
+      }
+  }
+  return rhs;
+}
+
 std::vector<Eigen::MatrixXd> PeriodicSolver::OutputSensitivities(const PeriodicSolution& solution,
                                                                  std::span<const double> theta,
                                                                  std::span<const int> parameters) {
@@ -673,42 +758,18 @@ std::vector<Eigen::MatrixXd> PeriodicSolver::OutputSensitivities(const PeriodicS
     solution.jacobian = Factorize(solution.unknowns, input, rates, theta, 0, 0.0);
     solution.jacobian_current = true;
   }
-  std::vector<Jet> theta_jet(np);
-  for (int i = 0; i < np; ++i) theta_jet[i] = MakeConstant(theta[i], nd);
-  for (int k = 0; k < nd; ++k) theta_jet[wanted[k]] = Jet(theta[wanted[k]], DerivativeVector::Unit(nd, k));
-  // dG/dtheta at the solution, scaled like G.
-  const auto& z = solution.unknowns;
-  Eigen::MatrixXd zd, zdd;
-  GridRates(stencil_, z, input.frequency, zd, zdd);
-  Eigen::MatrixXd rhs(n * m, nd);
-  std::vector<Jet> x(m), xd(m), xdd(m), r(m);
-  for (int mu = 0; mu < n; ++mu) {
-    for (int j = 0; j < m; ++j) {
-      x[j] = MakeConstant(z(j, mu), nd);
-      xd[j] = MakeConstant(zd(j, mu), nd);
-      xdd[j] = MakeConstant(zdd(j, mu), nd);
-    }
-    model_.Residual<Jet>(x, xd, xdd, MakeConstant(input.values[mu], nd), MakeConstant(rates.first(0, mu), nd),
-                         MakeConstant(rates.second(0, mu), nd), theta_jet, r);
-    for (int i = 0; i < m; ++i) {
-      const auto& d = r[i].derivatives();
-      for (int p = 0; p < nd; ++p) rhs(mu * m + i, p) = d.size() == nd ? -d[p] * equation_weight_[i] : 0.0;
-    }
+  // d(outputs)/dtheta = df/dz dz/dtheta + df/dtheta (eq. 15), with dz/dtheta from eq. 14.
+  Eigen::MatrixXd dz = nd <= kStateDirections ? ParameterDerivatives<StateJet>(solution, rates, theta, wanted, nullptr)
+                                              : ParameterDerivatives<Jet>(solution, rates, theta, wanted, nullptr);
+  solution.jacobian->Solve(dz);  // -dG/dtheta became dz/dtheta (eq. 14)
+  std::vector<Eigen::MatrixXd> sens(solution.channels.size(), Eigen::MatrixXd::Constant(n, np, NAN));
+  if (nd <= kStateDirections) {
+    ParameterDerivatives<StateJet>(solution, rates, theta, wanted, &dz, &sens);
+  } else {
+    ParameterDerivatives<Jet>(solution, rates, theta, wanted, &dz, &sens);
   }
-  solution.jacobian->Solve(rhs);  // rhs now holds dz/dtheta (eq. 14)
-  solution.unknown_sensitivities = rhs;
+  solution.unknown_sensitivities = std::move(dz);
   solution.sensitivity_parameters = wanted;
-  const int channels = static_cast<int>(solution.channels.size());
-  std::vector<Eigen::MatrixXd> sens(channels, Eigen::MatrixXd::Constant(n, np, NAN));
-  std::vector<Jet> xs(m), y(channels);
-  for (int mu = 0; mu < n; ++mu) {
-    for (int j = 0; j < m; ++j) xs[j] = Jet(z(j, mu), rhs.row(mu * m + j).transpose());
-    model_.Outputs<Jet>(xs, MakeConstant(input.values[mu], nd), theta_jet, y);  // eq. 15
-    for (int c = 0; c < channels; ++c) {
-      const auto& d = y[c].derivatives();
-      for (int p = 0; p < nd; ++p) sens[c](mu, wanted[p]) = d.size() == nd ? d[p] : 0.0;
-    }
-  }
   return sens;
 }
 

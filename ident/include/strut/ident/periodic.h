@@ -171,8 +171,16 @@ class PeriodicSolver : public PeriodicPredictor {
   void AssembleJacobianWith(const Eigen::MatrixXd& z, const PeriodicInput& input, const InputRates& rates,
                             std::span<const double> theta);
   Eigen::MatrixXd ColdStart(const PeriodicInput& input, std::span<const double> theta) const;
-  //! Moves a warm start's unknowns z along its sensitivities to `theta` (when it has them).
-  void TangentPrediction(const PeriodicSolution& from, std::span<const double> theta, Eigen::MatrixXd& z) const;
+  //! Parameter Jets at a solution: -dG/dtheta (returned) or, given dz/dtheta, the outputs' derivatives.
+  template <class J>
+  Eigen::MatrixXd ParameterDerivatives(const PeriodicSolution& solution, const InputRates& rates,
+                                       std::span<const double> theta, const std::vector<int>& wanted,
+                                       const Eigen::MatrixXd* dz, std::vector<Eigen::MatrixXd>* sens = nullptr) const;
+  //! Moves a warm start's unknowns z along its sensitivities to `theta`; false when it cannot.
+  bool TangentPrediction(const PeriodicSolution& from, std::span<const double> theta, Eigen::MatrixXd& z) const;
+  //! Damped Newton from z, starting with the factorisation `lu` when given (simplified steps).
+  PeriodicSolution Newton(Eigen::MatrixXd z, std::shared_ptr<const CyclicBandedLU> lu, const PeriodicInput& input,
+                          const InputRates& rates, std::span<const double> theta);
   Eigen::MatrixXd QuasiStaticGuess(const PeriodicInput& input, std::span<const double> theta) const;
   Eigen::MatrixXd MarchGuess(Eigen::MatrixXd z, const PeriodicInput& input, std::span<const double> theta,
                              int periods) const;

@@ -28,6 +28,39 @@ std::vector<std::string> DefaultChannels(const Model& model) {
 }
 
 // Everything one iterate of the fit needs per experiment.
+//! The noise of a measured input as the estimator sees it: perturbation directions on the grid (the
+//! series' kept harmonics) and the variance of each coefficient.
+struct InputNoise {
+  Eigen::MatrixXd basis;     //!< n x directions
+  Eigen::VectorXd variance;  //!< per direction
+};
+
+InputNoise InputNoiseOf(const ExperimentData& d, int n) {
+  InputNoise noise;
+  if (!(d.input_harmonic_variance > 0) || d.input_harmonics.empty()) return noise;
+  std::vector<std::pair<Eigen::VectorXd, double>> directions;
+  for (const int h : d.input_harmonics) {
+    if (h == 0) {
+      directions.push_back({Eigen::VectorXd::Ones(n), d.input_mean_variance});
+      continue;
+    }
+    Eigen::VectorXd c(n), s(n);
+    for (int mu = 0; mu < n; ++mu) {
+      c[mu] = std::cos(2.0 * std::numbers::pi * h * mu / n);
+      s[mu] = std::sin(2.0 * std::numbers::pi * h * mu / n);
+    }
+    directions.push_back({c, d.input_harmonic_variance});
+    directions.push_back({s, d.input_harmonic_variance});
+  }
+  noise.basis.resize(n, static_cast<int>(directions.size()));
+  noise.variance.resize(static_cast<int>(directions.size()));
+  for (std::size_t k = 0; k < directions.size(); ++k) {
+    noise.basis.col(static_cast<int>(k)) = directions[k].first;
+    noise.variance[static_cast<int>(k)] = directions[k].second;
+  }
+  return noise;
+}
+
 struct ExperimentState {
   const ExperimentData* data = nullptr;
   std::unique_ptr<PeriodicPredictor> solver;
@@ -299,16 +332,24 @@ FitSummary Estimator::Fit(const std::vector<ExperimentData>& data, const Paramet
   Eigen::VectorXd step_sd = Eigen::VectorXd::Constant(l, INFINITY);
 
   // The staged Gauss-Newton iteration of eqs. 18, 19.
-  const auto normal_equations = [&](const std::vector<double>& variance, Eigen::MatrixXd& h, Eigen::VectorXd& g) {
+  // With `input_noise`: also, per experiment, the scaled-gradient covariance that the measured
+  // input's noise causes (sum over its noisy Fourier coefficients of var * q q^T, q = J^T W dy/dc).
+  const auto normal_equations = [&](const std::vector<double>& variance, Eigen::MatrixXd& h, Eigen::VectorXd& g,
+                                    Eigen::MatrixXd* input_noise = nullptr) {
     h.setZero(l, l);
     g.setZero(l);
     // Per experiment on `threads` threads, summed in experiment order (the same result for any count).
     std::vector<Eigen::MatrixXd> hs(states.size(), Eigen::MatrixXd::Zero(l, l));
     std::vector<Eigen::VectorXd> gs(states.size(), Eigen::VectorXd::Zero(l));
+    std::vector<Eigen::MatrixXd> ns(states.size(), Eigen::MatrixXd::Zero(l, l));
     ParallelFor(static_cast<int>(states.size()), threads, [&](int a) {
       ExperimentState& s = states[a];
       if (!s.active) return;
       const auto sens = s.solver->OutputSensitivities(s.solution, theta, est);
+      const InputNoise noise = input_noise ? InputNoiseOf(*s.data, n) : InputNoise{};
+      const auto input_sens =
+          noise.basis.cols() > 0 ? s.solver->InputSensitivities(s.solution, theta, noise.basis) : std::vector<Eigen::MatrixXd>{};
+      Eigen::MatrixXd q = Eigen::MatrixXd::Zero(l, input_sens.empty() ? 0 : noise.basis.cols());
       for (int b = 0; b < nc; ++b) {
         if (!s.channel_fitted[b]) continue;
         Eigen::MatrixXd j(s.j0.size(), l);
@@ -316,11 +357,18 @@ FitSummary Estimator::Fit(const std::vector<ExperimentData>& data, const Paramet
         const Eigen::VectorXd r = s.Residual(channels[b], output_row[b]);
         hs[a].noalias() += j.transpose() * j / variance[b];
         gs[a].noalias() += j.transpose() * r / variance[b];
+        for (Eigen::Index c = 0; c < q.cols(); ++c)
+          q.col(c).noalias() += j.transpose() * s.AtPhases(input_sens[output_row[b]].col(c)) / variance[b];
       }
+      if (q.cols() > 0) ns[a] = q * noise.variance.asDiagonal() * q.transpose();
     });
     for (std::size_t a = 0; a < states.size(); ++a) {
       h += hs[a];
       g += gs[a];
+    }
+    if (input_noise) {
+      input_noise->setZero(l, l);
+      for (const auto& m_a : ns) *input_noise += m_a;
     }
     for (int k = 0; k < l; ++k) {
       const int i = est[k];
@@ -426,10 +474,21 @@ FitSummary Estimator::Fit(const std::vector<ExperimentData>& data, const Paramet
   summary.sd.assign(np, NAN);
   if (l > 0) {
     Eigen::VectorXd g;
-    normal_equations(variance, information, g);
+    Eigen::MatrixXd input_noise;
+    normal_equations(variance, information, g, options_.input_noise ? &input_noise : nullptr);
     Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(information);
     const double largest = eig.eigenvalues().maxCoeff();
-    const Eigen::MatrixXd covariance = information.completeOrthogonalDecomposition().pseudoInverse();
+    Eigen::MatrixXd covariance = information.completeOrthogonalDecomposition().pseudoInverse();
+    if (options_.input_noise && input_noise.size() > 0 && input_noise.allFinite()) {
+      // Errors in variables: the measured input's noise moves the estimate by H^-1 J^T W dy; its
+      // covariance (the sandwich H^-1 N H^-1) adds to the output-noise part H^-1.
+      const Eigen::MatrixXd extra = covariance * input_noise * covariance;
+      Eigen::VectorXd share(l);
+      for (int a = 0; a < l; ++a) share[a] = std::sqrt(1.0 + extra(a, a) / std::max(covariance(a, a), 1e-300));
+      covariance += extra;
+      summary.input_noise_sd_factor.assign(np, NAN);
+      for (int a = 0; a < l; ++a) summary.input_noise_sd_factor[est[a]] = share[a];
+    }
     summary.correlation.resize(l, l);
     for (int a = 0; a < l; ++a) {
       summary.sd[est[a]] = std::sqrt(std::max(covariance(a, a), 0.0)) * scale[est[a]];

@@ -209,6 +209,13 @@ std::vector<ExperimentData> Prepare(const daq::Session& session, const std::stri
       if (c.name == input_channel) {
         const PeriodicSeries series = PeriodicSeries::Fit(g.mean, e.frequency);
         d.input = series.OnGrid(n);
+        // c_h = (1/count) sum x_i exp(-i 2 pi h i / count) of white noise of variance s^2 has
+        // complex variance s^2 / count, so the mean's is s^2 / count and each of a_h = 2 Re c_h,
+        // b_h = -2 Im c_h has 2 s^2 / count.
+        for (std::size_t h = 0; h < series.coefficients.size(); ++h)
+          if (h == 0 || series.coefficients[h] != 0.0) d.input_harmonics.push_back(static_cast<int>(h));
+        d.input_mean_variance = g.mean_noise_variance / points;
+        d.input_harmonic_variance = 2.0 * g.mean_noise_variance / points;
         spdlog::debug("{}: experiment '{}': {} input from {} harmonics", file, e.label, input_channel, series.kept);
       }
       d.channels[c.name] = std::move(g);

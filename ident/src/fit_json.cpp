@@ -22,6 +22,10 @@ nlohmann::json FitToJson(const FitSummary& fit) {
                                {"unit", s.unit},
                                {"value", Number(fit.parameters.value(i))},
                                {"sd", Number(fit.sd[i])},
+                               {"sd_input_noise_factor",
+                                Number(static_cast<std::size_t>(i) < fit.input_noise_sd_factor.size()
+                                           ? fit.input_noise_sd_factor[i]
+                                           : NAN)},
                                {"estimated", static_cast<bool>(fit.estimated[i])}});
   }
   j["channels"] = nlohmann::json::array();

@@ -734,6 +734,80 @@ Eigen::MatrixXd PeriodicSolver::ParameterDerivatives(const PeriodicSolution& sol
   return rhs;
 }
 
+void PeriodicSolver::MakeJacobianCurrent(const PeriodicSolution& solution, const InputRates& rates,
+                                         std::span<const double> theta) {
+  if (solution.jacobian && solution.jacobian_current && solution.jacobian->rows() == solution.unknowns.size()) return;
+  // Simplified Newton steps (or a guess) led here: eq. 14 wants the Jacobian at the solution.
+  solution.jacobian = Factorize(solution.unknowns, solution.input, rates, theta, 0, 0.0);
+  solution.jacobian_current = true;
+}
+
+std::vector<Eigen::MatrixXd> PeriodicSolver::InputSensitivities(const PeriodicSolution& solution,
+                                                                std::span<const double> theta,
+                                                                const Eigen::MatrixXd& perturbations) {
+  const int m = model_.unknown_count(), n = solution.n;
+  if (solution.unknowns.rows() != m || solution.unknowns.cols() != n || perturbations.rows() != n ||
+      static_cast<int>(theta.size()) != model_.parameter_count())
+    throw std::invalid_argument("periodic solver: input sensitivities need a solution of this model and n rows");
+  Prepare(n);
+  const PeriodicInput& input = solution.input;
+  const InputRates rates(stencil_, input);
+  MakeJacobianCurrent(solution, rates, theta);
+  // The residual's derivatives in the input, its rate and its acceleration at every point, and the
+  // outputs' in the unknowns and the input: one fixed-size Jet pass each.
+  using J = StateJet;
+  static_assert(kStateDirections >= 3);
+  const auto constant = [](double v) { return J(v, J::DerType::Zero()); };
+  std::vector<J> theta_jet;
+  for (double t : theta) theta_jet.push_back(constant(t));
+  const auto& z = solution.unknowns;
+  Eigen::MatrixXd zd, zdd;
+  GridRates(stencil_, z, input.frequency, zd, zdd);
+  Eigen::MatrixXd gu(m, n), gud(m, n), gudd(m, n);  // scaled like G
+  {
+    std::vector<J> x(m), xd(m), xdd(m), r(m);
+    for (int mu = 0; mu < n; ++mu) {
+      for (int j = 0; j < m; ++j) {
+        x[j] = constant(z(j, mu));
+        xd[j] = constant(zd(j, mu));
+        xdd[j] = constant(zdd(j, mu));
+      }
+      model_.Residual<J>(x, xd, xdd, J(input.values[mu], J::DerType::Unit(0)),
+                         J(rates.first(0, mu), J::DerType::Unit(1)), J(rates.second(0, mu), J::DerType::Unit(2)),
+                         theta_jet, r);
+      for (int i = 0; i < m; ++i) {
+        gu(i, mu) = r[i].derivatives()[0] * equation_weight_[i];
+        gud(i, mu) = r[i].derivatives()[1] * equation_weight_[i];
+        gudd(i, mu) = r[i].derivatives()[2] * equation_weight_[i];
+      }
+    }
+  }
+  const int columns = static_cast<int>(perturbations.cols());
+  Eigen::MatrixXd pd, pdd;  // the perturbations' rates, by the stencil the solver applies to the input
+  GridRates(stencil_, perturbations.transpose(), input.frequency, pd, pdd);
+  Eigen::MatrixXd dz(n * m, columns);
+  for (int mu = 0; mu < n; ++mu)
+    for (int i = 0; i < m; ++i)
+      dz.row(mu * m + i) = -(gu(i, mu) * perturbations.row(mu) + gud(i, mu) * pd.col(mu).transpose() +
+                             gudd(i, mu) * pdd.col(mu).transpose());
+  solution.jacobian->Solve(dz);
+  const int channels = static_cast<int>(solution.channels.size());
+  if (m + 1 > kStateDirections) throw std::invalid_argument("periodic solver: too many unknowns for input sensitivities");
+  std::vector<Eigen::MatrixXd> out(channels, Eigen::MatrixXd(n, columns));
+  std::vector<J> x(m), y(channels);
+  for (int mu = 0; mu < n; ++mu) {
+    for (int j = 0; j < m; ++j) x[j] = J(z(j, mu), J::DerType::Unit(j));
+    model_.Outputs<J>(x, J(input.values[mu], J::DerType::Unit(m)), theta_jet, y);
+    for (int c = 0; c < channels; ++c) {
+      const auto& d = y[c].derivatives();
+      Eigen::RowVectorXd row = d[m] * perturbations.row(mu);
+      for (int j = 0; j < m; ++j) row += d[j] * dz.row(mu * m + j);
+      out[c].row(mu) = row;
+    }
+  }
+  return out;
+}
+
 std::vector<Eigen::MatrixXd> PeriodicSolver::OutputSensitivities(const PeriodicSolution& solution,
                                                                  std::span<const double> theta,
                                                                  std::span<const int> parameters) {
@@ -751,13 +825,8 @@ std::vector<Eigen::MatrixXd> PeriodicSolver::OutputSensitivities(const PeriodicS
   if (nd > kMaxDerivatives)
     throw std::invalid_argument(fmt::format("periodic solver: at most {} sensitivities at once", kMaxDerivatives));
   Prepare(n);
-  const PeriodicInput& input = solution.input;
-  const InputRates rates(stencil_, input);
-  if (!solution.jacobian || !solution.jacobian_current || solution.jacobian->rows() != n * m) {
-    // Simplified Newton steps (or a guess) led here: eq. 14 wants the Jacobian at the solution.
-    solution.jacobian = Factorize(solution.unknowns, input, rates, theta, 0, 0.0);
-    solution.jacobian_current = true;
-  }
+  const InputRates rates(stencil_, solution.input);
+  MakeJacobianCurrent(solution, rates, theta);
   // d(outputs)/dtheta = df/dz dz/dtheta + df/dtheta (eq. 15), with dz/dtheta from eq. 14.
   Eigen::MatrixXd dz = nd <= kStateDirections ? ParameterDerivatives<StateJet>(solution, rates, theta, wanted, nullptr)
                                               : ParameterDerivatives<Jet>(solution, rates, theta, wanted, nullptr);

@@ -44,6 +44,10 @@ struct EstimatorOptions {
   //! sd = damping_relative_sd * |theta_i|. It damps like Levenberg-Marquardt; it is widened after
   //! a full step and narrowed after a halved one. Never part of the reported uncertainty.
   double damping_relative_sd = 0.3;
+  //! Errors in variables: the posterior covariance also carries the measured input's noise (each
+  //! experiment's input series: the noise of its kept Fourier coefficients, from the spread between
+  //! periods), propagated through the model to the outputs and on to the estimate.
+  bool input_noise = true;
   //! Step halvings per iteration when the objective does not improve.
   int max_halvings = 12;
   //! Output channels to fit; empty: the outputs of the causality (stroke and pressure for force
@@ -100,6 +104,9 @@ struct FitSummary {
   ParameterSet parameters;           //!< final values
   std::vector<bool> estimated;       //!< per parameter
   std::vector<double> sd;            //!< posterior sd (NaN when fixed)
+  //! sd over the sd from the output noise alone: what the measured input's noise adds (NaN when
+  //! fixed, or when the input's noise is unknown or not propagated)
+  std::vector<double> input_noise_sd_factor;
   std::vector<int> estimated_positions;
   Eigen::MatrixXd correlation;       //!< among the estimated parameters
   std::vector<FitChannel> channels;

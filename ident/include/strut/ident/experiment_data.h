@@ -51,6 +51,11 @@ struct ExperimentData {
   double frequency = 0.0, amplitude = 0.0, static_position = 0.0;
   long periods = 0;
   PeriodicInput input;                          //!< the model input (force or stroke), averaged onto the n-point grid
+  //! The harmonics the input series keeps (0: its mean) and the noise variance of each of their
+  //! real coefficients (in u = c0 + sum a_h cos + b_h sin): the measured input's noise that
+  //! reaches the model (errors in variables). NaN variance: one period, unknown.
+  std::vector<int> input_harmonics;
+  double input_mean_variance = NAN, input_harmonic_variance = NAN;
   //! Cyclic phases in [0, 1) of the averaged samples: the recorded sample phases when a period
   //! holds a whole number of samples (averaging then needs no interpolation), else the grid's.
   std::vector<double> phases;

@@ -41,6 +41,10 @@ class OscillatorPredictor : public PeriodicPredictor {
                          const PeriodicSolution* warm_start = nullptr) override;
   std::vector<Eigen::MatrixXd> OutputSensitivities(const PeriodicSolution& solution, std::span<const double> theta,
                                                    std::span<const int> parameters = {}) override;
+  std::vector<Eigen::MatrixXd> InputSensitivities(const PeriodicSolution& solution, std::span<const double> theta,
+                                                  const Eigen::MatrixXd& perturbations) override {
+    return solver_.InputSensitivities(solution, theta, perturbations);
+  }
 
  private:
   Model model_;

@@ -133,6 +133,13 @@ class PeriodicPredictor {
   virtual std::vector<Eigen::MatrixXd> OutputSensitivities(const PeriodicSolution& solution,
                                                            std::span<const double> theta,
                                                            std::span<const int> parameters = {}) = 0;
+  //! d outputs / d input in the directions of `perturbations` (one input perturbation on the grid
+  //! per column): one (n x columns) matrix per output channel. Empty when the predictor cannot.
+  virtual std::vector<Eigen::MatrixXd> InputSensitivities(const PeriodicSolution& solution,
+                                                          std::span<const double> theta,
+                                                          const Eigen::MatrixXd& perturbations) {
+    return {};
+  }
 };
 
 //! Solves periodic equilibria of one model; keeps the last factorisation for sensitivities.
@@ -155,6 +162,12 @@ class PeriodicSolver : public PeriodicPredictor {
                                                    std::span<const double> theta,
                                                    std::span<const int> parameters = {}) override;
 
+  //! d outputs / d input (the linearisation at the solution, same factorisation as eq. 14): how a
+  //! perturbation of the measured input on the grid (its rates by the scheme's stencil) moves
+  //! every output. `perturbations` is n x columns.
+  std::vector<Eigen::MatrixXd> InputSensitivities(const PeriodicSolution& solution, std::span<const double> theta,
+                                                  const Eigen::MatrixXd& perturbations) override;
+
   //! The scaled residual G(z) of the discretised equations (m x n), for tests.
   Eigen::MatrixXd Residual(const Eigen::MatrixXd& unknowns, const PeriodicInput& input,
                            std::span<const double> theta) const;
@@ -171,6 +184,8 @@ class PeriodicSolver : public PeriodicPredictor {
   void AssembleJacobianWith(const Eigen::MatrixXd& z, const PeriodicInput& input, const InputRates& rates,
                             std::span<const double> theta);
   Eigen::MatrixXd ColdStart(const PeriodicInput& input, std::span<const double> theta) const;
+  //! Factorises at the solution unless its Jacobian is current (a cache in the solution).
+  void MakeJacobianCurrent(const PeriodicSolution& solution, const InputRates& rates, std::span<const double> theta);
   //! Parameter Jets at a solution: -dG/dtheta (returned) or, given dz/dtheta, the outputs' derivatives.
   template <class J>
   Eigen::MatrixXd ParameterDerivatives(const PeriodicSolution& solution, const InputRates& rates,

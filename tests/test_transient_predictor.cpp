@@ -72,20 +72,17 @@ void Compare(const Case& c, const std::vector<std::string>& names, double output
   const auto sens = transient.OutputSensitivities(s, c.theta);
   ASSERT_EQ(sens.size(), reference_sens.size());
   for (std::size_t ch = 0; ch < sens.size(); ++ch) {
+    // A column per differentiated parameter, in the order asked for.
+    ASSERT_EQ(sens[ch].cols(), static_cast<Eigen::Index>(names.size()));
     for (std::size_t k = 0; k < names.size(); ++k) {
       const int p = positions[k];
       if (reference_sens[ch].col(p).cwiseAbs().maxCoeff() == 0.0) {
-        EXPECT_EQ(sens[ch].col(p).cwiseAbs().maxCoeff(), 0.0);
+        EXPECT_EQ(sens[ch].col(k).cwiseAbs().maxCoeff(), 0.0);
         continue;
       }
-      const double e = RelativeColumnError(sens[ch].col(p), reference_sens[ch].col(p));
+      const double e = RelativeColumnError(sens[ch].col(k), reference_sens[ch].col(p));
       EXPECT_LT(e, sensitivity_tol) << s.channels[ch] << " / " << names[k];
     }
-    // Parameters not differentiated are marked, not silently zero.
-    for (int p = 0; p < c.model.parameter_count(); ++p)
-      if (std::find(positions.begin(), positions.end(), p) == positions.end()) {
-        EXPECT_TRUE(std::isnan(sens[ch](0, p)));
-      }
   }
   // A warm start from the steady state settles at once; warm sensitivities likewise.
   const int periods = transient.stats().solve_periods;

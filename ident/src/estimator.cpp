@@ -353,7 +353,7 @@ FitSummary Estimator::Fit(const std::vector<ExperimentData>& data, const Paramet
       for (int b = 0; b < nc; ++b) {
         if (!s.channel_fitted[b]) continue;
         Eigen::MatrixXd j(s.j0.size(), l);
-        for (int k = 0; k < l; ++k) j.col(k) = s.AtPhases(sens[output_row[b]].col(est[k])) * scale[est[k]];
+        for (int k = 0; k < l; ++k) j.col(k) = s.AtPhases(sens[output_row[b]].col(k)) * scale[est[k]];
         const Eigen::VectorXd r = s.Residual(channels[b], output_row[b]);
         hs[a].noalias() += j.transpose() * j / variance[b];
         gs[a].noalias() += j.transpose() * r / variance[b];

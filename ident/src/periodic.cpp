@@ -697,7 +697,7 @@ Eigen::MatrixXd PeriodicSolver::ParameterDerivatives(const PeriodicSolution& sol
       }
       model_.Outputs<J>(x, constant(input.values[mu]), theta_jet, y);
       for (std::size_t c = 0; c < y.size(); ++c)
-        for (int k = 0; k < nd; ++k) (*sens)[c](mu, wanted[k]) = y[c].derivatives()[k];
+        for (int k = 0; k < nd; ++k) (*sens)[c](mu, k) = y[c].derivatives()[k];
     }
     return {};
   }
@@ -831,7 +831,7 @@ std::vector<Eigen::MatrixXd> PeriodicSolver::OutputSensitivities(const PeriodicS
   Eigen::MatrixXd dz = nd <= kStateDirections ? ParameterDerivatives<StateJet>(solution, rates, theta, wanted, nullptr)
                                               : ParameterDerivatives<Jet>(solution, rates, theta, wanted, nullptr);
   solution.jacobian->Solve(dz);  // -dG/dtheta became dz/dtheta (eq. 14)
-  std::vector<Eigen::MatrixXd> sens(solution.channels.size(), Eigen::MatrixXd::Constant(n, np, NAN));
+  std::vector<Eigen::MatrixXd> sens(solution.channels.size(), Eigen::MatrixXd(n, nd));
   if (nd <= kStateDirections) {
     ParameterDerivatives<StateJet>(solution, rates, theta, wanted, &dz, &sens);
   } else {

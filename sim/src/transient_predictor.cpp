@@ -503,7 +503,7 @@ std::vector<Eigen::MatrixXd> TransientPredictor::OutputSensitivities(const ident
 
   // d yhat / d theta = dOut/dx s_x + dOut/dtheta (the outputs of PeriodicSolution: grid input values).
   const int channels = static_cast<int>(solution.channels.size());
-  std::vector<Eigen::MatrixXd> out(channels, Eigen::MatrixXd::Constant(n, np, NAN));
+  std::vector<Eigen::MatrixXd> out(channels, Eigen::MatrixXd(n, ns));
   std::vector<Jet> theta_jet;
   for (double v : theta) theta_jet.push_back(ident::MakeConstant(v, ns));
   for (int k = 0; k < ns; ++k) theta_jet[parameters[k]] = Jet(theta[parameters[k]], DerivativeVector::Unit(ns, k));
@@ -517,7 +517,7 @@ std::vector<Eigen::MatrixXd> TransientPredictor::OutputSensitivities(const ident
     model_.Outputs<Jet>(xs, ident::MakeConstant(solution.input.values[mu], ns), theta_jet, y);
     for (int c = 0; c < channels; ++c) {
       const auto& d = y[c].derivatives();
-      for (int k = 0; k < ns; ++k) out[c](mu, parameters[k]) = d.size() == ns ? d[k] : 0.0;
+      for (int k = 0; k < ns; ++k) out[c](mu, k) = d.size() == ns ? d[k] : 0.0;
     }
   }
   ++stats_.sensitivity_runs;

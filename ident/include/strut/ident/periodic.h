@@ -128,8 +128,8 @@ class PeriodicPredictor {
   //! Periodic outputs for the input on its grid; `warm_start` (same n) may speed it up.
   virtual PeriodicSolution Solve(const PeriodicInput& input, std::span<const double> theta,
                                  const PeriodicSolution* warm_start = nullptr) = 0;
-  //! d outputs / d theta at a solution: one (n x all parameters) matrix per output channel, with
-  //! the columns of `parameters` (positions in model order; empty: all) filled and the others NaN.
+  //! d outputs / d theta at a solution: one (n x parameters.size()) matrix per output channel, a
+  //! column per position in `parameters` in that order (empty: every parameter in model order).
   virtual std::vector<Eigen::MatrixXd> OutputSensitivities(const PeriodicSolution& solution,
                                                            std::span<const double> theta,
                                                            std::span<const int> parameters = {}) = 0;
@@ -155,9 +155,9 @@ class PeriodicSolver : public PeriodicPredictor {
   PeriodicSolution Solve(const PeriodicInput& input, std::span<const double> theta,
                          const PeriodicSolution* warm_start = nullptr) override;
 
-  //! d outputs / d theta at a solution (eqs. 14, 15): one (n x parameters) matrix per channel, the
-  //! columns of `parameters` (empty: all) filled, the others NaN. Reuses the solution's Newton
-  //! factorisation when it is current, else factorises at the solution (and keeps that in it).
+  //! d outputs / d theta at a solution (eqs. 14, 15): one (n x parameters.size()) matrix per channel,
+  //! columns in the order of `parameters` (empty: all). Reuses the solution's Newton factorisation
+  //! when it is current, else factorises at the solution (and keeps that in it).
   std::vector<Eigen::MatrixXd> OutputSensitivities(const PeriodicSolution& solution,
                                                    std::span<const double> theta,
                                                    std::span<const int> parameters = {}) override;

@@ -31,8 +31,8 @@ struct TransientPredictorOptions {
   //! Sensitivities steer Gauss-Newton and give the posterior sd: 1e-6 of their size is plenty.
   double sensitivity_relative_tol = 1e-6;
   //! Positions (model order) of the parameters to differentiate when a call names none; empty: all.
-  //! Columns of the others are NaN in OutputSensitivities. Forward sensitivities cost one extra DAE
-  //! per parameter; the estimator asks for the parameters it estimates.
+  //! Forward sensitivities cost one extra DAE per parameter; the estimator asks for the parameters
+  //! it estimates.
   std::vector<int> parameters;
   //! IDAS's staggered corrector (sensitivities corrected after the state, each step); false: simultaneous.
   bool staggered = true;

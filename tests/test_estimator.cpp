@@ -28,6 +28,18 @@ ParameterSet Truth(const std::string& composition) {
   return truth;
 }
 
+//! A noise realisation of the rig's sensors (stroke 0.03 mm, force 20 N, pressure 2 kPa) on a clean session.
+daq::Session WithSensorNoise(const daq::Session& clean, std::mt19937_64& rng) {
+  std::normal_distribution<double> unit(0.0, 1.0);
+  daq::Session noisy = clean;
+  for (auto& e : noisy.experiments)
+    for (auto& c : e.channels) {
+      const double sd = c.name == "stroke" ? 3e-5 : c.name == "force" ? 20.0 : 2e3;
+      for (double& v : c.samples) v += sd * unit(rng);
+    }
+  return noisy;
+}
+
 void ExpectRecovered(const FitSummary& fit, const ParameterSet& truth, double within_sd) {
   ASSERT_TRUE(fit.converged) << fit.FullReport();
   for (int i : fit.estimated_positions) {
@@ -82,15 +94,9 @@ TEST(Estimator, NinetyFivePercentIntervalsHoldTheTruthAtTheirRate) {
   estimator_options.scheme = Scheme::kCentral4;
   const Estimator estimator(model, estimator_options);
   std::mt19937_64 rng(2024);
-  std::normal_distribution<double> unit(0.0, 1.0);
   int inside = 0, total = 0;
   for (int realisation = 0; realisation < 100; ++realisation) {
-    daq::Session noisy = clean;
-    for (auto& e : noisy.experiments)
-      for (auto& c : e.channels) {
-        const double sd = c.name == "stroke" ? 3e-5 : c.name == "force" ? 20.0 : 2e3;
-        for (double& v : c.samples) v += sd * unit(rng);
-      }
+    const daq::Session noisy = WithSensorNoise(clean, rng);
     const auto data = PrepareExperiments(noisy, model.causality(), 400);
     const FitSummary fit = estimator.Fit(data, truth, choices);
     ASSERT_TRUE(fit.converged);
@@ -124,16 +130,10 @@ TEST(Estimator, IntervalsCarryTheMeasuredInputsNoise) {
   EstimatorOptions without_input = with_input;
   without_input.input_noise = false;
   std::mt19937_64 rng(7);
-  std::normal_distribution<double> unit(0.0, 1.0);
   std::vector<double> z_with, z_without;
   double factor = 0.0;
   for (int realisation = 0; realisation < 60; ++realisation) {
-    daq::Session noisy = clean;
-    for (auto& e : noisy.experiments)
-      for (auto& c : e.channels) {
-        const double sd = c.name == "stroke" ? 3e-5 : c.name == "force" ? 20.0 : 2e3;
-        for (double& v : c.samples) v += sd * unit(rng);
-      }
+    const daq::Session noisy = WithSensorNoise(clean, rng);
     const auto data = PrepareExperiments(noisy, model.causality(), 400);
     const FitSummary a = Estimator(model, with_input).Fit(data, truth, choices);
     const FitSummary b = Estimator(model, without_input).Fit(data, truth, choices);

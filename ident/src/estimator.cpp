@@ -98,6 +98,13 @@ struct ExperimentState {
     }
     return out;
   }
+  //! The transpose of AtPhases: values at the data phases spread back onto the n grid points.
+  Eigen::VectorXd ToGrid(const Eigen::VectorXd& at_phases, int n) const {
+    Eigen::VectorXd grid = Eigen::VectorXd::Zero(n);
+    for (std::size_t i = 0; i < j0.size(); ++i)
+      for (int k = 0; k < 4; ++k) grid[(j0[i] + k - 1 + n) % n] += weights[i][k] * at_phases[static_cast<int>(i)];
+    return grid;
+  }
   Eigen::VectorXd Residual(const std::string& channel, int row) const {
     return data->channels.at(channel).mean - AtPhases(solution.outputs.row(row));
   }
@@ -357,8 +364,12 @@ FitSummary Estimator::Fit(const std::vector<ExperimentData>& data, const Paramet
         const Eigen::VectorXd r = s.Residual(channels[b], output_row[b]);
         hs[a].noalias() += j.transpose() * j / variance[b];
         gs[a].noalias() += j.transpose() * r / variance[b];
-        for (Eigen::Index c = 0; c < q.cols(); ++c)
-          q.col(c).noalias() += j.transpose() * s.AtPhases(input_sens[output_row[b]].col(c)) / variance[b];
+        if (q.cols() > 0) {
+          // q += J^T W P dy with P the interpolation to the phases: as (P^T W J)^T dy on the grid.
+          Eigen::MatrixXd weighted(n, l);
+          for (int k = 0; k < l; ++k) weighted.col(k) = s.ToGrid(j.col(k), n) / variance[b];
+          q.noalias() += weighted.transpose() * input_sens[output_row[b]];
+        }
       }
       if (q.cols() > 0) ns[a] = q * noise.variance.asDiagonal() * q.transpose();
     });

@@ -147,7 +147,10 @@ PeriodicSolver::PeriodicSolver(Model model, PeriodicSolverOptions options)
   if (!options_.IsValid(&error)) throw std::invalid_argument("periodic solver options: " + error);
   const int m = model_.unknown_count();
   equation_weight_.resize(m);
-  for (int j = 0; j < m; ++j) equation_weight_[j] = 1.0 / model_.equation_scale(j);
+  for (int j = 0; j < m; ++j) {
+    equation_weight_[j] = 1.0 / model_.equation_scale(j);
+    orders_.push_back(model_.derivative_order(j));
+  }
 }
 
 void PeriodicSolver::Prepare(int n) {
@@ -183,20 +186,26 @@ Rates RatesAt(const Stencil& s, const Row& values, int mu, int n, double frequen
 // First and second time derivatives of every row of z at every point: whole shifted columns per
 // stencil offset, so the work is a few vector sweeps rather than an indexed loop per point.
 void GridRates(const Stencil& s, const Eigen::MatrixXd& z, double frequency, Eigen::MatrixXd& first,
-               Eigen::MatrixXd& second) {
+               Eigen::MatrixXd& second, std::span<const int> orders = {}) {
+  // `orders`: the highest derivative the equations use per row (empty: both everywhere); the rates
+  // above it stay zero (the Jacobian treats them as constants, so no term may read them).
   const int n = static_cast<int>(z.cols());
   first.setZero(z.rows(), n);
   second.setZero(z.rows(), n);
-  for (int k = s.kmin; k <= s.kmax; ++k) {
-    const double c1 = s.first[k - s.kmin] * frequency, c2 = s.second[k - s.kmin] * frequency * frequency;
-    const int shift = ((k % n) + n) % n;  // column mu reads column (mu + shift) mod n
-    if (c1 != 0.0) {
-      first.leftCols(n - shift) += c1 * z.rightCols(n - shift);
-      if (shift > 0) first.rightCols(shift) += c1 * z.leftCols(shift);
-    }
-    if (c2 != 0.0) {
-      second.leftCols(n - shift) += c2 * z.rightCols(n - shift);
-      if (shift > 0) second.rightCols(shift) += c2 * z.leftCols(shift);
+  for (Eigen::Index row = 0; row < z.rows(); ++row) {
+    const int order = orders.empty() ? 2 : orders[row];
+    if (order < 1) continue;
+    for (int k = s.kmin; k <= s.kmax; ++k) {
+      const double c1 = s.first[k - s.kmin] * frequency, c2 = s.second[k - s.kmin] * frequency * frequency;
+      const int shift = ((k % n) + n) % n;  // column mu reads column (mu + shift) mod n
+      if (c1 != 0.0) {
+        first.row(row).head(n - shift) += c1 * z.row(row).tail(n - shift);
+        if (shift > 0) first.row(row).tail(shift) += c1 * z.row(row).head(shift);
+      }
+      if (c2 != 0.0 && order >= 2) {
+        second.row(row).head(n - shift) += c2 * z.row(row).tail(n - shift);
+        if (shift > 0) second.row(row).tail(shift) += c2 * z.row(row).head(shift);
+      }
     }
   }
 }
@@ -330,7 +339,7 @@ Eigen::MatrixXd PeriodicSolver::ResidualAt(const Eigen::MatrixXd& z, const Perio
   const int m = model_.unknown_count();
   const int n = static_cast<int>(z.cols());
   Eigen::MatrixXd zd, zdd;
-  GridRates(stencil_, z, input.frequency, zd, zdd);
+  GridRates(stencil_, z, input.frequency, zd, zdd, orders_);
   Eigen::MatrixXd g(m, n);
   const std::size_t values = static_cast<std::size_t>(m) * n;
   model_.Residuals<double>(std::span<const double>(z.data(), values), std::span<const double>(zd.data(), values),
@@ -371,7 +380,7 @@ void PeriodicSolver::AssembleJacobianWith(const Eigen::MatrixXd& z, const Period
   const int n = static_cast<int>(z.cols());
   const double f = input.frequency;
   Eigen::MatrixXd zd, zdd;
-  GridRates(stencil_, z, f, zd, zdd);
+  GridRates(stencil_, z, f, zd, zdd, orders_);
   Linearization<J> points(model_, theta, equation_weight_);
   constexpr int kBatch = Linearization<J>::kBatch;
   for (int start = 0; start < n; start += kBatch) {
@@ -702,7 +711,7 @@ Eigen::MatrixXd PeriodicSolver::ParameterDerivatives(const PeriodicSolution& sol
     return {};
   }
   Eigen::MatrixXd zd, zdd;
-  GridRates(stencil_, z, input.frequency, zd, zdd);
+  GridRates(stencil_, z, input.frequency, zd, zdd, orders_);
   Eigen::MatrixXd rhs(n * m, nd);
   constexpr int kBatch = 32;
   std::vector<J> x(kBatch * m), xd(kBatch * m), xdd(kBatch * m), r(kBatch * m), u(kBatch), ud(kBatch), udd(kBatch);
@@ -762,7 +771,7 @@ std::vector<Eigen::MatrixXd> PeriodicSolver::InputSensitivities(const PeriodicSo
   for (double t : theta) theta_jet.push_back(constant(t));
   const auto& z = solution.unknowns;
   Eigen::MatrixXd zd, zdd;
-  GridRates(stencil_, z, input.frequency, zd, zdd);
+  GridRates(stencil_, z, input.frequency, zd, zdd, orders_);
   Eigen::MatrixXd gu(m, n), gud(m, n), gudd(m, n);  // scaled like G
   {
     std::vector<J> x(m), xd(m), xdd(m), r(m);

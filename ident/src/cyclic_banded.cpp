@@ -115,8 +115,9 @@ void SmallLuSolve(const double* lu, const int* pivots, int m_runtime, double* b,
 // diagonal blocks; M > 0 fixes the block size at compile time so the small loops unroll.
 template <int M>
 void ForwardSubstitute(int m_runtime, const double* inverse_diagonal, const double* sub, int lower, int points,
-                       double* b, int cols, std::size_t ld) {
-  // Points outer, right-hand sides inner: each block is loaded once for all columns.
+                       unsigned coupled, double* b, int cols, std::size_t ld) {
+  // Points outer, right-hand sides inner: each block is loaded once for all columns. `coupled`:
+  // bit c set when unknown c couples to earlier points at all (algebraic unknowns do not).
   const int m = M > 0 ? M : m_runtime;
   const std::size_t mm = static_cast<std::size_t>(m) * m;
   double acc[16];
@@ -130,7 +131,8 @@ void ForwardSubstitute(int m_runtime, const double* inverse_diagonal, const doub
         const double* blk = sub + (static_cast<std::size_t>(mu) * lower + (k + lower)) * mm;
         const double* x = column + static_cast<std::size_t>(mu + k) * m;
         for (int c = 0; c < m; ++c)
-          for (int r = 0; r < m; ++r) acc[r] -= blk[r + c * m] * x[c];
+          if (coupled & (1u << c))
+            for (int r = 0; r < m; ++r) acc[r] -= blk[r + c * m] * x[c];
       }
       for (int r = 0; r < m; ++r) {
         double v = 0.0;
@@ -274,6 +276,15 @@ bool CyclicBandedLU::FactorizeInterior(const CyclicBlockBanded& a) {
   band_.resize(ni * mm);
   sub_.resize(ni * lower_ * mm);
   pivots_.resize(interior_rows_);
+  // Unknowns whose columns are zero in every block below the diagonal (no time derivative).
+  coupled_ = 0;
+  for (int mu = 0; mu < ni; ++mu)
+    for (int k = -lower_; k < 0; ++k) {
+      const auto blk = a.block(mu, k);
+      for (int c = 0; c < m_ && c < 32; ++c)
+        if (blk.col(c).cwiseAbs().maxCoeff() > 0.0) coupled_ |= 1u << c;
+    }
+  if (m_ > 32) coupled_ = ~0u;
   switch (m_) {
     case 1: return InvertDiagonal<1>(a, m_, ni, lower_, band_.data(), sub_.data(), pivots_.data());
     case 2: return InvertDiagonal<2>(a, m_, ni, lower_, band_.data(), sub_.data(), pivots_.data());
@@ -288,11 +299,11 @@ void CyclicBandedLU::SolveInterior(Eigen::Ref<Eigen::MatrixXd> b) const {
   const int points = n_ - border_;
   const std::size_t ld = static_cast<std::size_t>(b.outerStride());
   switch (m_) {
-    case 1: return ForwardSubstitute<1>(m_, band_.data(), sub_.data(), lower_, points, b.data(), cols, ld);
-    case 2: return ForwardSubstitute<2>(m_, band_.data(), sub_.data(), lower_, points, b.data(), cols, ld);
-    case 3: return ForwardSubstitute<3>(m_, band_.data(), sub_.data(), lower_, points, b.data(), cols, ld);
-    case 4: return ForwardSubstitute<4>(m_, band_.data(), sub_.data(), lower_, points, b.data(), cols, ld);
-    default: return ForwardSubstitute<0>(m_, band_.data(), sub_.data(), lower_, points, b.data(), cols, ld);
+    case 1: return ForwardSubstitute<1>(m_, band_.data(), sub_.data(), lower_, points, coupled_, b.data(), cols, ld);
+    case 2: return ForwardSubstitute<2>(m_, band_.data(), sub_.data(), lower_, points, coupled_, b.data(), cols, ld);
+    case 3: return ForwardSubstitute<3>(m_, band_.data(), sub_.data(), lower_, points, coupled_, b.data(), cols, ld);
+    case 4: return ForwardSubstitute<4>(m_, band_.data(), sub_.data(), lower_, points, coupled_, b.data(), cols, ld);
+    default: return ForwardSubstitute<0>(m_, band_.data(), sub_.data(), lower_, points, coupled_, b.data(), cols, ld);
   }
 }
 

@@ -147,10 +147,7 @@ PeriodicSolver::PeriodicSolver(Model model, PeriodicSolverOptions options)
   if (!options_.IsValid(&error)) throw std::invalid_argument("periodic solver options: " + error);
   const int m = model_.unknown_count();
   equation_weight_.resize(m);
-  for (int j = 0; j < m; ++j) {
-    equation_weight_[j] = 1.0 / model_.equation_scale(j);
-    orders_.push_back(model_.derivative_order(j));
-  }
+  for (int j = 0; j < m; ++j) equation_weight_[j] = 1.0 / model_.equation_scale(j);
 }
 
 void PeriodicSolver::Prepare(int n) {
@@ -186,26 +183,20 @@ Rates RatesAt(const Stencil& s, const Row& values, int mu, int n, double frequen
 // First and second time derivatives of every row of z at every point: whole shifted columns per
 // stencil offset, so the work is a few vector sweeps rather than an indexed loop per point.
 void GridRates(const Stencil& s, const Eigen::MatrixXd& z, double frequency, Eigen::MatrixXd& first,
-               Eigen::MatrixXd& second, std::span<const int> orders = {}) {
-  // `orders`: the highest derivative the equations use per row (empty: both everywhere); the rates
-  // above it stay zero (the Jacobian treats them as constants, so no term may read them).
+               Eigen::MatrixXd& second) {
   const int n = static_cast<int>(z.cols());
   first.setZero(z.rows(), n);
   second.setZero(z.rows(), n);
-  for (Eigen::Index row = 0; row < z.rows(); ++row) {
-    const int order = orders.empty() ? 2 : orders[row];
-    if (order < 1) continue;
-    for (int k = s.kmin; k <= s.kmax; ++k) {
-      const double c1 = s.first[k - s.kmin] * frequency, c2 = s.second[k - s.kmin] * frequency * frequency;
-      const int shift = ((k % n) + n) % n;  // column mu reads column (mu + shift) mod n
-      if (c1 != 0.0) {
-        first.row(row).head(n - shift) += c1 * z.row(row).tail(n - shift);
-        if (shift > 0) first.row(row).tail(shift) += c1 * z.row(row).head(shift);
-      }
-      if (c2 != 0.0 && order >= 2) {
-        second.row(row).head(n - shift) += c2 * z.row(row).tail(n - shift);
-        if (shift > 0) second.row(row).tail(shift) += c2 * z.row(row).head(shift);
-      }
+  for (int k = s.kmin; k <= s.kmax; ++k) {
+    const double c1 = s.first[k - s.kmin] * frequency, c2 = s.second[k - s.kmin] * frequency * frequency;
+    const int shift = ((k % n) + n) % n;  // column mu reads column (mu + shift) mod n
+    if (c1 != 0.0) {
+      first.leftCols(n - shift) += c1 * z.rightCols(n - shift);
+      if (shift > 0) first.rightCols(shift) += c1 * z.leftCols(shift);
+    }
+    if (c2 != 0.0) {
+      second.leftCols(n - shift) += c2 * z.rightCols(n - shift);
+      if (shift > 0) second.rightCols(shift) += c2 * z.leftCols(shift);
     }
   }
 }
@@ -309,8 +300,10 @@ struct Linearization {
 struct StepSize {
   double max = 0.0, norm = 0.0;
 };
-StepSize Measure(const Eigen::MatrixXd& dz, const Eigen::VectorXd& inverse_scale) {
-  const Eigen::ArrayXXd scaled = dz.array().colwise() * inverse_scale.array();
+// `inverse_scale` holds one inverted scale per entry of dz (the unknowns' repeated at every point),
+// so both reductions run over contiguous arrays and vectorise.
+StepSize Measure(const Eigen::MatrixXd& dz, const Eigen::ArrayXd& inverse_scale) {
+  const auto scaled = Eigen::Map<const Eigen::ArrayXd>(dz.data(), dz.size()) * inverse_scale;
   return {scaled.abs().maxCoeff(), std::sqrt(scaled.square().sum())};
 }
 
@@ -339,14 +332,15 @@ Eigen::MatrixXd PeriodicSolver::ResidualAt(const Eigen::MatrixXd& z, const Perio
   const int m = model_.unknown_count();
   const int n = static_cast<int>(z.cols());
   Eigen::MatrixXd zd, zdd;
-  GridRates(stencil_, z, input.frequency, zd, zdd, orders_);
+  GridRates(stencil_, z, input.frequency, zd, zdd);
   Eigen::MatrixXd g(m, n);
   const std::size_t values = static_cast<std::size_t>(m) * n;
   model_.Residuals<double>(std::span<const double>(z.data(), values), std::span<const double>(zd.data(), values),
                            std::span<const double>(zdd.data(), values), input.values,
                            std::span<const double>(rates.first.data(), n),
                            std::span<const double>(rates.second.data(), n), theta, std::span<double>(g.data(), values));
-  return equation_weight_.asDiagonal() * g;
+  g.array().colwise() *= equation_weight_.array();
+  return g;
 }
 
 std::shared_ptr<const CyclicBandedLU> PeriodicSolver::Factorize(const Eigen::MatrixXd& z, const PeriodicInput& input,
@@ -380,7 +374,7 @@ void PeriodicSolver::AssembleJacobianWith(const Eigen::MatrixXd& z, const Period
   const int n = static_cast<int>(z.cols());
   const double f = input.frequency;
   Eigen::MatrixXd zd, zdd;
-  GridRates(stencil_, z, f, zd, zdd, orders_);
+  GridRates(stencil_, z, f, zd, zdd);
   Linearization<J> points(model_, theta, equation_weight_);
   constexpr int kBatch = Linearization<J>::kBatch;
   for (int start = 0; start < n; start += kBatch) {
@@ -559,8 +553,9 @@ PeriodicSolution PeriodicSolver::Newton(Eigen::MatrixXd z, std::shared_ptr<const
                                         std::span<const double> theta) {
   const int n = static_cast<int>(input.values.size());
   const int m = model_.unknown_count();
-  Eigen::VectorXd inverse_scale(m);  // Newton's tolerance per unknown, inverted
-  for (int j = 0; j < m; ++j) inverse_scale[j] = 1.0 / (model_.unknown_spec(j).scale * options_.tolerance);
+  Eigen::ArrayXd inverse_scale(static_cast<Eigen::Index>(m) * n);  // Newton's tolerance per unknown, inverted
+  for (int j = 0; j < m; ++j)
+    inverse_scale(Eigen::seqN(j, n, m)) = 1.0 / (model_.unknown_spec(j).scale * options_.tolerance);
 
   Eigen::MatrixXd g = ResidualAt(z, input, rates, theta);
   double norm = g.allFinite() ? g.norm() : INFINITY;
@@ -711,7 +706,7 @@ Eigen::MatrixXd PeriodicSolver::ParameterDerivatives(const PeriodicSolution& sol
     return {};
   }
   Eigen::MatrixXd zd, zdd;
-  GridRates(stencil_, z, input.frequency, zd, zdd, orders_);
+  GridRates(stencil_, z, input.frequency, zd, zdd);
   Eigen::MatrixXd rhs(n * m, nd);
   constexpr int kBatch = 32;
   std::vector<J> x(kBatch * m), xd(kBatch * m), xdd(kBatch * m), r(kBatch * m), u(kBatch), ud(kBatch), udd(kBatch);
@@ -771,7 +766,7 @@ std::vector<Eigen::MatrixXd> PeriodicSolver::InputSensitivities(const PeriodicSo
   for (double t : theta) theta_jet.push_back(constant(t));
   const auto& z = solution.unknowns;
   Eigen::MatrixXd zd, zdd;
-  GridRates(stencil_, z, input.frequency, zd, zdd, orders_);
+  GridRates(stencil_, z, input.frequency, zd, zdd);
   Eigen::MatrixXd gu(m, n), gud(m, n), gudd(m, n);  // scaled like G
   {
     std::vector<J> x(m), xd(m), xdd(m), r(m);

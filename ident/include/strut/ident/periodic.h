@@ -206,7 +206,6 @@ class PeriodicSolver : public PeriodicPredictor {
   Stencil stencil_;
   int prepared_n_ = -1;
   Eigen::VectorXd equation_weight_;  //!< 1 / equation scale, per unknown
-  std::vector<int> orders_;          //!< highest time derivative the equations use, per unknown
   CyclicBlockBanded jacobian_;       //!< assembly buffer
   //! Factorisations to reuse: one no solution holds any more is refactorised in place, which
   //! saves its allocation (hundreds of kB at n = 800).

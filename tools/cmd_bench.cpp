@@ -339,9 +339,9 @@ class TallyingPredictor : public ident::PeriodicPredictor {
   }
   std::vector<Eigen::MatrixXd> OutputSensitivities(const ident::PeriodicSolution& solution,
                                                    std::span<const double> theta,
-                                                   std::span<const int> parameters) override {
+                                                   std::span<const int> parameters, bool exact) override {
     const auto start = Clock::now();
-    auto s = inner_->OutputSensitivities(solution, theta, parameters);
+    auto s = inner_->OutputSensitivities(solution, theta, parameters, exact);
     tally_->sensitivity_ms += std::chrono::duration<double, std::milli>(Clock::now() - start).count();
     ++tally_->sensitivity_calls;
     return s;

@@ -341,8 +341,10 @@ FitSummary Estimator::Fit(const std::vector<ExperimentData>& data, const Paramet
   // The staged Gauss-Newton iteration of eqs. 18, 19.
   // With `input_noise`: also, per experiment, the scaled-gradient covariance that the measured
   // input's noise causes (sum over its noisy Fourier coefficients of var * q q^T, q = J^T W dy/dc).
+  // Steps may use sensitivities within a few percent (the solution's carried factorisation, as the
+  // paper reuses the last one); the final uncertainty (`input_noise` given) takes exact ones.
   const auto normal_equations = [&](const std::vector<double>& variance, Eigen::MatrixXd& h, Eigen::VectorXd& g,
-                                    Eigen::MatrixXd* input_noise = nullptr) {
+                                    Eigen::MatrixXd* input_noise = nullptr, bool exact = false) {
     h.setZero(l, l);
     g.setZero(l);
     // Per experiment on `threads` threads, summed in experiment order (the same result for any count).
@@ -352,7 +354,7 @@ FitSummary Estimator::Fit(const std::vector<ExperimentData>& data, const Paramet
     ParallelFor(static_cast<int>(states.size()), threads, [&](int a) {
       ExperimentState& s = states[a];
       if (!s.active) return;
-      const auto sens = s.solver->OutputSensitivities(s.solution, theta, est);
+      const auto sens = s.solver->OutputSensitivities(s.solution, theta, est, exact);
       const InputNoise noise = input_noise ? InputNoiseOf(*s.data, n) : InputNoise{};
       const auto input_sens =
           noise.basis.cols() > 0 ? s.solver->InputSensitivities(s.solution, theta, noise.basis) : std::vector<Eigen::MatrixXd>{};
@@ -486,7 +488,7 @@ FitSummary Estimator::Fit(const std::vector<ExperimentData>& data, const Paramet
   if (l > 0) {
     Eigen::VectorXd g;
     Eigen::MatrixXd input_noise;
-    normal_equations(variance, information, g, options_.input_noise ? &input_noise : nullptr);
+    normal_equations(variance, information, g, options_.input_noise ? &input_noise : nullptr, true);
     Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(information);
     const double largest = eig.eigenvalues().maxCoeff();
     Eigen::MatrixXd covariance = information.completeOrthogonalDecomposition().pseudoInverse();

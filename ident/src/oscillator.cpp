@@ -128,8 +128,8 @@ PeriodicSolution OscillatorPredictor::Solve(const PeriodicInput& input, std::spa
 
 std::vector<Eigen::MatrixXd> OscillatorPredictor::OutputSensitivities(const PeriodicSolution& solution,
                                                                       std::span<const double> theta,
-                                                                      std::span<const int> parameters) {
-  return solver_.OutputSensitivities(solution, theta, parameters);
+                                                                      std::span<const int> parameters, bool exact) {
+  return solver_.OutputSensitivities(solution, theta, parameters, exact);
 }
 
 std::vector<double> BandLimitedUpsample(std::span<const double> samples, int factor) {

@@ -561,6 +561,7 @@ PeriodicSolution PeriodicSolver::Newton(Eigen::MatrixXd z, std::shared_ptr<const
   double norm = g.allFinite() ? g.norm() : INFINITY;
   int iteration = 0, factorizations = 0;
   bool converged = false, fresh = false;
+  double last_contraction = INFINITY;  // of the last step with the factorisation in use
   Eigen::MatrixXd step;  // the next Newton direction when the last step left one (simplified Newton)
   for (; iteration < options_.max_iterations && !converged; ++iteration) {
     if (!std::isfinite(norm))
@@ -572,6 +573,7 @@ PeriodicSolution PeriodicSolver::Newton(Eigen::MatrixXd z, std::shared_ptr<const
     if (fresh) {
       lu = Factorize(z, input, rates, theta, iteration, norm);
       ++factorizations;
+      last_contraction = INFINITY;
       step.resize(0, 0);
     }
     if (step.size() == 0) {
@@ -610,6 +612,7 @@ PeriodicSolution PeriodicSolver::Newton(Eigen::MatrixXd z, std::shared_ptr<const
         // correction (Deuflhard); the largest components (near friction switches) may contract
         // slower than the norm, so Theta is the larger of the two ratios.
         const double theta_max = std::max(contraction, correction_size.max / step_size.max);
+        if (lambda == 1.0) last_contraction = theta_max;
         const double error_left = fresh ? correction_size.max
                                         : (theta_max < 0.5 ? theta_max / (1.0 - theta_max) * correction_size.max : INFINITY);
         if (descent && lambda == 1.0 && error_left <= 1.0) {
@@ -626,6 +629,7 @@ PeriodicSolution PeriodicSolver::Newton(Eigen::MatrixXd z, std::shared_ptr<const
       }
     }
     if (!accepted && !fresh) {  // the carried factorisation does not fit here: assemble a new one
+      last_contraction = INFINITY;
       lu.reset();
       step.resize(0, 0);
       converged = false;
@@ -665,6 +669,7 @@ PeriodicSolution PeriodicSolver::Newton(Eigen::MatrixXd z, std::shared_ptr<const
   solution.residual_norm = g.lpNorm<Eigen::Infinity>();
   solution.jacobian = std::move(lu);
   solution.jacobian_current = fresh;
+  solution.jacobian_contraction = fresh ? 0.0 : last_contraction;
   solution.channels = model_.output_channels();
   solution.outputs.resize(static_cast<int>(solution.channels.size()), n);
   std::vector<double> y(solution.channels.size());
@@ -744,6 +749,7 @@ void PeriodicSolver::MakeJacobianCurrent(const PeriodicSolution& solution, const
   // Simplified Newton steps (or a guess) led here: eq. 14 wants the Jacobian at the solution.
   solution.jacobian = Factorize(solution.unknowns, solution.input, rates, theta, 0, 0.0);
   solution.jacobian_current = true;
+  solution.jacobian_contraction = 0.0;
 }
 
 std::vector<Eigen::MatrixXd> PeriodicSolver::InputSensitivities(const PeriodicSolution& solution,
@@ -814,7 +820,7 @@ std::vector<Eigen::MatrixXd> PeriodicSolver::InputSensitivities(const PeriodicSo
 
 std::vector<Eigen::MatrixXd> PeriodicSolver::OutputSensitivities(const PeriodicSolution& solution,
                                                                  std::span<const double> theta,
-                                                                 std::span<const int> parameters) {
+                                                                 std::span<const int> parameters, bool exact) {
   const int m = model_.unknown_count();
   const int n = solution.n;
   const int np = model_.parameter_count();
@@ -830,7 +836,9 @@ std::vector<Eigen::MatrixXd> PeriodicSolver::OutputSensitivities(const PeriodicS
     throw std::invalid_argument(fmt::format("periodic solver: at most {} sensitivities at once", kMaxDerivatives));
   Prepare(n);
   const InputRates rates(stencil_, solution.input);
-  MakeJacobianCurrent(solution, rates, theta);
+  const bool close_enough = !exact && solution.jacobian && solution.jacobian->rows() == solution.unknowns.size() &&
+                            solution.jacobian_contraction <= 0.05;
+  if (!close_enough) MakeJacobianCurrent(solution, rates, theta);
   // d(outputs)/dtheta = df/dz dz/dtheta + df/dtheta (eq. 15), with dz/dtheta from eq. 14.
   Eigen::MatrixXd dz = nd <= kStateDirections ? ParameterDerivatives<StateJet>(solution, rates, theta, wanted, nullptr)
                                               : ParameterDerivatives<Jet>(solution, rates, theta, wanted, nullptr);

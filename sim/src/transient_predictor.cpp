@@ -389,7 +389,7 @@ ident::PeriodicSolution TransientPredictor::Solve(const ident::PeriodicInput& in
 
 std::vector<Eigen::MatrixXd> TransientPredictor::OutputSensitivities(const ident::PeriodicSolution& solution,
                                                                      std::span<const double> theta,
-                                                                     std::span<const int> wanted) {
+                                                                     std::span<const int> wanted, bool) {
   const auto start = std::chrono::steady_clock::now();
   const int n = solution.n;
   const int m = model_.unknown_count();

@@ -40,7 +40,7 @@ class OscillatorPredictor : public PeriodicPredictor {
   PeriodicSolution Solve(const PeriodicInput& input, std::span<const double> theta,
                          const PeriodicSolution* warm_start = nullptr) override;
   std::vector<Eigen::MatrixXd> OutputSensitivities(const PeriodicSolution& solution, std::span<const double> theta,
-                                                   std::span<const int> parameters = {}) override;
+                                                   std::span<const int> parameters = {}, bool exact = true) override;
   std::vector<Eigen::MatrixXd> InputSensitivities(const PeriodicSolution& solution, std::span<const double> theta,
                                                   const Eigen::MatrixXd& perturbations) override {
     return solver_.InputSensitivities(solution, theta, perturbations);

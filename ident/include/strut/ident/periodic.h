@@ -109,6 +109,9 @@ struct PeriodicSolution {
   //! a step below the tolerance away): sensitivities are then exact with it. False when simplified
   //! steps carried an older factorisation along.
   mutable bool jacobian_current = false;
+  //! How far `jacobian` is from the one at the solution: the contraction of the last simplified
+  //! step taken with it (about the relative error of sensitivities computed with it; 0 if current).
+  mutable double jacobian_contraction = 0.0;
   //! dz/dtheta (unknowns of every point stacked, m n rows) for the parameters at these positions,
   //! when OutputSensitivities computed them: a warm start from this solution then begins at the
   //! tangent prediction z + dz/dtheta (theta_new - theta) when only these parameters changed.
@@ -130,9 +133,12 @@ class PeriodicPredictor {
                                  const PeriodicSolution* warm_start = nullptr) = 0;
   //! d outputs / d theta at a solution: one (n x parameters.size()) matrix per output channel, a
   //! column per position in `parameters` in that order (empty: every parameter in model order).
+  //! `exact` false allows an approximation within a few percent (steps of an iteration may use it;
+  //! uncertainties must not).
   virtual std::vector<Eigen::MatrixXd> OutputSensitivities(const PeriodicSolution& solution,
                                                            std::span<const double> theta,
-                                                           std::span<const int> parameters = {}) = 0;
+                                                           std::span<const int> parameters = {},
+                                                           bool exact = true) = 0;
   //! d outputs / d input in the directions of `perturbations` (one input perturbation on the grid
   //! per column): one (n x columns) matrix per output channel. Empty when the predictor cannot.
   virtual std::vector<Eigen::MatrixXd> InputSensitivities(const PeriodicSolution& solution,
@@ -157,10 +163,13 @@ class PeriodicSolver : public PeriodicPredictor {
 
   //! d outputs / d theta at a solution (eqs. 14, 15): one (n x parameters.size()) matrix per channel,
   //! columns in the order of `parameters` (empty: all). Reuses the solution's Newton factorisation
-  //! when it is current, else factorises at the solution (and keeps that in it).
+  //! when it is current, else factorises at the solution (and keeps that in it). Not `exact`: also
+  //! the factorisation its simplified steps carried when they contracted below 0.05 (the paper's
+  //! reuse of the last factorisation; the sensitivities are then within about that fraction).
   std::vector<Eigen::MatrixXd> OutputSensitivities(const PeriodicSolution& solution,
                                                    std::span<const double> theta,
-                                                   std::span<const int> parameters = {}) override;
+                                                   std::span<const int> parameters = {},
+                                                   bool exact = true) override;
 
   //! d outputs / d input (the linearisation at the solution, same factorisation as eq. 14): how a
   //! perturbation of the measured input on the grid (its rates by the scheme's stencil) moves

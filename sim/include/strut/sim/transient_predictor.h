@@ -80,7 +80,8 @@ class TransientPredictor : public ident::PeriodicPredictor {
   //! `parameters` (positions; empty: options().parameters) are the ones differentiated.
   std::vector<Eigen::MatrixXd> OutputSensitivities(const ident::PeriodicSolution& solution,
                                                    std::span<const double> theta,
-                                                   std::span<const int> parameters = {}) override;
+                                                   std::span<const int> parameters = {},
+                                                   bool exact = true) override;
 
  private:
   struct Ida;

@@ -27,7 +27,6 @@ std::vector<std::string> DefaultChannels(const Model& model) {
   return channels;
 }
 
-// Everything one iterate of the fit needs per experiment.
 //! The noise of a measured input as the estimator sees it: perturbation directions on the grid (the
 //! series' kept harmonics) and the variance of each coefficient.
 struct InputNoise {
@@ -61,6 +60,7 @@ InputNoise InputNoiseOf(const ExperimentData& d, int n) {
   return noise;
 }
 
+// Everything one iterate of the fit needs per experiment.
 struct ExperimentState {
   const ExperimentData* data = nullptr;
   std::unique_ptr<PeriodicPredictor> solver;
@@ -433,10 +433,10 @@ FitSummary Estimator::Fit(const std::vector<ExperimentData>& data, const Paramet
           const double gain = value - objective;
           objective = value;
           accepted = true;
-          spdlog::debug("fit iteration {}: loglik {:.6g} (+{:.3g}), step {}, damping sd {:.3g}, relative steps {}",
+          spdlog::debug("fit iteration {}: loglik {:.6g} (+{:.3g}), step {}, damping sd {:.3g}, steps in scales{}",
                         iteration + 1, objective, gain, lambda, damping_sd, [&] {
                           std::string s;
-                          for (int k = 0; k < l; ++k) s += fmt::format(" {:.3g}", lambda * step[k] * scale[est[k]] / theta[est[k]]);
+                          for (int k = 0; k < l; ++k) s += fmt::format(" {:.3g}", lambda * step[k]);
                           return s;
                         }());
           break;

@@ -339,8 +339,9 @@ void CyclicBandedLU::Solve(Eigen::Ref<Eigen::MatrixXd> b) const {
   auto w = b.topRows(interior_rows_);
   SolveInterior(w);
   const Eigen::MatrixXd yb = schur_.Solve(b.bottomRows(nb) - BorderTimes(w));
-  for (std::size_t c = 0; c < border_columns_.size(); ++c)
-    w.noalias() -= interior_border_.col(c) * yb.row(border_columns_[c]);
+  Eigen::MatrixXd coupled(static_cast<Eigen::Index>(border_columns_.size()), yb.cols());
+  for (std::size_t c = 0; c < border_columns_.size(); ++c) coupled.row(c) = yb.row(border_columns_[c]);
+  w.noalias() -= interior_border_ * coupled;
   b.bottomRows(nb) = yb;
 }
 

@@ -185,19 +185,27 @@ Rates RatesAt(const Stencil& s, const Row& values, int mu, int n, double frequen
 void GridRates(const Stencil& s, const Eigen::MatrixXd& z, double frequency, Eigen::MatrixXd& first,
                Eigen::MatrixXd& second) {
   const int n = static_cast<int>(z.cols());
-  first.setZero(z.rows(), n);
-  second.setZero(z.rows(), n);
+  const Eigen::Index m = z.rows();
+  first.setZero(m, n);
+  second.setZero(m, n);
+  // Column-major: the columns mu + shift for mu = 0 .. n - shift - 1 are one contiguous run, and
+  // so are the wrapped ones; each run is read once for both derivatives.
+  const auto add = [&](Eigen::Index to, Eigen::Index from, Eigen::Index columns, double c1, double c2) {
+    const double* src = z.data() + from * m;
+    double* d1 = first.data() + to * m;
+    double* d2 = second.data() + to * m;
+    for (Eigen::Index i = 0; i < columns * m; ++i) {
+      const double v = src[i];
+      d1[i] += c1 * v;
+      d2[i] += c2 * v;
+    }
+  };
   for (int k = s.kmin; k <= s.kmax; ++k) {
     const double c1 = s.first[k - s.kmin] * frequency, c2 = s.second[k - s.kmin] * frequency * frequency;
+    if (c1 == 0.0 && c2 == 0.0) continue;
     const int shift = ((k % n) + n) % n;  // column mu reads column (mu + shift) mod n
-    if (c1 != 0.0) {
-      first.leftCols(n - shift) += c1 * z.rightCols(n - shift);
-      if (shift > 0) first.rightCols(shift) += c1 * z.leftCols(shift);
-    }
-    if (c2 != 0.0) {
-      second.leftCols(n - shift) += c2 * z.rightCols(n - shift);
-      if (shift > 0) second.rightCols(shift) += c2 * z.leftCols(shift);
-    }
+    add(0, shift, n - shift, c1, c2);
+    if (shift > 0) add(n - shift, 0, shift, c1, c2);
   }
 }
 

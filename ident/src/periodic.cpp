@@ -680,11 +680,10 @@ PeriodicSolution PeriodicSolver::Newton(Eigen::MatrixXd z, std::shared_ptr<const
   solution.jacobian_contraction = fresh ? 0.0 : last_contraction;
   solution.channels = model_.output_channels();
   solution.outputs.resize(static_cast<int>(solution.channels.size()), n);
-  std::vector<double> y(solution.channels.size());
-  for (int mu = 0; mu < n; ++mu) {
-    model_.Outputs<double>(std::span<const double>(solution.unknowns.col(mu).data(), m), input.values[mu], theta, y);
-    for (std::size_t c = 0; c < y.size(); ++c) solution.outputs(static_cast<int>(c), mu) = y[c];
-  }
+  const std::size_t channels = solution.channels.size();
+  for (int mu = 0; mu < n; ++mu)  // column mu of the outputs is contiguous: written in place
+    model_.Outputs<double>(std::span<const double>(solution.unknowns.col(mu).data(), m), input.values[mu], theta,
+                           std::span<double>(solution.outputs.col(mu).data(), channels));
   if (!solution.outputs.allFinite())
     throw PeriodicSolverError("periodic solver: non-finite outputs at the solution", norm, iteration);
   return solution;

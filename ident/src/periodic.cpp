@@ -802,26 +802,37 @@ std::vector<Eigen::MatrixXd> PeriodicSolver::InputSensitivities(const PeriodicSo
   const int columns = static_cast<int>(perturbations.cols());
   Eigen::MatrixXd pd, pdd;  // the perturbations' rates, by the stencil the solver applies to the input
   GridRates(stencil_, perturbations.transpose(), input.frequency, pd, pdd);
+  pd.transposeInPlace();  // n x columns, like the perturbations
+  pdd.transposeInPlace();
+  // Right-hand sides column by column (contiguous), then one solve for all of them.
   Eigen::MatrixXd dz(n * m, columns);
-  for (int mu = 0; mu < n; ++mu)
-    for (int i = 0; i < m; ++i)
-      dz.row(mu * m + i) = -(gu(i, mu) * perturbations.row(mu) + gud(i, mu) * pd.col(mu).transpose() +
-                             gudd(i, mu) * pdd.col(mu).transpose());
+  for (int b = 0; b < columns; ++b)
+    for (int mu = 0; mu < n; ++mu)
+      for (int i = 0; i < m; ++i)
+        dz(mu * m + i, b) = -(gu(i, mu) * perturbations(mu, b) + gud(i, mu) * pd(mu, b) + gudd(i, mu) * pdd(mu, b));
   solution.jacobian->Solve(dz);
   const int channels = static_cast<int>(solution.channels.size());
   if (m + 1 > kStateDirections) throw std::invalid_argument("periodic solver: too many unknowns for input sensitivities");
-  std::vector<Eigen::MatrixXd> out(channels, Eigen::MatrixXd(n, columns));
+  // The outputs' derivatives in the unknowns (channels x m per point) and in the input.
+  Eigen::MatrixXd yx(channels, static_cast<Eigen::Index>(m) * n), yu(channels, n);
   std::vector<J> x(m), y(channels);
   for (int mu = 0; mu < n; ++mu) {
     for (int j = 0; j < m; ++j) x[j] = J(z(j, mu), J::DerType::Unit(j));
     model_.Outputs<J>(x, J(input.values[mu], J::DerType::Unit(m)), theta_jet, y);
     for (int c = 0; c < channels; ++c) {
       const auto& d = y[c].derivatives();
-      Eigen::RowVectorXd row = d[m] * perturbations.row(mu);
-      for (int j = 0; j < m; ++j) row += d[j] * dz.row(mu * m + j);
-      out[c].row(mu) = row;
+      for (int j = 0; j < m; ++j) yx(c, mu * m + j) = d[j];
+      yu(c, mu) = d[m];
     }
   }
+  std::vector<Eigen::MatrixXd> out(channels, Eigen::MatrixXd(n, columns));
+  for (int c = 0; c < channels; ++c)
+    for (int b = 0; b < columns; ++b)
+      for (int mu = 0; mu < n; ++mu) {
+        double v = yu(c, mu) * perturbations(mu, b);
+        for (int j = 0; j < m; ++j) v += yx(c, mu * m + j) * dz(mu * m + j, b);
+        out[c](mu, b) = v;
+      }
   return out;
 }
 

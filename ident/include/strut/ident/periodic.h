@@ -103,7 +103,8 @@ struct PeriodicSolution {
 
   //! The factorised Newton Jacobian this solution was reached with (null for a guess): warm starts
   //! from this solution take simplified Newton steps with it, and sensitivities (eq. 14) reuse it
-  //! when it is current. A cache, so OutputSensitivities may replace it by one at the solution.
+  //! when it is current. A cache, so OutputSensitivities may replace it by one at the solution
+  //! (so one solution object must not be passed to two such calls on different threads at once).
   mutable std::shared_ptr<const CyclicBandedLU> jacobian;
   //! True when `jacobian` was factorised for the final Newton step (at the last iterate but one,
   //! a step below the tolerance away): sensitivities are then exact with it. False when simplified

@@ -385,6 +385,7 @@ void PeriodicSolver::AssembleJacobianWith(const Eigen::MatrixXd& z, const Period
   GridRates(stencil_, z, f, zd, zdd);
   Linearization<J> points(model_, theta, equation_weight_);
   constexpr int kBatch = Linearization<J>::kBatch;
+  const int mm = model_.unknown_count() * model_.unknown_count();
   for (int start = 0; start < n; start += kBatch) {
     const int size = std::min(kBatch, n - start);
     for (int k = 0; k < size; ++k) {
@@ -393,8 +394,6 @@ void PeriodicSolver::AssembleJacobianWith(const Eigen::MatrixXd& z, const Period
                   rates.second(0, mu));
     }
     points.Evaluate(size);
-    const int m = model_.unknown_count();
-    const int mm = m * m;
     for (int k = 0; k < size; ++k) {
       const double* rx = points.rx.data() + k * mm;  // column-major m x m blocks of point k
       const double* rxd = points.rxd.data() + k * mm;
@@ -676,7 +675,6 @@ PeriodicSolution PeriodicSolver::Newton(Eigen::MatrixXd z, std::shared_ptr<const
   solution.factorizations = factorizations;
   solution.residual_norm = g.lpNorm<Eigen::Infinity>();
   solution.jacobian = std::move(lu);
-  solution.jacobian_current = fresh;
   solution.jacobian_contraction = fresh ? 0.0 : last_contraction;
   solution.channels = model_.output_channels();
   solution.outputs.resize(static_cast<int>(solution.channels.size()), n);
@@ -689,34 +687,33 @@ PeriodicSolution PeriodicSolver::Newton(Eigen::MatrixXd z, std::shared_ptr<const
   return solution;
 }
 
+namespace {
+
+// Jets for parameter sensitivities: constants, and the parameters `wanted` as directions 0, 1, ...
 template <class J>
-Eigen::MatrixXd PeriodicSolver::ParameterDerivatives(const PeriodicSolution& solution, const InputRates& rates,
-                                                     std::span<const double> theta, const std::vector<int>& wanted,
-                                                     const Eigen::MatrixXd* dz, std::vector<Eigen::MatrixXd>* sens) const {
-  // Jets in the parameter directions (the unknowns carry dz/dtheta when it is given): without dz,
-  // -dG/dtheta scaled like G (the right-hand side of eq. 14); with it, the outputs' derivatives.
-  const int m = model_.unknown_count(), n = solution.n, nd = static_cast<int>(wanted.size());
-  const int directions = J::DerType::RowsAtCompileTime == Eigen::Dynamic ? nd : int(J::DerType::RowsAtCompileTime);
-  const auto constant = [&](double v) { return J(v, J::DerType::Zero(directions)); };
+struct ParameterJets {
+  ParameterJets(std::span<const double> theta, const std::vector<int>& wanted)
+      : directions(J::DerType::RowsAtCompileTime == Eigen::Dynamic ? static_cast<int>(wanted.size())
+                                                                   : int(J::DerType::RowsAtCompileTime)) {
+    for (double t : theta) theta_jet.push_back(Constant(t));
+    for (std::size_t k = 0; k < wanted.size(); ++k)
+      theta_jet[wanted[k]] = J(theta[wanted[k]], J::DerType::Unit(directions, static_cast<int>(k)));
+  }
+  J Constant(double v) const { return J(v, J::DerType::Zero(directions)); }
+  int directions;
   std::vector<J> theta_jet;
-  for (double t : theta) theta_jet.push_back(constant(t));
-  for (int k = 0; k < nd; ++k) theta_jet[wanted[k]] = J(theta[wanted[k]], J::DerType::Unit(directions, k));
+};
+
+}  // namespace
+
+template <class J>
+Eigen::MatrixXd PeriodicSolver::ParameterResiduals(const PeriodicSolution& solution, const InputRates& rates,
+                                                   std::span<const double> theta,
+                                                   const std::vector<int>& wanted) const {
+  const int m = model_.unknown_count(), n = solution.n, nd = static_cast<int>(wanted.size());
+  const ParameterJets<J> jets(theta, wanted);
   const auto& z = solution.unknowns;
   const PeriodicInput& input = solution.input;
-  if (dz) {
-    std::vector<J> x(m), y(solution.channels.size());
-    for (int mu = 0; mu < n; ++mu) {
-      for (int j = 0; j < m; ++j) {
-        typename J::DerType d = J::DerType::Zero(directions);
-        d.head(nd) = dz->row(mu * m + j).transpose();
-        x[j] = J(z(j, mu), d);
-      }
-      model_.Outputs<J>(x, constant(input.values[mu]), theta_jet, y);
-      for (std::size_t c = 0; c < y.size(); ++c)
-        for (int k = 0; k < nd; ++k) (*sens)[c](mu, k) = y[c].derivatives()[k];
-    }
-    return {};
-  }
   Eigen::MatrixXd zd, zdd;
   GridRates(stencil_, z, input.frequency, zd, zdd);
   Eigen::MatrixXd rhs(n * m, nd);
@@ -727,18 +724,18 @@ Eigen::MatrixXd PeriodicSolver::ParameterDerivatives(const PeriodicSolution& sol
     for (int k = 0; k < size; ++k) {
       const int mu = start + k;
       for (int j = 0; j < m; ++j) {
-        x[k * m + j] = constant(z(j, mu));
-        xd[k * m + j] = constant(zd(j, mu));
-        xdd[k * m + j] = constant(zdd(j, mu));
+        x[k * m + j] = jets.Constant(z(j, mu));
+        xd[k * m + j] = jets.Constant(zd(j, mu));
+        xdd[k * m + j] = jets.Constant(zdd(j, mu));
       }
-      u[k] = constant(input.values[mu]);
-      ud[k] = constant(rates.first(0, mu));
-      udd[k] = constant(rates.second(0, mu));
+      u[k] = jets.Constant(input.values[mu]);
+      ud[k] = jets.Constant(rates.first(0, mu));
+      udd[k] = jets.Constant(rates.second(0, mu));
     }
     const std::size_t values = static_cast<std::size_t>(size) * m;
     model_.Residuals<J>(std::span<const J>(x.data(), values), std::span<const J>(xd.data(), values),
                         std::span<const J>(xdd.data(), values), std::span<const J>(u.data(), size),
-                        std::span<const J>(ud.data(), size), std::span<const J>(udd.data(), size), theta_jet,
+                        std::span<const J>(ud.data(), size), std::span<const J>(udd.data(), size), jets.theta_jet,
                         std::span<J>(r.data(), values));
     for (int k = 0; k < size; ++k)
       for (int i = 0; i < m; ++i) {
@@ -750,12 +747,35 @@ Eigen::MatrixXd PeriodicSolver::ParameterDerivatives(const PeriodicSolution& sol
   return rhs;
 }
 
+template <class J>
+std::vector<Eigen::MatrixXd> PeriodicSolver::OutputDerivatives(const PeriodicSolution& solution,
+                                                               std::span<const double> theta,
+                                                               const std::vector<int>& wanted,
+                                                               const Eigen::MatrixXd& dz) const {
+  const int m = model_.unknown_count(), n = solution.n, nd = static_cast<int>(wanted.size());
+  const ParameterJets<J> jets(theta, wanted);
+  const auto& z = solution.unknowns;
+  std::vector<Eigen::MatrixXd> sens(solution.channels.size(), Eigen::MatrixXd(n, nd));
+  std::vector<J> x(m), y(solution.channels.size());
+  for (int mu = 0; mu < n; ++mu) {
+    for (int j = 0; j < m; ++j) {
+      typename J::DerType d = J::DerType::Zero(jets.directions);
+      d.head(nd) = dz.row(mu * m + j).transpose();
+      x[j] = J(z(j, mu), d);
+    }
+    model_.Outputs<J>(x, jets.Constant(solution.input.values[mu]), jets.theta_jet, y);
+    for (std::size_t c = 0; c < y.size(); ++c)
+      for (int k = 0; k < nd; ++k) sens[c](mu, k) = y[c].derivatives()[k];
+  }
+  return sens;
+}
+
 void PeriodicSolver::MakeJacobianCurrent(const PeriodicSolution& solution, const InputRates& rates,
                                          std::span<const double> theta) {
-  if (solution.jacobian && solution.jacobian_current && solution.jacobian->rows() == solution.unknowns.size()) return;
+  if (solution.jacobian && solution.jacobian_contraction == 0.0 && solution.jacobian->rows() == solution.unknowns.size())
+    return;
   // Simplified Newton steps (or a guess) led here: eq. 14 wants the Jacobian at the solution.
   solution.jacobian = Factorize(solution.unknowns, solution.input, rates, theta, 0, 0.0);
-  solution.jacobian_current = true;
   solution.jacobian_contraction = 0.0;
 }
 
@@ -774,9 +794,9 @@ std::vector<Eigen::MatrixXd> PeriodicSolver::InputSensitivities(const PeriodicSo
   // outputs' in the unknowns and the input: one fixed-size Jet pass each.
   using J = StateJet;
   static_assert(kStateDirections >= 3);
-  const auto constant = [](double v) { return J(v, J::DerType::Zero()); };
-  std::vector<J> theta_jet;
-  for (double t : theta) theta_jet.push_back(constant(t));
+  const ParameterJets<J> jets(theta, {});  // parameters constant here
+  const auto constant = [&](double v) { return jets.Constant(v); };
+  const auto& theta_jet = jets.theta_jet;
   const auto& z = solution.unknowns;
   Eigen::MatrixXd zd, zdd;
   GridRates(stencil_, z, input.frequency, zd, zdd);
@@ -857,16 +877,14 @@ std::vector<Eigen::MatrixXd> PeriodicSolver::OutputSensitivities(const PeriodicS
   const bool close_enough = !exact && solution.jacobian && solution.jacobian->rows() == solution.unknowns.size() &&
                             solution.jacobian_contraction <= 0.05;
   if (!close_enough) MakeJacobianCurrent(solution, rates, theta);
-  // d(outputs)/dtheta = df/dz dz/dtheta + df/dtheta (eq. 15), with dz/dtheta from eq. 14.
-  Eigen::MatrixXd dz = nd <= kStateDirections ? ParameterDerivatives<StateJet>(solution, rates, theta, wanted, nullptr)
-                                              : ParameterDerivatives<Jet>(solution, rates, theta, wanted, nullptr);
+  // d(outputs)/dtheta = df/dz dz/dtheta + df/dtheta (eq. 15), with dz/dtheta from eq. 14;
+  // fixed-size Jets when the parameters fit in them.
+  const bool fixed = nd <= kStateDirections;
+  Eigen::MatrixXd dz = fixed ? ParameterResiduals<StateJet>(solution, rates, theta, wanted)
+                             : ParameterResiduals<Jet>(solution, rates, theta, wanted);
   solution.jacobian->Solve(dz);  // -dG/dtheta became dz/dtheta (eq. 14)
-  std::vector<Eigen::MatrixXd> sens(solution.channels.size(), Eigen::MatrixXd(n, nd));
-  if (nd <= kStateDirections) {
-    ParameterDerivatives<StateJet>(solution, rates, theta, wanted, &dz, &sens);
-  } else {
-    ParameterDerivatives<Jet>(solution, rates, theta, wanted, &dz, &sens);
-  }
+  std::vector<Eigen::MatrixXd> sens = fixed ? OutputDerivatives<StateJet>(solution, theta, wanted, dz)
+                                            : OutputDerivatives<Jet>(solution, theta, wanted, dz);
   solution.unknown_sensitivities = std::move(dz);
   solution.sensitivity_parameters = wanted;
   return sens;

@@ -7,6 +7,7 @@
 #pragma once
 
 #include <Eigen/Dense>
+#include <cmath>
 #include <memory>
 #include <optional>
 #include <span>
@@ -103,16 +104,15 @@ struct PeriodicSolution {
 
   //! The factorised Newton Jacobian this solution was reached with (null for a guess): warm starts
   //! from this solution take simplified Newton steps with it, and sensitivities (eq. 14) reuse it
-  //! when it is current. A cache, so OutputSensitivities may replace it by one at the solution
+  //! when it is current (`jacobian_contraction` 0). A cache, so OutputSensitivities may replace it by one at the solution
   //! (so one solution object must not be passed to two such calls on different threads at once).
   mutable std::shared_ptr<const CyclicBandedLU> jacobian;
-  //! True when `jacobian` was factorised for the final Newton step (at the last iterate but one,
-  //! a step below the tolerance away): sensitivities are then exact with it. False when simplified
-  //! steps carried an older factorisation along.
-  mutable bool jacobian_current = false;
-  //! How far `jacobian` is from the one at the solution: the contraction of the last simplified
-  //! step taken with it (about the relative error of sensitivities computed with it; 0 if current).
-  mutable double jacobian_contraction = 0.0;
+  //! How far `jacobian` is from the one at the solution. 0: it was factorised for the final Newton
+  //! step (at the last iterate but one, a step below the tolerance away), so sensitivities are
+  //! exact with it. Else simplified steps carried an older factorisation along, and this is the
+  //! contraction of the last one (about the relative error of sensitivities computed with it;
+  //! infinite when unknown).
+  mutable double jacobian_contraction = INFINITY;
   //! dz/dtheta (unknowns of every point stacked, m n rows) for the parameters at these positions,
   //! when OutputSensitivities computed them: a warm start from this solution then begins at the
   //! tangent prediction z + dz/dtheta (theta_new - theta) when only these parameters changed.
@@ -196,11 +196,14 @@ class PeriodicSolver : public PeriodicPredictor {
   Eigen::MatrixXd ColdStart(const PeriodicInput& input, std::span<const double> theta) const;
   //! Factorises at the solution unless its Jacobian is current (a cache in the solution).
   void MakeJacobianCurrent(const PeriodicSolution& solution, const InputRates& rates, std::span<const double> theta);
-  //! Parameter Jets at a solution: -dG/dtheta (returned) or, given dz/dtheta, the outputs' derivatives.
+  //! -dG/dtheta at a solution for the parameters `wanted`, scaled like G (eq. 14's right-hand side).
   template <class J>
-  Eigen::MatrixXd ParameterDerivatives(const PeriodicSolution& solution, const InputRates& rates,
-                                       std::span<const double> theta, const std::vector<int>& wanted,
-                                       const Eigen::MatrixXd* dz, std::vector<Eigen::MatrixXd>* sens = nullptr) const;
+  Eigen::MatrixXd ParameterResiduals(const PeriodicSolution& solution, const InputRates& rates,
+                                     std::span<const double> theta, const std::vector<int>& wanted) const;
+  //! d outputs / d theta from dz/dtheta (eq. 15): one (n x wanted) matrix per channel.
+  template <class J>
+  std::vector<Eigen::MatrixXd> OutputDerivatives(const PeriodicSolution& solution, std::span<const double> theta,
+                                                 const std::vector<int>& wanted, const Eigen::MatrixXd& dz) const;
   //! Moves a warm start's unknowns z along its sensitivities to `theta`; false when it cannot.
   bool TangentPrediction(const PeriodicSolution& from, std::span<const double> theta, Eigen::MatrixXd& z) const;
   //! Damped Newton from z, starting with the factorisation `lu` when given (simplified steps).

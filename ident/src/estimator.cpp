@@ -37,25 +37,24 @@ struct InputNoise {
 InputNoise InputNoiseOf(const ExperimentData& d, int n) {
   InputNoise noise;
   if (!(d.input_harmonic_variance > 0) || d.input_harmonics.empty()) return noise;
-  std::vector<std::pair<Eigen::VectorXd, double>> directions;
+  // The mean is one direction, every other kept harmonic two (cosine and sine).
+  int columns = 0;
+  for (const int h : d.input_harmonics) columns += h == 0 ? 1 : 2;
+  noise.basis.resize(n, columns);
+  noise.variance.resize(columns);
+  int k = 0;
   for (const int h : d.input_harmonics) {
     if (h == 0) {
-      directions.push_back({Eigen::VectorXd::Ones(n), d.input_mean_variance});
+      noise.basis.col(k).setOnes();
+      noise.variance[k++] = d.input_mean_variance;
       continue;
     }
-    Eigen::VectorXd c(n), s(n);
     for (int mu = 0; mu < n; ++mu) {
-      c[mu] = std::cos(2.0 * std::numbers::pi * h * mu / n);
-      s[mu] = std::sin(2.0 * std::numbers::pi * h * mu / n);
+      noise.basis(mu, k) = std::cos(2.0 * std::numbers::pi * h * mu / n);
+      noise.basis(mu, k + 1) = std::sin(2.0 * std::numbers::pi * h * mu / n);
     }
-    directions.push_back({c, d.input_harmonic_variance});
-    directions.push_back({s, d.input_harmonic_variance});
-  }
-  noise.basis.resize(n, static_cast<int>(directions.size()));
-  noise.variance.resize(static_cast<int>(directions.size()));
-  for (std::size_t k = 0; k < directions.size(); ++k) {
-    noise.basis.col(static_cast<int>(k)) = directions[k].first;
-    noise.variance[static_cast<int>(k)] = directions[k].second;
+    noise.variance[k] = noise.variance[k + 1] = d.input_harmonic_variance;
+    k += 2;
   }
   return noise;
 }

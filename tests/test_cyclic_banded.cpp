@@ -30,7 +30,7 @@ struct Shape {
   int n, m, kmin, kmax;
 };
 
-TEST(CyclicBandedLU, SolvesLikeDenseLuForEverySchemeShape) {
+TEST(CyclicBandedLU, SolvesAndSolvesTransposedLikeDenseLuForEverySchemeShape) {
   // backward2 (-3..0), central2 (-1..1), central4 (-2..2), tiny n (dense fallback), m = 1..4.
   for (const Shape s : {Shape{50, 3, -3, 0}, Shape{64, 2, -1, 1}, Shape{40, 4, -2, 2}, Shape{9, 3, -3, 0},
                         Shape{200, 1, -3, 0}, Shape{30, 3, -2, 1}}) {
@@ -46,6 +46,12 @@ TEST(CyclicBandedLU, SolvesLikeDenseLuForEverySchemeShape) {
       EXPECT_LT((x - expected).norm() / expected.norm(), 1e-11);
       EXPECT_LT((a.ToDense() * x - b).norm() / b.norm(), 1e-12);
       EXPECT_LT((a.Multiply(x.col(0)) - b.col(0)).norm() / b.col(0).norm(), 1e-12);
+      // The adjoint solve with the same factors.
+      Eigen::MatrixXd xt = b;
+      lu.SolveTransposed(xt);
+      const Eigen::MatrixXd expected_t = a.ToDense().transpose().partialPivLu().solve(b);
+      EXPECT_LT((xt - expected_t).norm() / expected_t.norm(), 1e-11);
+      EXPECT_LT((a.ToDense().transpose() * xt - b).norm() / b.norm(), 1e-12);
     }
   }
 }

@@ -211,42 +211,60 @@ TEST(PeriodicSolver, EverySchemeSolvesTheForceDrivenOneDof) {
   }
 }
 
-TEST(PeriodicSolver, InputSensitivitiesMatchFiniteDifferencesOfTheSolver) {
-  // How a perturbation of the measured input (a mean shift, a harmonic) moves every output: the
-  // linearisation at the solution against solves with the input perturbed both ways.
+TEST(PeriodicSolver, InputGradientsMatchFiniteDifferencesOfTheSolver) {
+  // The adjoint: d(w^T y)/du projected on input perturbations (a mean shift, harmonics) against
+  // solves with the input perturbed both ways, for weights on every output at once. Every scheme:
+  // the input's rates reach the residual through each one's stencil (transposed here).
   for (Causality causality : {Causality::kForceInput, Causality::kStrokeInput}) {
-    SCOPED_TRACE(std::string(ToString(causality)));
-    const Model model = Model::Build("2dof", causality);
-    const auto theta = model.defaults().values();
-    PeriodicInput input = StrokeH(200);
-    if (causality == Causality::kForceInput) input = ForceOf(PeriodicSolver(Model::Build("2dof", Causality::kStrokeInput)).Solve(input, theta));
-    PeriodicSolverOptions tight;
-    tight.tolerance = 1e-2;
-    PeriodicSolver solver(model, tight);
-    const PeriodicSolution base = solver.Solve(input, theta);
-    const int n = 200;
-    Eigen::MatrixXd directions(n, 3);
-    for (int mu = 0; mu < n; ++mu) {
-      directions(mu, 0) = 1.0;
-      directions(mu, 1) = std::cos(2 * std::numbers::pi * mu / n);
-      directions(mu, 2) = std::sin(2 * std::numbers::pi * 3 * mu / n);
-    }
-    const auto sens = solver.InputSensitivities(base, theta, directions);
-    ASSERT_EQ(sens.size(), base.channels.size());
-    const double h = causality == Causality::kForceInput ? 1.0 : 1e-6;  // N, m
-    for (int k = 0; k < 3; ++k) {
-      PeriodicInput plus = input, minus = input;
+    for (Scheme scheme : {Scheme::kBackward2, Scheme::kCentral4}) {
+      SCOPED_TRACE(std::string(ToString(causality)) + " " + std::string(ToString(scheme)));
+      const Model model = Model::Build("2dof", causality);
+      const auto theta = model.defaults().values();
+      PeriodicInput input = StrokeH(200);
+      if (causality == Causality::kForceInput)
+        input = ForceOf(PeriodicSolver(Model::Build("2dof", Causality::kStrokeInput)).Solve(input, theta));
+      PeriodicSolverOptions tight;
+      tight.tolerance = 1e-2;
+      tight.scheme = scheme;
+      PeriodicSolver solver(model, tight);
+      const PeriodicSolution base = solver.Solve(input, theta);
+      const int n = 200;
+      Eigen::MatrixXd directions(n, 3);
       for (int mu = 0; mu < n; ++mu) {
-        plus.values[mu] += h * directions(mu, k);
-        minus.values[mu] -= h * directions(mu, k);
+        directions(mu, 0) = 1.0;
+        directions(mu, 1) = std::cos(2 * std::numbers::pi * mu / n);
+        directions(mu, 2) = std::sin(2 * std::numbers::pi * 3 * mu / n);
       }
-      const PeriodicSolution sp = solver.Solve(plus, theta, &base), sm = solver.Solve(minus, theta, &base);
-      for (std::size_t c = 0; c < base.channels.size(); ++c) {
-        const Eigen::VectorXd numeric =
-            (sp.outputs.row(static_cast<int>(c)) - sm.outputs.row(static_cast<int>(c))).transpose() / (2 * h);
-        const Eigen::VectorXd exact = sens[c].col(k);
-        const double size = std::max(exact.cwiseAbs().maxCoeff(), 1e-30);
-        EXPECT_LT((numeric - exact).cwiseAbs().maxCoeff(), 1e-4 * size + 1e-12) << base.channels[c] << " direction " << k;
+      // Two functionals: smooth weights on every output, and a single point of the first one.
+      const int channels = static_cast<int>(base.channels.size());
+      std::vector<Eigen::MatrixXd> weights(channels, Eigen::MatrixXd::Zero(n, 2));
+      for (int c = 0; c < channels; ++c) {
+        const double size = std::max(base.outputs.row(c).cwiseAbs().maxCoeff(), 1e-30);
+        for (int mu = 0; mu < n; ++mu) weights[c](mu, 0) = (1.0 + 0.5 * std::sin(2 * std::numbers::pi * (c + 1) * mu / n)) / size;
+      }
+      weights[0](37, 1) = 1.0;
+      const Eigen::MatrixXd gradient = solver.InputGradients(base, theta, weights);
+      ASSERT_EQ(gradient.rows(), n);
+      ASSERT_EQ(gradient.cols(), 2);
+      const double h = causality == Causality::kForceInput ? 1.0 : 1e-6;  // N, m
+      for (int k = 0; k < 3; ++k) {
+        PeriodicInput plus = input, minus = input;
+        for (int mu = 0; mu < n; ++mu) {
+          plus.values[mu] += h * directions(mu, k);
+          minus.values[mu] -= h * directions(mu, k);
+        }
+        const PeriodicSolution sp = solver.Solve(plus, theta, &base), sm = solver.Solve(minus, theta, &base);
+        for (int b = 0; b < 2; ++b) {
+          // Tolerance relative to the sum's terms before they cancel.
+          double numeric = 0.0, terms = 0.0;
+          for (int c = 0; c < channels; ++c) {
+            const Eigen::VectorXd dy = (sp.outputs.row(c) - sm.outputs.row(c)).transpose() / (2 * h);
+            numeric += weights[c].col(b).dot(dy);
+            terms += weights[c].col(b).cwiseAbs().dot(dy.cwiseAbs());
+          }
+          const double exact = gradient.col(b).dot(directions.col(k));
+          EXPECT_NEAR(exact, numeric, 1e-4 * terms + 1e-12) << "functional " << b << " direction " << k;
+        }
       }
     }
   }

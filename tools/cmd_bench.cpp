@@ -357,10 +357,10 @@ class TallyingPredictor : public ident::PeriodicPredictor {
     ++tally_->sensitivity_calls;
     return s;
   }
-  std::vector<Eigen::MatrixXd> InputSensitivities(const ident::PeriodicSolution& solution, std::span<const double> theta,
-                                                  const Eigen::MatrixXd& perturbations) override {
+  Eigen::MatrixXd InputGradients(const ident::PeriodicSolution& solution, std::span<const double> theta,
+                                 const std::vector<Eigen::MatrixXd>& output_weights) override {
     const auto start = Clock::now();
-    auto s = inner_->InputSensitivities(solution, theta, perturbations);
+    auto s = inner_->InputGradients(solution, theta, output_weights);
     tally_->sensitivity_ms += std::chrono::duration<double, std::milli>(Clock::now() - start).count();
     return s;
   }

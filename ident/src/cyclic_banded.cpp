@@ -63,6 +63,14 @@ Eigen::MatrixXd EquilibratedFactors::Solve(const Eigen::MatrixXd& b) const {
   return column_scale.asDiagonal() * lu.solve(row_scale.asDiagonal() * b);
 }
 
+Eigen::MatrixXd EquilibratedFactors::SolveTransposed(const Eigen::MatrixXd& b) const {
+  // A = R^-1 (LU) C^-1, so A^-T = R (LU)^-T C.
+  const Eigen::MatrixXd scaled = column_scale.asDiagonal() * b;
+  Eigen::MatrixXd x(scaled.rows(), scaled.cols());
+  lu._solve_impl_transposed<false>(scaled, x);  // Eigen 3.4's transpose().solve() does not compile for LU
+  return row_scale.asDiagonal() * x;
+}
+
 bool CyclicBandedLU::FactorizeDense(const CyclicBlockBanded& a) {
   dense_ = true;
   ok_ = EquilibratedLu(a.ToDense(), dense_lu_, border_rcond_);
@@ -137,6 +145,39 @@ void ForwardSubstitute(int m_runtime, const double* inverse_diagonal, const doub
       for (int r = 0; r < m; ++r) {
         double v = 0.0;
         for (int c = 0; c < m; ++c) v += inverse[r + c * m] * acc[c];
+        y[r] = v;
+      }
+    }
+  }
+}
+
+// The transpose of ForwardSubstitute: A_II^T is block upper triangular, so points run backwards,
+// y_mu = D_mu^-T (b_mu - sum_k A(mu - k, k)^T y_{mu-k}) over the later points mu - k (k < 0).
+template <int M>
+void BackwardSubstituteTransposed(int m_runtime, const double* inverse_diagonal, const double* sub, int lower,
+                                  int points, unsigned coupled, double* b, int cols, std::size_t ld) {
+  const int m = M > 0 ? M : m_runtime;
+  const std::size_t mm = static_cast<std::size_t>(m) * m;
+  double acc[16];
+  for (int mu = points - 1; mu >= 0; --mu) {
+    const double* inverse = inverse_diagonal + mu * mm;
+    for (int j = 0; j < cols; ++j) {
+      double* column = b + j * ld;
+      double* y = column + static_cast<std::size_t>(mu) * m;
+      for (int r = 0; r < m; ++r) acc[r] = y[r];
+      // Only the columns of `coupled` unknowns are nonzero in the blocks below the diagonal: their
+      // transposes touch only those rows.
+      for (int k = -1; k >= -lower && mu - k < points; --k) {
+        const int later = mu - k;
+        const double* blk = sub + (static_cast<std::size_t>(later) * lower + (k + lower)) * mm;
+        const double* x = column + static_cast<std::size_t>(later) * m;
+        for (int c = 0; c < m; ++c)
+          if (coupled & (1u << c))
+            for (int r = 0; r < m; ++r) acc[c] -= blk[r + c * m] * x[r];
+      }
+      for (int r = 0; r < m; ++r) {
+        double v = 0.0;
+        for (int c = 0; c < m; ++c) v += inverse[c + r * m] * acc[c];
         y[r] = v;
       }
     }
@@ -307,6 +348,21 @@ void CyclicBandedLU::SolveInterior(Eigen::Ref<Eigen::MatrixXd> b) const {
   }
 }
 
+void CyclicBandedLU::SolveInteriorTransposed(Eigen::Ref<Eigen::MatrixXd> b) const {
+  const int cols = static_cast<int>(b.cols());
+  const int points = n_ - border_;
+  const std::size_t ld = static_cast<std::size_t>(b.outerStride());
+  const double* inverses = band_.data();
+  const double* sub = sub_.data();
+  switch (m_) {
+    case 1: return BackwardSubstituteTransposed<1>(m_, inverses, sub, lower_, points, coupled_, b.data(), cols, ld);
+    case 2: return BackwardSubstituteTransposed<2>(m_, inverses, sub, lower_, points, coupled_, b.data(), cols, ld);
+    case 3: return BackwardSubstituteTransposed<3>(m_, inverses, sub, lower_, points, coupled_, b.data(), cols, ld);
+    case 4: return BackwardSubstituteTransposed<4>(m_, inverses, sub, lower_, points, coupled_, b.data(), cols, ld);
+    default: return BackwardSubstituteTransposed<0>(m_, inverses, sub, lower_, points, coupled_, b.data(), cols, ld);
+  }
+}
+
 Eigen::MatrixXd CyclicBandedLU::BorderTimes(const Eigen::Ref<const Eigen::MatrixXd>& x) const {
   // Border rows touch only the last `lower_` interior points and (wrapping) the first `upper_`.
   const int nb = border_ * m_;
@@ -319,22 +375,31 @@ Eigen::MatrixXd CyclicBandedLU::BorderTimes(const Eigen::Ref<const Eigen::Matrix
   return y;
 }
 
+void CyclicBandedLU::SubtractBorderTransposedTimes(const Eigen::MatrixXd& y, Eigen::Ref<Eigen::MatrixXd> x) const {
+  const int tail = std::min(lower_ * m_, interior_rows_);
+  if (tail > 0) x.bottomRows(tail).noalias() -= border_interior_.rightCols(tail).transpose() * y;
+  const int head = std::min(upper_ * m_, interior_rows_ - tail);
+  if (head > 0) x.topRows(head).noalias() -= border_interior_.leftCols(head).transpose() * y;
+}
+
+void CyclicBandedLU::SolveFolded(Eigen::Ref<Eigen::MatrixXd> b, char trans) const {
+  // The band holds P A P^T (P: the folding order), so A^T = P^T (P A P^T)^T P reuses the order.
+  const int rows = n_ * m_, cols = static_cast<int>(b.cols()), ldab = 2 * kl_ + ku_ + 1;
+  Eigen::MatrixXd y(rows, cols);
+  for (int mu = 0; mu < n_; ++mu) y.middleRows(position_[mu] * m_, m_) = b.middleRows(mu * m_, m_);
+  int info = 0;
+  dgbtrs_(&trans, &rows, &kl_, &ku_, &cols, band_.data(), &ldab, pivots_.data(), y.data(), &rows, &info, 1);
+  for (int mu = 0; mu < n_; ++mu) b.middleRows(mu * m_, m_) = y.middleRows(position_[mu] * m_, m_);
+}
+
 void CyclicBandedLU::Solve(Eigen::Ref<Eigen::MatrixXd> b) const {
   assert(ok_);
   if (dense_) {
     b = dense_lu_.Solve(b);  // evaluated into a temporary first: no aliasing
     return;
   }
-  if (folded_) {
-    const int rows = n_ * m_, cols = static_cast<int>(b.cols()), ldab = 2 * kl_ + ku_ + 1;
-    Eigen::MatrixXd y(rows, cols);
-    for (int mu = 0; mu < n_; ++mu) y.middleRows(position_[mu] * m_, m_) = b.middleRows(mu * m_, m_);
-    int info = 0;
-    const char trans = 'N';
-    dgbtrs_(&trans, &rows, &kl_, &ku_, &cols, band_.data(), &ldab, pivots_.data(), y.data(), &rows, &info, 1);
-    for (int mu = 0; mu < n_; ++mu) b.middleRows(mu * m_, m_) = y.middleRows(position_[mu] * m_, m_);
-    return;
-  }
+  if (folded_) return SolveFolded(b, 'N');
+  // [A_II A_IB; A_BI A_BB] by the Schur complement S = A_BB - A_BI A_II^-1 A_IB of the border.
   const int nb = border_ * m_;
   auto w = b.topRows(interior_rows_);
   SolveInterior(w);
@@ -343,6 +408,26 @@ void CyclicBandedLU::Solve(Eigen::Ref<Eigen::MatrixXd> b) const {
   for (std::size_t c = 0; c < border_columns_.size(); ++c) coupled.row(c) = yb.row(border_columns_[c]);
   w.noalias() -= interior_border_ * coupled;
   b.bottomRows(nb) = yb;
+}
+
+void CyclicBandedLU::SolveTransposed(Eigen::Ref<Eigen::MatrixXd> b) const {
+  assert(ok_);
+  if (dense_) {
+    b = dense_lu_.SolveTransposed(b);
+    return;
+  }
+  if (folded_) return SolveFolded(b, 'T');
+  // A^T = [A_II^T A_BI^T; A_IB^T A_BB^T]: the border first, by S^T x_B = b_B - (A_II^-1 A_IB)^T b_I,
+  // then x_I = A_II^-T (b_I - A_BI^T x_B).
+  const int nb = border_ * m_;
+  auto w = b.topRows(interior_rows_);
+  Eigen::MatrixXd rhs = b.bottomRows(nb);
+  const Eigen::MatrixXd projected = interior_border_.transpose() * w;  // rows: border_columns_
+  for (std::size_t c = 0; c < border_columns_.size(); ++c) rhs.row(border_columns_[c]) -= projected.row(c);
+  const Eigen::MatrixXd xb = schur_.SolveTransposed(rhs);
+  SubtractBorderTransposedTimes(xb, w);
+  SolveInteriorTransposed(w);
+  b.bottomRows(nb) = xb;
 }
 
 }  // namespace strut::ident

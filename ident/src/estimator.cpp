@@ -13,6 +13,7 @@
 #include <numeric>
 #include <set>
 #include <spdlog/spdlog.h>
+#include <unsupported/Eigen/FFT>
 
 namespace strut::ident {
 namespace {
@@ -27,36 +28,34 @@ std::vector<std::string> DefaultChannels(const Model& model) {
   return channels;
 }
 
-//! The noise of a measured input as the estimator sees it: perturbation directions on the grid (the
-//! series' kept harmonics) and the variance of each coefficient.
-struct InputNoise {
-  Eigen::MatrixXd basis;     //!< n x directions
-  Eigen::VectorXd variance;  //!< per direction
-};
-
-InputNoise InputNoiseOf(const ExperimentData& d, int n) {
-  InputNoise noise;
-  if (!(d.input_harmonic_variance > 0) || d.input_harmonics.empty()) return noise;
-  // The mean is one direction, every other kept harmonic two (cosine and sine).
-  int columns = 0;
-  for (const int h : d.input_harmonics) columns += h == 0 ? 1 : 2;
-  noise.basis.resize(n, columns);
-  noise.variance.resize(columns);
-  int k = 0;
+//! The covariance that the noise of a measured input puts on a gradient: for g = dF/du on the
+//! n-point input grid (one column per function F), sum over the input's noisy Fourier coefficients
+//! c of var(c) (dF/dc)(dF/dc)^T, where dF/dc is g projected on that coefficient's grid function
+//! (the mean: 1; harmonic h: cos and sin of 2 pi h mu / n). The projections are one FFT per column.
+Eigen::MatrixXd InputNoiseCovariance(const ExperimentData& d, const Eigen::MatrixXd& gradient) {
+  const Eigen::Index k = gradient.cols();
+  const int n = static_cast<int>(gradient.rows());
+  Eigen::MatrixXd covariance = Eigen::MatrixXd::Zero(k, k);
+  if (!(d.input_harmonic_variance > 0) || d.input_harmonics.empty() || k == 0) return covariance;
+  Eigen::FFT<double> fft;
+  Eigen::MatrixXcd spectra(n, k);  // sum_mu g(mu) exp(-i 2 pi h mu / n)
+  for (Eigen::Index b = 0; b < k; ++b) {
+    Eigen::VectorXcd column(n);
+    fft.fwd(column, Eigen::VectorXd(gradient.col(b)));
+    spectra.col(b) = column;
+  }
   for (const int h : d.input_harmonics) {
+    if (h >= n) continue;
     if (h == 0) {
-      noise.basis.col(k).setOnes();
-      noise.variance[k++] = d.input_mean_variance;
+      const Eigen::VectorXd q = spectra.row(0).real().transpose();
+      covariance.noalias() += d.input_mean_variance * q * q.transpose();
       continue;
     }
-    for (int mu = 0; mu < n; ++mu) {
-      noise.basis(mu, k) = std::cos(2.0 * std::numbers::pi * h * mu / n);
-      noise.basis(mu, k + 1) = std::sin(2.0 * std::numbers::pi * h * mu / n);
-    }
-    noise.variance[k] = noise.variance[k + 1] = d.input_harmonic_variance;
-    k += 2;
+    // cos: Re of the spectrum; sin: -Im (the sign drops out of q q^T).
+    const Eigen::VectorXd qc = spectra.row(h).real().transpose(), qs = spectra.row(h).imag().transpose();
+    covariance.noalias() += d.input_harmonic_variance * (qc * qc.transpose() + qs * qs.transpose());
   }
-  return noise;
+  return covariance;
 }
 
 // Everything one iterate of the fit needs per experiment.
@@ -354,10 +353,11 @@ FitSummary Estimator::Fit(const std::vector<ExperimentData>& data, const Paramet
       ExperimentState& s = states[a];
       if (!s.active) return;
       const auto sens = s.solver->OutputSensitivities(s.solution, theta, est, exact);
-      const InputNoise noise = input_noise ? InputNoiseOf(*s.data, n) : InputNoise{};
-      const auto input_sens =
-          noise.basis.cols() > 0 ? s.solver->InputSensitivities(s.solution, theta, noise.basis) : std::vector<Eigen::MatrixXd>{};
-      Eigen::MatrixXd q = Eigen::MatrixXd::Zero(l, input_sens.empty() ? 0 : noise.basis.cols());
+      // The gradient's noise from the input's: J^T W P dy = (P^T W J)^T dy on the grid (P the
+      // interpolation to the phases), so the output weights P^T W J give it by one adjoint solve.
+      const bool with_input = input_noise && s.data->input_harmonic_variance > 0;
+      std::vector<Eigen::MatrixXd> weights;
+      if (with_input) weights.assign(s.solution.channels.size(), Eigen::MatrixXd::Zero(n, l));
       for (int b = 0; b < nc; ++b) {
         if (!s.channel_fitted[b]) continue;
         Eigen::MatrixXd j(s.j0.size(), l);
@@ -365,14 +365,13 @@ FitSummary Estimator::Fit(const std::vector<ExperimentData>& data, const Paramet
         const Eigen::VectorXd r = s.Residual(channels[b], output_row[b]);
         hs[a].noalias() += j.transpose() * j / variance[b];
         gs[a].noalias() += j.transpose() * r / variance[b];
-        if (q.cols() > 0) {
-          // q += J^T W P dy with P the interpolation to the phases: as (P^T W J)^T dy on the grid.
-          Eigen::MatrixXd weighted(n, l);
-          for (int k = 0; k < l; ++k) weighted.col(k) = s.ToGrid(j.col(k), n) / variance[b];
-          q.noalias() += weighted.transpose() * input_sens[output_row[b]];
-        }
+        if (with_input)
+          for (int k = 0; k < l; ++k) weights[output_row[b]].col(k) += s.ToGrid(j.col(k), n) / variance[b];
       }
-      if (q.cols() > 0) ns[a] = q * noise.variance.asDiagonal() * q.transpose();
+      if (with_input) {
+        const Eigen::MatrixXd gradient = s.solver->InputGradients(s.solution, theta, weights);
+        if (gradient.size() > 0) ns[a] = InputNoiseCovariance(*s.data, gradient);
+      }
     });
     for (std::size_t a = 0; a < states.size(); ++a) {
       h += hs[a];

@@ -779,29 +779,59 @@ void PeriodicSolver::MakeJacobianCurrent(const PeriodicSolution& solution, const
   solution.jacobian_contraction = 0.0;
 }
 
-std::vector<Eigen::MatrixXd> PeriodicSolver::InputSensitivities(const PeriodicSolution& solution,
-                                                                std::span<const double> theta,
-                                                                const Eigen::MatrixXd& perturbations) {
+Eigen::MatrixXd PeriodicSolver::InputGradients(const PeriodicSolution& solution, std::span<const double> theta,
+                                               const std::vector<Eigen::MatrixXd>& output_weights) {
   const int m = model_.unknown_count(), n = solution.n;
-  if (solution.unknowns.rows() != m || solution.unknowns.cols() != n || perturbations.rows() != n ||
+  const int channels = static_cast<int>(solution.channels.size());
+  if (solution.unknowns.rows() != m || solution.unknowns.cols() != n ||
       static_cast<int>(theta.size()) != model_.parameter_count())
-    throw std::invalid_argument("periodic solver: input sensitivities need a solution of this model and n rows");
+    throw std::invalid_argument("periodic solver: input gradients need a solution of this model");
+  if (static_cast<int>(output_weights.size()) != channels)
+    throw std::invalid_argument(fmt::format("periodic solver: input gradients need weights for all {} outputs", channels));
+  const Eigen::Index columns = output_weights.empty() ? 0 : output_weights[0].cols();
+  for (const auto& w : output_weights)
+    if (w.rows() != n || w.cols() != columns)
+      throw std::invalid_argument("periodic solver: output weights must be n x k, the same k for every output");
+  if (m + 1 > kStateDirections) throw std::invalid_argument("periodic solver: too many unknowns for input gradients");
   Prepare(n);
   const PeriodicInput& input = solution.input;
   const InputRates rates(stencil_, input);
   MakeJacobianCurrent(solution, rates, theta);
-  // The residual's derivatives in the input, its rate and its acceleration at every point, and the
-  // outputs' in the unknowns and the input: one fixed-size Jet pass each.
   using J = StateJet;
   static_assert(kStateDirections >= 3);
   const ParameterJets<J> jets(theta, {});  // parameters constant here
-  const auto constant = [&](double v) { return jets.Constant(v); };
-  const auto& theta_jet = jets.theta_jet;
   const auto& z = solution.unknowns;
   Eigen::MatrixXd zd, zdd;
   GridRates(stencil_, z, input.frequency, zd, zdd);
-  Eigen::MatrixXd gu(m, n), gud(m, n), gudd(m, n);  // scaled like G
+
+  // With y = Y_x dz + Y_u du and G_z dz = -G_u du (G_u: the residual's derivatives in the input,
+  // its rate and acceleration, the rates by the scheme's stencil D1, D2):
+  // d(w^T y)/du = Y_u^T w - G_u^T lambda with G_z^T lambda = Y_x^T w (one adjoint solve per column).
+  Eigen::MatrixXd gradient = Eigen::MatrixXd::Zero(n, columns);
+  Eigen::MatrixXd lambda(static_cast<Eigen::Index>(m) * n, columns);
   {
+    std::vector<J> x(m), y(channels);
+    for (int mu = 0; mu < n; ++mu) {
+      for (int j = 0; j < m; ++j) x[j] = J(z(j, mu), J::DerType::Unit(j));
+      model_.Outputs<J>(x, J(input.values[mu], J::DerType::Unit(m)), jets.theta_jet, y);
+      for (Eigen::Index b = 0; b < columns; ++b) {
+        double du = 0.0;
+        for (int j = 0; j < m; ++j) lambda(mu * m + j, b) = 0.0;
+        for (int c = 0; c < channels; ++c) {
+          const double w = output_weights[c](mu, b);
+          const auto& d = y[c].derivatives();
+          for (int j = 0; j < m; ++j) lambda(mu * m + j, b) += w * d[j];
+          du += w * d[m];
+        }
+        gradient(mu, b) = du;
+      }
+    }
+  }
+  solution.jacobian->SolveTransposed(lambda);
+  // G_u^T lambda: per point the input, rate and acceleration parts, the rate parts through D^T.
+  Eigen::MatrixXd a0(columns, n), a1(columns, n), a2(columns, n);
+  {
+    const auto constant = [&](double v) { return jets.Constant(v); };
     std::vector<J> x(m), xd(m), xdd(m), r(m);
     for (int mu = 0; mu < n; ++mu) {
       for (int j = 0; j < m; ++j) {
@@ -811,51 +841,35 @@ std::vector<Eigen::MatrixXd> PeriodicSolver::InputSensitivities(const PeriodicSo
       }
       model_.Residual<J>(x, xd, xdd, J(input.values[mu], J::DerType::Unit(0)),
                          J(rates.first(0, mu), J::DerType::Unit(1)), J(rates.second(0, mu), J::DerType::Unit(2)),
-                         theta_jet, r);
-      for (int i = 0; i < m; ++i) {
-        gu(i, mu) = r[i].derivatives()[0] * equation_weight_[i];
-        gud(i, mu) = r[i].derivatives()[1] * equation_weight_[i];
-        gudd(i, mu) = r[i].derivatives()[2] * equation_weight_[i];
+                         jets.theta_jet, r);
+      for (Eigen::Index b = 0; b < columns; ++b) {
+        double v0 = 0.0, v1 = 0.0, v2 = 0.0;
+        for (int i = 0; i < m; ++i) {
+          const double l = lambda(mu * m + i, b) * equation_weight_[i];
+          const auto& d = r[i].derivatives();
+          v0 += l * d[0];
+          v1 += l * d[1];
+          v2 += l * d[2];
+        }
+        a0(b, mu) = v0;
+        a1(b, mu) = v1;
+        a2(b, mu) = v2;
       }
     }
   }
-  const int columns = static_cast<int>(perturbations.cols());
-  Eigen::MatrixXd pd, pdd;  // the perturbations' rates, by the stencil the solver applies to the input
-  GridRates(stencil_, perturbations.transpose(), input.frequency, pd, pdd);
-  pd.transposeInPlace();  // n x columns, like the perturbations
-  pdd.transposeInPlace();
-  // Right-hand sides column by column (contiguous), then one solve for all of them.
-  Eigen::MatrixXd dz(n * m, columns);
-  for (int b = 0; b < columns; ++b)
-    for (int mu = 0; mu < n; ++mu)
-      for (int i = 0; i < m; ++i)
-        dz(mu * m + i, b) = -(gu(i, mu) * perturbations(mu, b) + gud(i, mu) * pd(mu, b) + gudd(i, mu) * pdd(mu, b));
-  solution.jacobian->Solve(dz);
-  const int channels = static_cast<int>(solution.channels.size());
-  if (m + 1 > kStateDirections) throw std::invalid_argument("periodic solver: too many unknowns for input sensitivities");
-  // The outputs' derivatives in the unknowns (channels x m per point) and in the input.
-  Eigen::MatrixXd yx(channels, static_cast<Eigen::Index>(m) * n), yu(channels, n);
-  std::vector<J> x(m), y(channels);
-  for (int mu = 0; mu < n; ++mu) {
-    for (int j = 0; j < m; ++j) x[j] = J(z(j, mu), J::DerType::Unit(j));
-    model_.Outputs<J>(x, J(input.values[mu], J::DerType::Unit(m)), theta_jet, y);
-    for (int c = 0; c < channels; ++c) {
-      const auto& d = y[c].derivatives();
-      for (int j = 0; j < m; ++j) yx(c, mu * m + j) = d[j];
-      yu(c, mu) = d[m];
+  // (D1^T a1)(nu) = f sum_k first[k] a1(nu - k): the stencil read backwards.
+  const double f = input.frequency;
+  for (int k = stencil_.kmin; k <= stencil_.kmax; ++k) {
+    const double c1 = stencil_.first[k - stencil_.kmin] * f, c2 = stencil_.second[k - stencil_.kmin] * f * f;
+    if (c1 == 0.0 && c2 == 0.0) continue;
+    for (int mu = 0; mu < n; ++mu) {
+      const int nu = ((mu + k) % n + n) % n;  // row mu reads the input at nu
+      a0.col(nu) += c1 * a1.col(mu) + c2 * a2.col(mu);
     }
   }
-  std::vector<Eigen::MatrixXd> out(channels, Eigen::MatrixXd(n, columns));
-  for (int c = 0; c < channels; ++c)
-    for (int b = 0; b < columns; ++b)
-      for (int mu = 0; mu < n; ++mu) {
-        double v = yu(c, mu) * perturbations(mu, b);
-        for (int j = 0; j < m; ++j) v += yx(c, mu * m + j) * dz(mu * m + j, b);
-        out[c](mu, b) = v;
-      }
-  return out;
+  gradient -= a0.transpose();
+  return gradient;
 }
-
 std::vector<Eigen::MatrixXd> PeriodicSolver::OutputSensitivities(const PeriodicSolution& solution,
                                                                  std::span<const double> theta,
                                                                  std::span<const int> parameters, bool exact) {

@@ -54,6 +54,7 @@ struct EquilibratedFactors {
   Eigen::PartialPivLU<Eigen::MatrixXd> lu;
   Eigen::VectorXd row_scale, column_scale;
   Eigen::MatrixXd Solve(const Eigen::MatrixXd& b) const;
+  Eigen::MatrixXd SolveTransposed(const Eigen::MatrixXd& b) const;  //!< A^T X = B
 };
 
 //! LU factorisation of a CyclicBlockBanded matrix. Work and memory O(n m (kmax - kmin) ^ 2 m^2).
@@ -65,6 +66,9 @@ class CyclicBandedLU {
   int rows() const { return n_ * m_; }
   //! Solves A X = B in place (B: rows() x any number of columns).
   void Solve(Eigen::Ref<Eigen::MatrixXd> b) const;
+  //! Solves A^T X = B in place with the same factors (adjoint problems: one solve per output
+  //! functional instead of one per input direction).
+  void SolveTransposed(Eigen::Ref<Eigen::MatrixXd> b) const;
   //! Smallest over largest pivot of the equilibrated border (or dense) LU: a singularity hint.
   double border_rcond() const { return border_rcond_; }
 
@@ -74,8 +78,13 @@ class CyclicBandedLU {
   bool FactorizeBorder(const CyclicBlockBanded& a);
   bool FactorizeInterior(const CyclicBlockBanded& a);
   void SolveInterior(Eigen::Ref<Eigen::MatrixXd> b) const;
+  void SolveInteriorTransposed(Eigen::Ref<Eigen::MatrixXd> b) const;
   //! border_interior_ * x, using only its nonzero column ranges.
   Eigen::MatrixXd BorderTimes(const Eigen::Ref<const Eigen::MatrixXd>& x) const;
+  //! x -= border_interior_^T y, likewise.
+  void SubtractBorderTransposedTimes(const Eigen::MatrixXd& y, Eigen::Ref<Eigen::MatrixXd> x) const;
+  //! The folded banded LU's solve (LAPACK dgbtrs, `trans` 'N' or 'T').
+  void SolveFolded(Eigen::Ref<Eigen::MatrixXd> b, char trans) const;
 
   int n_ = 0, m_ = 0, border_ = 0, interior_rows_ = 0, kl_ = 0, ku_ = 0, lower_ = 0, upper_ = 0;
   bool ok_ = false;

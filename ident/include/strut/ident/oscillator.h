@@ -41,9 +41,9 @@ class OscillatorPredictor : public PeriodicPredictor {
                          const PeriodicSolution* warm_start = nullptr) override;
   std::vector<Eigen::MatrixXd> OutputSensitivities(const PeriodicSolution& solution, std::span<const double> theta,
                                                    std::span<const int> parameters = {}, bool exact = true) override;
-  std::vector<Eigen::MatrixXd> InputSensitivities(const PeriodicSolution& solution, std::span<const double> theta,
-                                                  const Eigen::MatrixXd& perturbations) override {
-    return solver_.InputSensitivities(solution, theta, perturbations);
+  Eigen::MatrixXd InputGradients(const PeriodicSolution& solution, std::span<const double> theta,
+                                 const std::vector<Eigen::MatrixXd>& output_weights) override {
+    return solver_.InputGradients(solution, theta, output_weights);
   }
 
  private:

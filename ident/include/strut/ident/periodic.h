@@ -140,11 +140,13 @@ class PeriodicPredictor {
                                                            std::span<const double> theta,
                                                            std::span<const int> parameters = {},
                                                            bool exact = true) = 0;
-  //! d outputs / d input in the directions of `perturbations` (one input perturbation on the grid
-  //! per column): one (n x columns) matrix per output channel. Empty when the predictor cannot.
-  virtual std::vector<Eigen::MatrixXd> InputSensitivities(const PeriodicSolution& solution,
-                                                          std::span<const double> theta,
-                                                          const Eigen::MatrixXd& perturbations) {
+  //! Gradients on the input grid of weighted sums of the outputs: `output_weights` holds one n x k
+  //! matrix per output channel, and column b of the (n x k) result is d(sum_c w_c(:, b)^T y_c) / du,
+  //! u the input's n grid values. The transpose of the outputs' linearisation in the input (an
+  //! adjoint): its cost does not grow with the number of input directions it is projected on.
+  //! Empty when the predictor cannot.
+  virtual Eigen::MatrixXd InputGradients(const PeriodicSolution& solution, std::span<const double> theta,
+                                         const std::vector<Eigen::MatrixXd>& output_weights) {
     return {};
   }
 };
@@ -172,11 +174,11 @@ class PeriodicSolver : public PeriodicPredictor {
                                                    std::span<const int> parameters = {},
                                                    bool exact = true) override;
 
-  //! d outputs / d input (the linearisation at the solution, same factorisation as eq. 14): how a
-  //! perturbation of the measured input on the grid (its rates by the scheme's stencil) moves
-  //! every output. `perturbations` is n x columns.
-  std::vector<Eigen::MatrixXd> InputSensitivities(const PeriodicSolution& solution, std::span<const double> theta,
-                                                  const Eigen::MatrixXd& perturbations) override;
+  //! Input gradients of weighted outputs (see PeriodicPredictor): one transposed solve with the
+  //! Jacobian at the solution (the factorisation of eq. 14) per column of the weights. The input's
+  //! rates enter through the scheme's stencil, as the solver applies it.
+  Eigen::MatrixXd InputGradients(const PeriodicSolution& solution, std::span<const double> theta,
+                                 const std::vector<Eigen::MatrixXd>& output_weights) override;
 
   //! The scaled residual G(z) of the discretised equations (m x n), for tests.
   Eigen::MatrixXd Residual(const Eigen::MatrixXd& unknowns, const PeriodicInput& input,

@@ -19,6 +19,8 @@ CyclicBlockBanded RandomMatrix(int n, int m, int kmin, int kmax, unsigned seed, 
         for (int c = 0; c < m; ++c) {
           // Like an algebraic unknown: column 0 couples only on the diagonal block.
           if (sparse_corner_columns && c == 0 && k != 0) continue;
+          // Like a first-order unknown of backward2: absent from the farthest offset only.
+          if (sparse_corner_columns && c == 1 && k == kmin && kmin < -1 && m > 1) continue;
           b(r, c) = uniform(rng);
         }
       if (k == 0) b += 4.0 * (kmax - kmin + 1) * Eigen::MatrixXd::Identity(m, m);

@@ -123,9 +123,10 @@ void SmallLuSolve(const double* lu, const int* pivots, int m_runtime, double* b,
 // diagonal blocks; M > 0 fixes the block size at compile time so the small loops unroll.
 template <int M>
 void ForwardSubstitute(int m_runtime, const double* inverse_diagonal, const double* sub, int lower, int points,
-                       unsigned coupled, double* b, int cols, std::size_t ld) {
-  // Points outer, right-hand sides inner: each block is loaded once for all columns. `coupled`:
-  // bit c set when unknown c couples to earlier points at all (algebraic unknowns do not).
+                       const unsigned* coupled, double* b, int cols, std::size_t ld) {
+  // Points outer, right-hand sides inner: each block is loaded once for all columns. `coupled[k +
+  // lower]`: bit c set when unknown c couples to the point k < 0 before (algebraic unknowns never,
+  // first-order ones not at offsets where only the second-derivative stencil reaches).
   const int m = M > 0 ? M : m_runtime;
   const std::size_t mm = static_cast<std::size_t>(m) * m;
   double acc[16];
@@ -138,8 +139,9 @@ void ForwardSubstitute(int m_runtime, const double* inverse_diagonal, const doub
       for (int k = std::max(-lower, -mu); k < 0; ++k) {
         const double* blk = sub + (static_cast<std::size_t>(mu) * lower + (k + lower)) * mm;
         const double* x = column + static_cast<std::size_t>(mu + k) * m;
+        const unsigned mask = coupled[k + lower];
         for (int c = 0; c < m; ++c)
-          if (coupled & (1u << c))
+          if (mask & (1u << c))
             for (int r = 0; r < m; ++r) acc[r] -= blk[r + c * m] * x[c];
       }
       for (int r = 0; r < m; ++r) {
@@ -155,7 +157,7 @@ void ForwardSubstitute(int m_runtime, const double* inverse_diagonal, const doub
 // y_mu = D_mu^-T (b_mu - sum_k A(mu - k, k)^T y_{mu-k}) over the later points mu - k (k < 0).
 template <int M>
 void BackwardSubstituteTransposed(int m_runtime, const double* inverse_diagonal, const double* sub, int lower,
-                                  int points, unsigned coupled, double* b, int cols, std::size_t ld) {
+                                  int points, const unsigned* coupled, double* b, int cols, std::size_t ld) {
   const int m = M > 0 ? M : m_runtime;
   const std::size_t mm = static_cast<std::size_t>(m) * m;
   double acc[16];
@@ -171,8 +173,9 @@ void BackwardSubstituteTransposed(int m_runtime, const double* inverse_diagonal,
         const int later = mu - k;
         const double* blk = sub + (static_cast<std::size_t>(later) * lower + (k + lower)) * mm;
         const double* x = column + static_cast<std::size_t>(later) * m;
+        const unsigned mask = coupled[k + lower];
         for (int c = 0; c < m; ++c)
-          if (coupled & (1u << c))
+          if (mask & (1u << c))
             for (int r = 0; r < m; ++r) acc[c] -= blk[r + c * m] * x[r];
       }
       for (int r = 0; r < m; ++r) {
@@ -317,15 +320,14 @@ bool CyclicBandedLU::FactorizeInterior(const CyclicBlockBanded& a) {
   band_.resize(ni * mm);
   sub_.resize(ni * lower_ * mm);
   pivots_.resize(interior_rows_);
-  // Unknowns whose columns are zero in every block below the diagonal (no time derivative).
-  coupled_ = 0;
-  for (int mu = 0; mu < ni; ++mu)
+  // Per offset below the diagonal, the unknowns whose columns are nonzero in some block there.
+  coupled_.assign(lower_, m_ > 32 ? ~0u : 0u);
+  for (int mu = 0; mu < ni && m_ <= 32; ++mu)
     for (int k = -lower_; k < 0; ++k) {
       const auto blk = a.block(mu, k);
-      for (int c = 0; c < m_ && c < 32; ++c)
-        if (blk.col(c).cwiseAbs().maxCoeff() > 0.0) coupled_ |= 1u << c;
+      for (int c = 0; c < m_; ++c)
+        if (blk.col(c).cwiseAbs().maxCoeff() > 0.0) coupled_[k + lower_] |= 1u << c;
     }
-  if (m_ > 32) coupled_ = ~0u;
   switch (m_) {
     case 1: return InvertDiagonal<1>(a, m_, ni, lower_, band_.data(), sub_.data(), pivots_.data());
     case 2: return InvertDiagonal<2>(a, m_, ni, lower_, band_.data(), sub_.data(), pivots_.data());
@@ -340,11 +342,11 @@ void CyclicBandedLU::SolveInterior(Eigen::Ref<Eigen::MatrixXd> b) const {
   const int points = n_ - border_;
   const std::size_t ld = static_cast<std::size_t>(b.outerStride());
   switch (m_) {
-    case 1: return ForwardSubstitute<1>(m_, band_.data(), sub_.data(), lower_, points, coupled_, b.data(), cols, ld);
-    case 2: return ForwardSubstitute<2>(m_, band_.data(), sub_.data(), lower_, points, coupled_, b.data(), cols, ld);
-    case 3: return ForwardSubstitute<3>(m_, band_.data(), sub_.data(), lower_, points, coupled_, b.data(), cols, ld);
-    case 4: return ForwardSubstitute<4>(m_, band_.data(), sub_.data(), lower_, points, coupled_, b.data(), cols, ld);
-    default: return ForwardSubstitute<0>(m_, band_.data(), sub_.data(), lower_, points, coupled_, b.data(), cols, ld);
+    case 1: return ForwardSubstitute<1>(m_, band_.data(), sub_.data(), lower_, points, coupled_.data(), b.data(), cols, ld);
+    case 2: return ForwardSubstitute<2>(m_, band_.data(), sub_.data(), lower_, points, coupled_.data(), b.data(), cols, ld);
+    case 3: return ForwardSubstitute<3>(m_, band_.data(), sub_.data(), lower_, points, coupled_.data(), b.data(), cols, ld);
+    case 4: return ForwardSubstitute<4>(m_, band_.data(), sub_.data(), lower_, points, coupled_.data(), b.data(), cols, ld);
+    default: return ForwardSubstitute<0>(m_, band_.data(), sub_.data(), lower_, points, coupled_.data(), b.data(), cols, ld);
   }
 }
 
@@ -355,11 +357,11 @@ void CyclicBandedLU::SolveInteriorTransposed(Eigen::Ref<Eigen::MatrixXd> b) cons
   const double* inverses = band_.data();
   const double* sub = sub_.data();
   switch (m_) {
-    case 1: return BackwardSubstituteTransposed<1>(m_, inverses, sub, lower_, points, coupled_, b.data(), cols, ld);
-    case 2: return BackwardSubstituteTransposed<2>(m_, inverses, sub, lower_, points, coupled_, b.data(), cols, ld);
-    case 3: return BackwardSubstituteTransposed<3>(m_, inverses, sub, lower_, points, coupled_, b.data(), cols, ld);
-    case 4: return BackwardSubstituteTransposed<4>(m_, inverses, sub, lower_, points, coupled_, b.data(), cols, ld);
-    default: return BackwardSubstituteTransposed<0>(m_, inverses, sub, lower_, points, coupled_, b.data(), cols, ld);
+    case 1: return BackwardSubstituteTransposed<1>(m_, inverses, sub, lower_, points, coupled_.data(), b.data(), cols, ld);
+    case 2: return BackwardSubstituteTransposed<2>(m_, inverses, sub, lower_, points, coupled_.data(), b.data(), cols, ld);
+    case 3: return BackwardSubstituteTransposed<3>(m_, inverses, sub, lower_, points, coupled_.data(), b.data(), cols, ld);
+    case 4: return BackwardSubstituteTransposed<4>(m_, inverses, sub, lower_, points, coupled_.data(), b.data(), cols, ld);
+    default: return BackwardSubstituteTransposed<0>(m_, inverses, sub, lower_, points, coupled_.data(), b.data(), cols, ld);
   }
 }
 

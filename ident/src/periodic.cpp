@@ -310,6 +310,10 @@ struct StepSize {
 };
 // `inverse_scale` holds one inverted scale per entry of dz (the unknowns' repeated at every point),
 // so both reductions run over contiguous arrays and vectorise.
+// Every value finite, in one vectorised pass (Eigen's allFinite tests element by element, a tenth
+// of a warm solve): a sum of finite values is finite unless it overflows, which is divergence too.
+bool AllFinite(const Eigen::MatrixXd& x) { return std::isfinite(x.sum()); }
+
 StepSize Measure(const Eigen::MatrixXd& dz, const Eigen::ArrayXd& inverse_scale) {
   const auto scaled = Eigen::Map<const Eigen::ArrayXd>(dz.data(), dz.size()) * inverse_scale;
   return {scaled.abs().maxCoeff(), std::sqrt(scaled.square().sum())};
@@ -513,7 +517,7 @@ bool PeriodicSolver::TangentPrediction(const PeriodicSolution& from, std::span<c
   if (change.isZero()) return false;
   Eigen::MatrixXd predicted = z;
   Eigen::Map<Eigen::VectorXd>(predicted.data(), predicted.size()) += dz * change;
-  if (!predicted.allFinite()) return false;
+  if (!AllFinite(predicted)) return false;
   z = std::move(predicted);
   return true;
 }
@@ -565,7 +569,7 @@ PeriodicSolution PeriodicSolver::Newton(Eigen::MatrixXd z, std::shared_ptr<const
     inverse_scale(Eigen::seqN(j, n, m)) = 1.0 / (model_.unknown_spec(j).scale * options_.tolerance);
 
   Eigen::MatrixXd g = ResidualAt(z, input, rates, theta);
-  double norm = g.allFinite() ? g.norm() : INFINITY;
+  double norm = g.norm();  // not finite when any value is not
   int iteration = 0, factorizations = 0;
   bool converged = false, fresh = false;
   double last_contraction = INFINITY;  // of the last step with the factorisation in use
@@ -603,7 +607,7 @@ PeriodicSolution PeriodicSolver::Newton(Eigen::MatrixXd z, std::shared_ptr<const
     for (int halving = 0; halving <= halvings; ++halving, lambda *= 0.5) {
       Eigen::MatrixXd trial = z + lambda * step;
       Eigen::MatrixXd g_trial = ResidualAt(trial, input, rates, theta);
-      const double trial_norm = g_trial.allFinite() ? g_trial.norm() : INFINITY;
+      const double trial_norm = g_trial.norm();
       bool descent = converged;
       if (!descent && std::isfinite(trial_norm)) {
         correction = -g_trial;
@@ -659,7 +663,7 @@ PeriodicSolution PeriodicSolver::Newton(Eigen::MatrixXd z, std::shared_ptr<const
     }
   }
   if (converged) ++iteration;  // the loop left before counting the converged step
-  if (!converged || !g.allFinite())
+  if (!converged || !std::isfinite(norm))
     throw PeriodicSolverError(fmt::format("periodic solver: not converged after {} iterations; scaled residual {:.3g}",
                                           iteration, norm),
                               norm, iteration);
@@ -682,7 +686,7 @@ PeriodicSolution PeriodicSolver::Newton(Eigen::MatrixXd z, std::shared_ptr<const
   for (int mu = 0; mu < n; ++mu)  // column mu of the outputs is contiguous: written in place
     model_.Outputs<double>(std::span<const double>(solution.unknowns.col(mu).data(), m), input.values[mu], theta,
                            std::span<double>(solution.outputs.col(mu).data(), channels));
-  if (!solution.outputs.allFinite())
+  if (!AllFinite(solution.outputs))
     throw PeriodicSolverError("periodic solver: non-finite outputs at the solution", norm, iteration);
   return solution;
 }

@@ -97,7 +97,7 @@ class CyclicBandedLU {
   Eigen::MatrixXd interior_border_all_;  // A_IB, all border columns (scratch)
   Eigen::MatrixXd interior_border_;  // A_II^-1 A_IB, only the columns in border_columns_
   std::vector<int> border_columns_;  // border unknowns that interior rows couple to (others: zero columns)
-  unsigned coupled_ = ~0u;            // bit c: unknown c appears in some block below the diagonal
+  std::vector<unsigned> coupled_;     // per offset -lower_ .. -1, bit c: unknown c appears in a block there
   Eigen::MatrixXd border_interior_;  // A_BI
   EquilibratedFactors schur_;     // of the border Schur complement
   EquilibratedFactors dense_lu_;  // of the whole matrix (small n, spectral)

@@ -284,41 +284,52 @@ void Model::Outputs(std::span<const S> x, const S& u, std::span<const S> theta, 
   for (std::size_t j = 1; j < x.size(); ++j) y[j + 1] = x[j];
 }
 
-std::vector<double> Model::StaticEquilibrium(double input, std::span<const double> theta,
-                                             std::span<const double> guess) const {
-  const int m = unknown_count();
+namespace {
+
+// Model::StaticEquilibrium with Jets of type J: StateJet (fixed size, no copies of unused
+// directions) when the unknowns fit, else Jet. The quasi-static guess calls it at every grid point.
+template <class J>
+std::vector<double> StaticEquilibriumWith(const Model& model, double input, std::span<const double> theta,
+                                          std::span<const double> guess) {
+  using Derivatives = typename J::DerType;
+  const int m = model.unknown_count();
+  const int directions = Derivatives::RowsAtCompileTime == Eigen::Dynamic ? m : int(Derivatives::RowsAtCompileTime);
   std::vector<double> x(m);
-  for (int j = 0; j < m; ++j) x[j] = static_cast<int>(guess.size()) == m ? guess[j] : unknown_spec(j).typical_value;
-  // Every Jet carries all m directions: Eigen's AutoDiff cannot add an empty derivative to a full one.
-  const auto constant = [&](double v) { return MakeConstant(v, m); };
-  std::vector<Jet> theta_jet;
+  for (int j = 0; j < m; ++j) x[j] = static_cast<int>(guess.size()) == m ? guess[j] : model.unknown_spec(j).typical_value;
+  // Every Jet carries all directions: Eigen's AutoDiff cannot add an empty derivative to a full one.
+  const auto constant = [&](double v) { return J(v, Derivatives::Zero(directions)); };
+  std::vector<J> theta_jet;
   for (double t : theta) theta_jet.push_back(constant(t));
-  std::vector<Jet> xj(m), zero(m, constant(0.0)), r(m);
-  const Jet u = constant(input), zero_rate = constant(0.0);
-  const auto evaluate = [&](const std::vector<double>& at, Eigen::MatrixXd* jac) {
-    for (int j = 0; j < m; ++j) xj[j] = Jet(at[j], DerivativeVector::Unit(m, j));
-    Residual<Jet>(xj, zero, zero, u, zero_rate, zero_rate, theta_jet, r);
-    Eigen::VectorXd res(m);
+  std::vector<J> xj(m), zero(m, constant(0.0)), r(m);
+  const J u = constant(input), zero_rate = constant(0.0);
+  Eigen::VectorXd inverse_equation_scale(m);
+  for (int i = 0; i < m; ++i) inverse_equation_scale[i] = 1.0 / model.equation_scale(i);
+  const auto evaluate = [&](const std::vector<double>& at, Eigen::VectorXd& res, Eigen::MatrixXd* jac) {
+    for (int j = 0; j < m; ++j) xj[j] = J(at[j], Derivatives::Unit(directions, j));
+    model.Residual<J>(xj, zero, zero, u, zero_rate, zero_rate, theta_jet, r);
     for (int i = 0; i < m; ++i) {
-      res[i] = r[i].value() / equation_scale(i);
-      if (jac) jac->row(i) = r[i].derivatives().transpose() / equation_scale(i);
+      res[i] = r[i].value() * inverse_equation_scale[i];
+      if (jac)
+        for (int j = 0; j < m; ++j) (*jac)(i, j) = r[i].derivatives()[j] * inverse_equation_scale[i];
     }
-    return res;
   };
   Eigen::VectorXd scale(m);
-  for (int j = 0; j < m; ++j) scale[j] = unknown_spec(j).scale;
+  for (int j = 0; j < m; ++j) scale[j] = model.unknown_spec(j).scale;
   Eigen::MatrixXd jac(m, m);
-  Eigen::VectorXd res = evaluate(x, &jac);
+  Eigen::VectorXd res(m), trial_res(m), step(m), correction(m);
+  Eigen::FullPivLU<Eigen::MatrixXd> lu(m, m);
+  std::vector<double> trial(m);
+  evaluate(x, res, &jac);
   for (int iteration = 0; iteration < 100; ++iteration) {
     if (res.allFinite() && res.lpNorm<Eigen::Infinity>() < 1.0) return x;
-    const auto lu = jac.fullPivLu();
-    Eigen::VectorXd step = lu.solve(-res);
+    lu.compute(jac);
+    step = lu.solve(-res);
     const double step_norm = step.cwiseQuotient(scale).norm();  // of the full Newton step
     // Trust limit: no unknown moves by more than half its size (plus half its typical value) at
     // once, so the linearised gas law cannot throw the stroke through full compression.
     double shrink = 1.0;
     for (int j = 0; j < m; ++j) {
-      const double limit = 0.5 * (std::abs(x[j]) + std::abs(unknown_spec(j).typical_value));
+      const double limit = 0.5 * (std::abs(x[j]) + std::abs(model.unknown_spec(j).typical_value));
       if (std::abs(step[j]) > limit && limit > 0) shrink = std::min(shrink, limit / std::abs(step[j]));
     }
     step *= shrink;
@@ -326,26 +337,33 @@ std::vector<double> Model::StaticEquilibrium(double input, std::span<const doubl
     // stiff gas law from throwing the stroke past full compression.
     double lambda = 1.0;
     for (int halving = 0; halving < 40; ++halving, lambda *= 0.5) {
-      std::vector<double> trial(x);
-      for (int j = 0; j < m; ++j) trial[j] += lambda * step[j];
-      const Eigen::VectorXd trial_res = evaluate(trial, nullptr);
+      for (int j = 0; j < m; ++j) trial[j] = x[j] + lambda * step[j];
+      evaluate(trial, trial_res, nullptr);
       if (!trial_res.allFinite()) continue;
-      if (Eigen::VectorXd(lu.solve(-trial_res)).cwiseQuotient(scale).norm() <=
-          (1.0 - 0.25 * lambda * shrink) * step_norm) {
+      correction = lu.solve(-trial_res);
+      if (correction.cwiseQuotient(scale).norm() <= (1.0 - 0.25 * lambda * shrink) * step_norm) {
         x = trial;
         break;
       }
     }
     if (lambda < 1e-11) break;
-    res = evaluate(x, &jac);
+    evaluate(x, res, &jac);
   }
   if (res.allFinite() && res.lpNorm<Eigen::Infinity>() < 1e3) return x;  // close enough for a guess
   if (!res.allFinite())
     throw ModelError(fmt::format("model '{}': no static equilibrium for input {:.6g}: the model has no finite state "
                                  "there (beyond full compression?)",
-                                 composition_, input));
+                                 model.composition(), input));
   throw ModelError(fmt::format("model '{}': no static equilibrium found for input {:.6g} (scaled residual {:.3g})",
-                               composition_, input, res.lpNorm<Eigen::Infinity>()));
+                               model.composition(), input, res.lpNorm<Eigen::Infinity>()));
+}
+
+}  // namespace
+
+std::vector<double> Model::StaticEquilibrium(double input, std::span<const double> theta,
+                                             std::span<const double> guess) const {
+  if (unknown_count() <= kStateDirections) return StaticEquilibriumWith<StateJet>(*this, input, theta, guess);
+  return StaticEquilibriumWith<Jet>(*this, input, theta, guess);
 }
 
 template void Model::Residuals<double>(std::span<const double>, std::span<const double>, std::span<const double>,

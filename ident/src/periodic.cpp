@@ -304,6 +304,13 @@ struct Linearization {
   Eigen::MatrixXd rx, rxd, rxdd;  //!< m x (m batch): point k's block in columns k m .. k m + m - 1
 };
 
+// Directions a Linearization needs: each unknown and the rates its equations use.
+int LinearizationDirections(const Model& model) {
+  int directions = 0;
+  for (int j = 0; j < model.unknown_count(); ++j) directions += model.derivative_order(j) + 1;
+  return directions;
+}
+
 // Size of a grid correction in units of its unknowns' scales: largest component and 2-norm.
 struct StepSize {
   double max = 0.0, norm = 0.0;
@@ -358,10 +365,7 @@ Eigen::MatrixXd PeriodicSolver::ResidualAt(const Eigen::MatrixXd& z, const Perio
 std::shared_ptr<const CyclicBandedLU> PeriodicSolver::Factorize(const Eigen::MatrixXd& z, const PeriodicInput& input,
                                                                 const InputRates& rates, std::span<const double> theta,
                                                                 int iteration, double norm) {
-  const int m = model_.unknown_count();
-  int directions = 0;
-  for (int j = 0; j < m; ++j) directions += model_.derivative_order(j) + 1;
-  if (directions <= kStateDirections) {
+  if (LinearizationDirections(model_) <= kStateDirections) {
     AssembleJacobianWith<StateJet>(z, input, rates, theta);
   } else {
     AssembleJacobianWith<Jet>(z, input, rates, theta);
@@ -414,21 +418,26 @@ void PeriodicSolver::AssembleJacobianWith(const Eigen::MatrixXd& z, const Period
   }
 }
 
-Eigen::MatrixXd PeriodicSolver::MarchGuess(Eigen::MatrixXd z, const PeriodicInput& input, std::span<const double> theta,
-                                           int periods) const {
-  // Time-march the backward scheme around the period, each point by a small Newton solve from
-  // its predecessor: friction stick and slip settle locally, which a global Newton from the
-  // quasi-static guess finds only after many halved steps.
+namespace {
+
+// The start-up march of MarchGuess with Jets of type J (fixed-size when the directions fit).
+template <class J>
+Eigen::MatrixXd March(const Model& model, const Eigen::VectorXd& equation_weight, Eigen::MatrixXd z,
+                      const PeriodicInput& input, std::span<const double> theta, int periods) {
   const int n = static_cast<int>(z.cols());
-  const int m = model_.unknown_count();
+  const int m = model.unknown_count();
   const double f = input.frequency;
   const Stencil march = Stencil::For(Scheme::kBackward2, n);
-  const InputRates input_rates(march, input);
-  Linearization<Jet> point(model_, theta, equation_weight_);
+  Eigen::MatrixXd input_first, input_second;
+  GridRates(march, Eigen::Map<const Eigen::RowVectorXd>(input.values.data(), n), f, input_first, input_second);
+  Linearization<J> point(model, theta, equation_weight);
   const double a0 = march.first[-march.kmin] * f, b0 = march.second[-march.kmin] * f * f;
   Eigen::VectorXd step_scale(m);
-  for (int j = 0; j < m; ++j) step_scale[j] = model_.unknown_spec(j).scale;
+  for (int j = 0; j < m; ++j) step_scale[j] = model.unknown_spec(j).scale;
   std::vector<double> zd(m), zdd(m);
+  Eigen::MatrixXd jacobian(m, m);  // allocated once: the march visits every point several times
+  Eigen::PartialPivLU<Eigen::MatrixXd> lu(m);
+  Eigen::VectorXd step(m);
   for (int pass = 0; pass < periods; ++pass)
     for (int mu = 0; mu < n; ++mu) {
       if (mu > 0) z.col(mu) = z.col(mu - 1);  // predictor: hold the previous point
@@ -438,11 +447,12 @@ Eigen::MatrixXd PeriodicSolver::MarchGuess(Eigen::MatrixXd z, const PeriodicInpu
           zd[j] = rate.first;
           zdd[j] = rate.second;
         }
-        point.Load(0, z.col(mu).data(), zd.data(), zdd.data(), input.values[mu], input_rates.first(0, mu),
-                   input_rates.second(0, mu));
+        point.Load(0, z.col(mu).data(), zd.data(), zdd.data(), input.values[mu], input_first(0, mu),
+                   input_second(0, mu));
         point.Evaluate(1);
-        const Eigen::MatrixXd jac = point.Rx(0) + a0 * point.Rxd(0) + b0 * point.Rxdd(0);
-        const Eigen::VectorXd step = jac.partialPivLu().solve(-point.r.col(0));
+        jacobian = point.Rx(0) + a0 * point.Rxd(0) + b0 * point.Rxdd(0);
+        lu.compute(jacobian);
+        step.noalias() = lu.solve(-point.r.col(0));
         if (!step.allFinite()) break;
         z.col(mu) += step;
         if ((step.array().abs() / step_scale.array()).maxCoeff() <= 1.0) break;
@@ -452,16 +462,38 @@ Eigen::MatrixXd PeriodicSolver::MarchGuess(Eigen::MatrixXd z, const PeriodicInpu
   return z;
 }
 
-Eigen::MatrixXd PeriodicSolver::QuasiStaticGuess(const PeriodicInput& input, std::span<const double> theta) const {
+}  // namespace
+
+Eigen::MatrixXd PeriodicSolver::MarchGuess(Eigen::MatrixXd z, const PeriodicInput& input, std::span<const double> theta,
+                                           int periods) const {
+  // Time-march the backward scheme around the period, each point by a small Newton solve from
+  // its predecessor: friction stick and slip settle locally, which a global Newton from the
+  // quasi-static guess finds only after many halved steps.
+  if (LinearizationDirections(model_) <= kStateDirections) return March<StateJet>(model_, equation_weight_, std::move(z), input, theta, periods);
+  return March<Jet>(model_, equation_weight_, std::move(z), input, theta, periods);
+}
+
+Eigen::MatrixXd PeriodicSolver::QuasiStaticGuess(const PeriodicInput& input, std::span<const double> theta,
+                                                 bool march_start) const {
   // Static equilibrium at every instant, each started from its neighbour's: robust for large strokes.
   const int m = model_.unknown_count();
   const int n = static_cast<int>(input.values.size());
+  std::vector<int> points;
+  const int wrap = 3;  // the backward2 stencil of the march reaches 3 points back
+  if (march_start && n > wrap + 1) {
+    for (int mu = n - wrap; mu < n; ++mu) points.push_back(mu);
+    points.push_back(0);
+  } else {
+    for (int mu = 0; mu < n; ++mu) points.push_back(mu);
+  }
   Eigen::MatrixXd z(m, n);
   std::vector<double> previous;
-  for (int mu = 0; mu < n; ++mu) {
+  for (const int mu : points) {
     previous = model_.StaticEquilibrium(input.values[mu], theta, previous);
     for (int j = 0; j < m; ++j) z(j, mu) = previous[j];
   }
+  if (static_cast<int>(points.size()) < n)
+    for (int mu = 1; mu < n - wrap; ++mu) z.col(mu) = z.col(0);  // the march overwrites these first
   return z;
 }
 
@@ -484,8 +516,8 @@ Eigen::MatrixXd PeriodicSolver::ColdStart(const PeriodicInput& input, std::span<
     PeriodicSolution guess;
     guess.n = coarse_n;
     guess.frequency = input.frequency;
-    guess.unknowns = coarse.MarchGuess(coarse.QuasiStaticGuess(coarse_input, theta), coarse_input, theta,
-                                       options_.start_up_periods);
+    guess.unknowns = coarse.MarchGuess(coarse.QuasiStaticGuess(coarse_input, theta, options_.start_up_periods > 0),
+                                       coarse_input, theta, options_.start_up_periods);
     try {
       const PeriodicSolution s = coarse.Solve(coarse_input, theta, &guess);
       spdlog::trace("periodic cold start: {} Newton steps on {} points", s.newton_iterations, coarse_n);
@@ -494,7 +526,8 @@ Eigen::MatrixXd PeriodicSolver::ColdStart(const PeriodicInput& input, std::span<
       spdlog::debug("periodic cold start: no solution on {} points ({}); starting on all {}", coarse_n, e.what(), n);
     }
   }
-  return MarchGuess(QuasiStaticGuess(input, theta), input, theta, options_.start_up_periods);
+  return MarchGuess(QuasiStaticGuess(input, theta, options_.start_up_periods > 0), input, theta,
+                    options_.start_up_periods);
 }
 
 bool PeriodicSolver::TangentPrediction(const PeriodicSolution& from, std::span<const double> theta,

@@ -211,7 +211,10 @@ class PeriodicSolver : public PeriodicPredictor {
   //! Damped Newton from z, starting with the factorisation `lu` when given (simplified steps).
   PeriodicSolution Newton(Eigen::MatrixXd z, std::shared_ptr<const CyclicBandedLU> lu, const PeriodicInput& input,
                           const InputRates& rates, std::span<const double> theta);
-  Eigen::MatrixXd QuasiStaticGuess(const PeriodicInput& input, std::span<const double> theta) const;
+  //! Static equilibrium at every grid point; `march_start`: only where a start-up march reads it
+  //! before marching there (the first point and the stencil's reach before it), the rest copies.
+  Eigen::MatrixXd QuasiStaticGuess(const PeriodicInput& input, std::span<const double> theta,
+                                   bool march_start = false) const;
   Eigen::MatrixXd MarchGuess(Eigen::MatrixXd z, const PeriodicInput& input, std::span<const double> theta,
                              int periods) const;
   void Prepare(int n);

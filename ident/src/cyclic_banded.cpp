@@ -79,6 +79,9 @@ bool CyclicBandedLU::FactorizeDense(const CyclicBlockBanded& a) {
 
 namespace {
 
+// Every value finite, in one vectorised pass (a sum of finite values overflows only at 1e308).
+bool AllFinite(const Eigen::MatrixXd& x) { return std::isfinite(x.sum()); }
+
 // In-place LU with partial pivoting of a small column-major m x m block; false if singular.
 // M > 0 fixes the size at compile time (the loops unroll), M = 0 takes m at run time.
 template <int M = 0>
@@ -271,45 +274,50 @@ bool CyclicBandedLU::FactorizeBorder(const CyclicBlockBanded& a) {
   const int ni = n_ - border_;  // interior points
   interior_rows_ = ni * m_;
   const int nb = border_ * m_;
-  Eigen::MatrixXd& interior_border = interior_border_all_;  // reused between factorisations
-  interior_border.setZero(interior_rows_, nb);
-  border_interior_.setZero(nb, interior_rows_);
+  // Only the first `lower_` interior points reach the border (across the wrap-around) and only the
+  // last `lower_` are reached from it: A_IB and A_BI are kept as those row and column blocks.
+  const int head = std::min(lower_ * m_, interior_rows_);
+  border_tail_ = std::min(lower_ * m_, interior_rows_);
+  Eigen::MatrixXd interior_border_head = Eigen::MatrixXd::Zero(head, nb);
+  border_interior_.setZero(nb, border_tail_);
   Eigen::MatrixXd border_border = Eigen::MatrixXd::Zero(nb, nb);
-
-  // Split the couplings into interior-interior (handled by FactorizeInterior) and the rest.
-  for (int mu = 0; mu < n_; ++mu) {
-    for (int k = a.kmin(); k <= a.kmax(); ++k) {
-      const int nu = ((mu + k) % n_ + n_) % n_;
-      const bool row_interior = mu < ni, col_interior = nu < ni;
-      if (row_interior && col_interior) continue;
-      const auto blk = a.block(mu, k);
-      for (int c = 0; c < m_; ++c)
-        for (int r = 0; r < m_; ++r) {
-          const double v = blk(r, c);
-          const int i = mu * m_ + r, j = nu * m_ + c;
-          if (row_interior) {
-            interior_border(i, j - interior_rows_) += v;
-          } else if (col_interior) {
-            border_interior_(i - interior_rows_, j) += v;
-          } else {
-            border_border(i - interior_rows_, j - interior_rows_) += v;
-          }
+  const int tail_start = interior_rows_ - border_tail_;
+  const auto add = [&](int mu, int k) {
+    const int nu = ((mu + k) % n_ + n_) % n_;
+    const bool row_interior = mu < ni, col_interior = nu < ni;
+    if (row_interior && col_interior) return;
+    const auto blk = a.block(mu, k);
+    for (int c = 0; c < m_; ++c)
+      for (int r = 0; r < m_; ++r) {
+        const double v = blk(r, c);
+        const int i = mu * m_ + r, j = nu * m_ + c;
+        if (row_interior) {
+          interior_border_head(i, j - interior_rows_) += v;
+        } else if (col_interior) {
+          border_interior_(i - interior_rows_, j - tail_start) += v;
+        } else {
+          border_border(i - interior_rows_, j - interior_rows_) += v;
         }
-    }
-  }
+      }
+  };
+  for (int mu = 0; mu < std::min(lower_, ni); ++mu)
+    for (int k = a.kmin(); k < 0; ++k) add(mu, k);
+  for (int mu = ni; mu < n_; ++mu)
+    for (int k = a.kmin(); k <= a.kmax(); ++k) add(mu, k);
   // Algebraic unknowns (no time derivative) never couple across the wrap-around: skip their columns.
   border_columns_.clear();
   for (int j = 0; j < nb; ++j)
-    if (interior_border.col(j).cwiseAbs().maxCoeff() > 0.0) border_columns_.push_back(j);
-  interior_border_.resize(interior_rows_, static_cast<int>(border_columns_.size()));
-  for (std::size_t c = 0; c < border_columns_.size(); ++c) interior_border_.col(c) = interior_border.col(border_columns_[c]);
+    if (head > 0 && interior_border_head.col(j).cwiseAbs().maxCoeff() > 0.0) border_columns_.push_back(j);
+  interior_border_.setZero(interior_rows_, static_cast<int>(border_columns_.size()));
+  for (std::size_t c = 0; c < border_columns_.size(); ++c)
+    interior_border_.col(c).head(head) = interior_border_head.col(border_columns_[c]);
 
   if (!FactorizeInterior(a)) return false;  // interior singular although the whole may not be
   SolveInterior(interior_border_);                    // now A_II^-1 A_IB
   const Eigen::MatrixXd coupling = BorderTimes(interior_border_);
   Eigen::MatrixXd schur = border_border;
   for (std::size_t c = 0; c < border_columns_.size(); ++c) schur.col(border_columns_[c]) -= coupling.col(c);
-  ok_ = interior_border_.allFinite() && EquilibratedLu(schur, schur_, border_rcond_);
+  ok_ = AllFinite(interior_border_) && EquilibratedLu(schur, schur_, border_rcond_);
   return ok_;
 }
 
@@ -366,22 +374,11 @@ void CyclicBandedLU::SolveInteriorTransposed(Eigen::Ref<Eigen::MatrixXd> b) cons
 }
 
 Eigen::MatrixXd CyclicBandedLU::BorderTimes(const Eigen::Ref<const Eigen::MatrixXd>& x) const {
-  // Border rows touch only the last `lower_` interior points and (wrapping) the first `upper_`.
-  const int nb = border_ * m_;
-  Eigen::MatrixXd y = Eigen::MatrixXd::Zero(nb, x.cols());
-  const int tail = std::min(lower_ * m_, interior_rows_);
-  if (tail > 0)
-    y.noalias() += border_interior_.rightCols(tail) * x.bottomRows(tail);
-  const int head = std::min(upper_ * m_, interior_rows_ - tail);
-  if (head > 0) y.noalias() += border_interior_.leftCols(head) * x.topRows(head);
-  return y;
+  return border_interior_ * x.bottomRows(border_tail_);
 }
 
 void CyclicBandedLU::SubtractBorderTransposedTimes(const Eigen::MatrixXd& y, Eigen::Ref<Eigen::MatrixXd> x) const {
-  const int tail = std::min(lower_ * m_, interior_rows_);
-  if (tail > 0) x.bottomRows(tail).noalias() -= border_interior_.rightCols(tail).transpose() * y;
-  const int head = std::min(upper_ * m_, interior_rows_ - tail);
-  if (head > 0) x.topRows(head).noalias() -= border_interior_.leftCols(head).transpose() * y;
+  x.bottomRows(border_tail_).noalias() -= border_interior_.transpose() * y;
 }
 
 void CyclicBandedLU::SolveFolded(Eigen::Ref<Eigen::MatrixXd> b, char trans) const {

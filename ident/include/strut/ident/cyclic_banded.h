@@ -79,9 +79,9 @@ class CyclicBandedLU {
   bool FactorizeInterior(const CyclicBlockBanded& a);
   void SolveInterior(Eigen::Ref<Eigen::MatrixXd> b) const;
   void SolveInteriorTransposed(Eigen::Ref<Eigen::MatrixXd> b) const;
-  //! border_interior_ * x, using only its nonzero column ranges.
+  //! A_BI x (x: the interior rows).
   Eigen::MatrixXd BorderTimes(const Eigen::Ref<const Eigen::MatrixXd>& x) const;
-  //! x -= border_interior_^T y, likewise.
+  //! x -= A_BI^T y.
   void SubtractBorderTransposedTimes(const Eigen::MatrixXd& y, Eigen::Ref<Eigen::MatrixXd> x) const;
   //! The folded banded LU's solve (LAPACK dgbtrs, `trans` 'N' or 'T').
   void SolveFolded(Eigen::Ref<Eigen::MatrixXd> b, char trans) const;
@@ -94,11 +94,11 @@ class CyclicBandedLU {
   std::vector<double> sub_;    // border: the interior blocks below the diagonal, row point major
   std::vector<int> position_;  // folded: row position of each point
   std::vector<int> pivots_;
-  Eigen::MatrixXd interior_border_all_;  // A_IB, all border columns (scratch)
   Eigen::MatrixXd interior_border_;  // A_II^-1 A_IB, only the columns in border_columns_
   std::vector<int> border_columns_;  // border unknowns that interior rows couple to (others: zero columns)
   std::vector<unsigned> coupled_;     // per offset -lower_ .. -1, bit c: unknown c appears in a block there
-  Eigen::MatrixXd border_interior_;  // A_BI
+  Eigen::MatrixXd border_interior_;  // A_BI, its only nonzero columns: those of the last border_tail_ interior rows
+  int border_tail_ = 0;
   EquilibratedFactors schur_;     // of the border Schur complement
   EquilibratedFactors dense_lu_;  // of the whole matrix (small n, spectral)
   double border_rcond_ = 1.0;

@@ -67,6 +67,9 @@ struct ExperimentState {
   std::vector<bool> channel_fitted;  // per fitted channel: false when the channel has a data defect
   std::string error;
   bool dropped_at_start = false;      // no solution at the starting values; retried as the fit moves
+  //! Per fitted channel, d(prediction at the phases)/d(scaled parameters) of the last iteration that
+  //! computed them: reused while the fit's steps are a small fraction of the parameters' sd.
+  std::vector<Eigen::MatrixXd> sensitivities_at_phases;
   // Cubic (4-point Lagrange) interpolation from the n-point grid to the data phases: grid points
   // j0 - 1 .. j0 + 2 (mod n). Linear interpolation would bias the fit by h^2 y''/8, comparable to
   // the parameter uncertainty at n = 800.
@@ -341,8 +344,9 @@ FitSummary Estimator::Fit(const std::vector<ExperimentData>& data, const Paramet
   // input's noise causes (sum over its noisy Fourier coefficients of var * q q^T, q = J^T W dy/dc).
   // Steps may use sensitivities within a few percent (the solution's carried factorisation, as the
   // paper reuses the last one); the final uncertainty (`input_noise` given) takes exact ones.
+  // `reuse`: the experiments' sensitivities of the previous call where they have them.
   const auto normal_equations = [&](const std::vector<double>& variance, Eigen::MatrixXd& h, Eigen::VectorXd& g,
-                                    Eigen::MatrixXd* input_noise = nullptr, bool exact = false) {
+                                    Eigen::MatrixXd* input_noise = nullptr, bool exact = false, bool reuse = false) {
     h.setZero(l, l);
     g.setZero(l);
     // Per experiment on `threads` threads, summed in experiment order (the same result for any count).
@@ -352,7 +356,16 @@ FitSummary Estimator::Fit(const std::vector<ExperimentData>& data, const Paramet
     ParallelFor(static_cast<int>(states.size()), threads, [&](int a) {
       ExperimentState& s = states[a];
       if (!s.active) return;
-      const auto sens = s.solver->OutputSensitivities(s.solution, theta, est, exact);
+      if (!reuse || static_cast<int>(s.sensitivities_at_phases.size()) != nc) {
+        const auto sens = s.solver->OutputSensitivities(s.solution, theta, est, exact);
+        s.sensitivities_at_phases.assign(nc, Eigen::MatrixXd());
+        for (int b = 0; b < nc; ++b) {
+          if (!s.channel_fitted[b]) continue;
+          Eigen::MatrixXd& j = s.sensitivities_at_phases[b];
+          j.resize(static_cast<Eigen::Index>(s.j0.size()), l);
+          for (int k = 0; k < l; ++k) j.col(k) = s.AtPhases(sens[output_row[b]].col(k)) * scale[est[k]];
+        }
+      }
       // The gradient's noise from the input's: J^T W P dy = (P^T W J)^T dy on the grid (P the
       // interpolation to the phases), so the output weights P^T W J give it by one adjoint solve.
       const bool with_input = input_noise && s.data->input_harmonic_variance > 0;
@@ -360,8 +373,7 @@ FitSummary Estimator::Fit(const std::vector<ExperimentData>& data, const Paramet
       if (with_input) weights.assign(s.solution.channels.size(), Eigen::MatrixXd::Zero(n, l));
       for (int b = 0; b < nc; ++b) {
         if (!s.channel_fitted[b]) continue;
-        Eigen::MatrixXd j(s.j0.size(), l);
-        for (int k = 0; k < l; ++k) j.col(k) = s.AtPhases(sens[output_row[b]].col(k)) * scale[est[k]];
+        const Eigen::MatrixXd& j = s.sensitivities_at_phases[b];
         const Eigen::VectorXd r = s.Residual(channels[b], output_row[b]);
         hs[a].noalias() += j.transpose() * j / variance[b];
         gs[a].noalias() += j.transpose() * r / variance[b];
@@ -394,13 +406,17 @@ FitSummary Estimator::Fit(const std::vector<ExperimentData>& data, const Paramet
   std::vector<double> variance(nc);
   int iteration = 0;
   bool converged = l == 0;
+  // Frozen sensitivities (modified Gauss-Newton): after a step below this fraction of every
+  // parameter's sd the sensitivities change by far less than the few percent the steps tolerate.
+  constexpr double kFrozenSensitivityStep = 0.1;
+  bool reuse_sensitivities = false;
   for (; iteration < options_.max_iterations && !converged; ++iteration) {
     // Stage 1 (eq. 18): channel variances with bias correction.
     for (int b = 0; b < nc; ++b)
       variance[b] = std::max(current.sum_squares[b] / std::max(1.0, double(current.counts[b] - l)), 1e-300);
     // Stage 2 (eq. 19): parameter update with the prior reset to the current iterate.
     Eigen::VectorXd g;
-    normal_equations(variance, information, g);
+    normal_equations(variance, information, g, nullptr, false, reuse_sensitivities);
     Eigen::MatrixXd damped = information;
     for (int k = 0; k < l; ++k) damped(k, k) += 1.0 / (damping_sd * damping_sd);
     const Eigen::VectorXd step = damped.ldlt().solve(g);
@@ -410,6 +426,12 @@ FitSummary Estimator::Fit(const std::vector<ExperimentData>& data, const Paramet
     }
     const Eigen::MatrixXd covariance = information.ldlt().solve(Eigen::MatrixXd::Identity(l, l));
     for (int k = 0; k < l; ++k) step_sd[k] = std::sqrt(std::max(covariance(k, k), 0.0));
+    // At the optimum to the tolerance already: the step needs no trial solves (at the optimum the
+    // line search could only halve through rounding, one round of solves per halving).
+    if ((step.array().abs() / step_sd.array()).maxCoeff() < options_.step_tolerance) {
+      converged = true;
+      break;
+    }
 
     // Line search: halve until the objective improves.
     double lambda = 1.0;
@@ -468,11 +490,14 @@ FitSummary Estimator::Fit(const std::vector<ExperimentData>& data, const Paramet
       objective = loglik(current) + prior_term(theta);
       summary.history.back().objective = objective;
       converged = false;
+      reuse_sensitivities = false;
       damping_sd = std::max(damping_sd * 0.25, 1e-6);
       continue;
     }
     damping_sd = lambda == 1.0 ? std::min(damping_sd * 2.0, 1e3) : std::max(damping_sd * 0.25, 1e-6);
-    converged = (lambda * step.array().abs() / step_sd.array()).maxCoeff() < options_.step_tolerance;
+    const double step_in_sd = (lambda * step.array().abs() / step_sd.array()).maxCoeff();
+    converged = step_in_sd < options_.step_tolerance;
+    reuse_sensitivities = step_in_sd < kFrozenSensitivityStep;
   }
   summary.converged = converged;
   summary.iterations = iteration;

@@ -40,14 +40,13 @@ struct Case {
   std::vector<double> theta;
 };
 
-TransientPredictorOptions TightOptions(const Model& model, std::vector<int> parameters) {
+TransientPredictorOptions TightOptions() {
   TransientPredictorOptions o;
   o.integrator.rtol = 1e-10;
   o.integrator.atol_factor = 1e-2;
   o.steady.tol = 1.0;
   o.steady.relative_floor = 1e-9;
   o.sensitivity_relative_tol = 1e-7;
-  o.parameters = std::move(parameters);
   return o;
 }
 
@@ -60,7 +59,7 @@ void Compare(const Case& c, const std::vector<std::string>& names, double output
 
   std::vector<int> positions;
   for (const auto& name : names) positions.push_back(c.model.defaults().position(name));
-  TransientPredictor transient(c.model, TightOptions(c.model, positions));
+  TransientPredictor transient(c.model, TightOptions());
   const ident::PeriodicSolution s = transient.Solve(c.input, c.theta);
   ASSERT_EQ(s.n, reference.n);
   ASSERT_EQ(s.channels, reference.channels);
@@ -69,7 +68,7 @@ void Compare(const Case& c, const std::vector<std::string>& names, double output
     ::testing::Test::RecordProperty("output_error_" + s.channels[ch], std::to_string(e));
     EXPECT_LT(e, output_tol) << s.channels[ch];
   }
-  const auto sens = transient.OutputSensitivities(s, c.theta);
+  const auto sens = transient.OutputSensitivities(s, c.theta, positions);
   ASSERT_EQ(sens.size(), reference_sens.size());
   for (std::size_t ch = 0; ch < sens.size(); ++ch) {
     // A column per differentiated parameter, in the order asked for.
@@ -192,12 +191,18 @@ TEST(TransientPredictor, FailuresArePeriodicSolverErrors) {
   // A stroke past full compression (the gas volume through zero): no starting state.
   TransientPredictor predictor(model);
   EXPECT_THROW(predictor.Solve(PeriodicInput::Sine(h.frequency, 0.40, 0.02, 200), theta), ident::PeriodicSolverError);
-  // Bad options are the caller's mistake.
+  // Bad options and bad parameter lists are the caller's mistake (checked before integrating).
   TransientPredictorOptions bad;
-  bad.parameters = {0, 0};
+  bad.sensitivity_relative_tol = -1.0;
   EXPECT_THROW(TransientPredictor(model, bad), std::invalid_argument);
-  bad.parameters = {model.parameter_count()};
-  EXPECT_THROW(TransientPredictor(model, bad), std::invalid_argument);
+  ident::PeriodicSolution shaped;
+  shaped.n = 200;
+  shaped.frequency = h.frequency;
+  shaped.unknowns = Eigen::MatrixXd::Zero(model.unknown_count(), 200);
+  shaped.input = PeriodicInput::Sine(h.frequency, h.static_position, h.amplitude, 200);
+  const std::vector<int> twice = {0, 0}, outside = {model.parameter_count()};
+  EXPECT_THROW(predictor.OutputSensitivities(shaped, theta, twice), std::invalid_argument);
+  EXPECT_THROW(predictor.OutputSensitivities(shaped, theta, outside), std::invalid_argument);
 }
 
 }  // namespace

@@ -662,9 +662,8 @@ struct BenchIdentify {
     const auto data = Subset(ident::PrepareExperiments(session, causality, kN),
                              quick && transient_experiments.empty() ? "hi" : transient_experiments);
     const ident::ParameterSet initial = Off(truth, choices, off);
-    sim::TransientPredictorOptions transient_options = TransientSettings();
-    for (int i = 0; i < model.parameter_count(); ++i)
-      if (choices[i].estimate) transient_options.parameters.push_back(i);
+    const sim::TransientPredictorOptions transient_options = TransientSettings();
+    const long estimated = std::count_if(choices.begin(), choices.end(), [](const auto& c) { return c.estimate; });
     const PredictorFactory transient_factory = [transient_options](const ident::Model& m) {
       return std::make_unique<sim::TransientPredictor>(m, transient_options);
     };
@@ -679,7 +678,7 @@ struct BenchIdentify {
         "   parameters only. Periodic: median of {}; transient: one fit.\n",
         ident::ToString(causality), Labels(data), kN, start, transient_options.integrator.rtol,
         transient_options.integrator.atol_factor, transient_options.steady.relative_floor * transient_options.steady.tol,
-        transient_options.sensitivity_relative_tol, transient_options.parameters.size(), repeats);
+        transient_options.sensitivity_relative_tol, estimated, repeats);
     nlohmann::json out = {{"input", ident::ToString(causality)},
                           {"experiments", Labels(data)},
                           {"start", start},

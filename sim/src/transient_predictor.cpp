@@ -32,8 +32,6 @@ bool TransientPredictorOptions::IsValid(std::string* error) const {
   if (!steady.IsValid(&inner)) return fail("steady state: " + inner);
   if (!std::isfinite(sensitivity_relative_tol) || !(sensitivity_relative_tol > 0))
     return fail("sensitivity_relative_tol must be positive");
-  if (std::set<int>(parameters.begin(), parameters.end()).size() != parameters.size())
-    return fail("a parameter is listed twice");
   return true;
 }
 
@@ -338,14 +336,6 @@ TransientPredictor::TransientPredictor(Model model, TransientPredictorOptions op
     : model_(model), options_(std::move(options)), simulator_(model, options_.integrator) {
   std::string error;
   if (!options_.IsValid(&error)) throw std::invalid_argument("transient predictor options: " + error);
-  for (int p : options_.parameters)
-    if (p < 0 || p >= model_.parameter_count())
-      throw std::invalid_argument(fmt::format("transient predictor: parameter position {} is not one of model '{}'", p,
-                                              model_.composition()));
-  if (options_.parameters.empty())
-    for (int p = 0; p < model_.parameter_count(); ++p) options_.parameters.push_back(p);
-  if (static_cast<int>(options_.parameters.size()) > ident::kMaxDerivatives)
-    throw std::invalid_argument("transient predictor: too many parameters for the sensitivity Jets");
   ida_ = std::make_unique<Ida>();
 }
 
@@ -399,7 +389,11 @@ std::vector<Eigen::MatrixXd> TransientPredictor::OutputSensitivities(const ident
                                             theta.size(), model_.composition(), np));
   if (n < 5 || solution.unknowns.rows() != m || solution.unknowns.cols() != n || !solution.unknowns.allFinite())
     throw std::invalid_argument("transient predictor: sensitivities need a periodic solution of this model");
-  const std::vector<int> parameters = wanted.empty() ? options_.parameters : std::vector<int>(wanted.begin(), wanted.end());
+  std::vector<int> parameters(wanted.begin(), wanted.end());
+  if (parameters.empty())
+    for (int p = 0; p < np; ++p) parameters.push_back(p);
+  if (std::set<int>(parameters.begin(), parameters.end()).size() != parameters.size())
+    throw std::invalid_argument("transient predictor: a parameter is listed twice");
   for (int p : parameters)
     if (p < 0 || p >= np)
       throw std::invalid_argument(fmt::format("transient predictor: parameter position {} is not one of model '{}'", p,

@@ -30,10 +30,6 @@ struct TransientPredictorOptions {
   //! periods, and its extrapolation, are below max(atol_j / |theta_i|, this * max_mu |dY_j/dtheta_i|).
   //! Sensitivities steer Gauss-Newton and give the posterior sd: 1e-6 of their size is plenty.
   double sensitivity_relative_tol = 1e-6;
-  //! Positions (model order) of the parameters to differentiate when a call names none; empty: all.
-  //! Forward sensitivities cost one extra DAE per parameter; the estimator asks for the parameters
-  //! it estimates.
-  std::vector<int> parameters;
   //! IDAS's staggered corrector (sensitivities corrected after the state, each step); false: simultaneous.
   bool staggered = true;
   //! Sensitivities in IDAS's local error test (IDASetSensErrCon). Off, the steps follow the state
@@ -77,7 +73,8 @@ class TransientPredictor : public ident::PeriodicPredictor {
   //! d outputs / d theta on the solution's grid: IDAS forward sensitivities integrated with the
   //! state, from the solution's state at t = 0 (and the last steady sensitivities when there are
   //! some), until the sensitivities are periodic too.
-  //! `parameters` (positions; empty: options().parameters) are the ones differentiated.
+  //! `parameters` (positions; empty: all) are the ones differentiated: each costs one more DAE, so
+  //! the estimator names the ones it estimates.
   std::vector<Eigen::MatrixXd> OutputSensitivities(const ident::PeriodicSolution& solution,
                                                    std::span<const double> theta,
                                                    std::span<const int> parameters = {},

@@ -315,12 +315,13 @@ int LinearizationDirections(const Model& model) {
 struct StepSize {
   double max = 0.0, norm = 0.0;
 };
-// `inverse_scale` holds one inverted scale per entry of dz (the unknowns' repeated at every point),
-// so both reductions run over contiguous arrays and vectorise.
+
 // Every value finite, in one vectorised pass (Eigen's allFinite tests element by element, a tenth
 // of a warm solve): a sum of finite values is finite unless it overflows, which is divergence too.
 bool AllFinite(const Eigen::MatrixXd& x) { return std::isfinite(x.sum()); }
 
+// `inverse_scale` holds one inverted scale per entry of dz (the unknowns' repeated at every point),
+// so both reductions run over contiguous arrays and vectorise.
 StepSize Measure(const Eigen::MatrixXd& dz, const Eigen::ArrayXd& inverse_scale) {
   const auto scaled = Eigen::Map<const Eigen::ArrayXd>(dz.data(), dz.size()) * inverse_scale;
   return {scaled.abs().maxCoeff(), std::sqrt(scaled.square().sum())};
@@ -469,7 +470,8 @@ Eigen::MatrixXd PeriodicSolver::MarchGuess(Eigen::MatrixXd z, const PeriodicInpu
   // Time-march the backward scheme around the period, each point by a small Newton solve from
   // its predecessor: friction stick and slip settle locally, which a global Newton from the
   // quasi-static guess finds only after many halved steps.
-  if (LinearizationDirections(model_) <= kStateDirections) return March<StateJet>(model_, equation_weight_, std::move(z), input, theta, periods);
+  if (LinearizationDirections(model_) <= kStateDirections)
+    return March<StateJet>(model_, equation_weight_, std::move(z), input, theta, periods);
   return March<Jet>(model_, equation_weight_, std::move(z), input, theta, periods);
 }
 
@@ -907,6 +909,7 @@ Eigen::MatrixXd PeriodicSolver::InputGradients(const PeriodicSolution& solution,
   gradient -= a0.transpose();
   return gradient;
 }
+
 std::vector<Eigen::MatrixXd> PeriodicSolver::OutputSensitivities(const PeriodicSolution& solution,
                                                                  std::span<const double> theta,
                                                                  std::span<const int> parameters, bool exact) {

@@ -1,10 +1,6 @@
 #include "strut/sim/transient.h"
 
-#include <ida/ida.h>
-#include <nvector/nvector_serial.h>
-#include <sundials/sundials_context.h>
-#include <sunlinsol/sunlinsol_dense.h>
-#include <sunmatrix/sunmatrix_dense.h>
+#include "ida_run.h"
 
 #include <algorithm>
 #include <chrono>
@@ -237,191 +233,11 @@ Eigen::MatrixXd DaeSystem::Jacobian(double t, std::span<const double> y, std::sp
 }
 
 // ---------------------------------------------------------------------------------------------
-// IDA plumbing
+// IDAS (ida_run.h)
 
-struct TransientSimulator::Context {
-  SUNContext ctx = nullptr;
-  Context() {
-    if (SUNContext_Create(nullptr, &ctx) != 0) throw std::runtime_error("transient: SUNContext_Create failed");
-  }
-  ~Context() { SUNContext_Free(&ctx); }
-  Context(const Context&) = delete;
-  Context& operator=(const Context&) = delete;
-};
+struct TransientSimulator::Context : detail::SundialsContext {};
 
 namespace {
-
-std::string FlagName(int flag) {
-  char* name = IDAGetReturnFlagName(flag);  // malloc'ed by SUNDIALS
-  std::string s = name ? name : fmt::format("IDA flag {}", flag);
-  std::free(name);
-  return s;
-}
-
-// What the C callbacks need; they must not throw through IDA.
-struct UserData {
-  const DaeSystem* system = nullptr;
-  std::string failure;   // why a callback returned an unrecoverable error
-  std::string ida_message;  // the last message of IDA's error handler
-};
-
-int ResidualCallback(double t, N_Vector y, N_Vector yp, N_Vector r, void* user) {
-  auto* data = static_cast<UserData*>(user);
-  const int n = data->system->size();
-  try {
-    const std::span<const double> ys(N_VGetArrayPointer(y), n), yps(N_VGetArrayPointer(yp), n);
-    const InputSample u = data->system->Input(t, yps);
-    if (!std::isfinite(u.value) || !std::isfinite(u.rate) || !std::isfinite(u.accel)) {
-      data->failure = fmt::format("the input is not finite at t = {:.9g} s (u = {}, u' = {}, u'' = {})", t, u.value,
-                                  u.rate, u.accel);
-      return -1;
-    }
-    std::span<double> rs(N_VGetArrayPointer(r), n);
-    data->system->Residual(t, ys, yps, rs);
-    for (double v : rs)
-      if (!std::isfinite(v)) return 1;  // recoverable: IDA retries with a smaller step
-    return 0;
-  } catch (const std::exception& e) {
-    data->failure = fmt::format("residual failed at t = {:.9g} s: {}", t, e.what());
-    return -1;
-  }
-}
-
-int JacobianCallback(double t, double cj, N_Vector y, N_Vector yp, N_Vector, SUNMatrix jac, void* user, N_Vector,
-                     N_Vector, N_Vector) {
-  auto* data = static_cast<UserData*>(user);
-  const int n = data->system->size();
-  try {
-    const Eigen::MatrixXd j = data->system->Jacobian(t, std::span<const double>(N_VGetArrayPointer(y), n),
-                                                     std::span<const double>(N_VGetArrayPointer(yp), n), cj);
-    if (!j.allFinite()) return 1;
-    for (int c = 0; c < n; ++c) {
-      double* column = SUNDenseMatrix_Column(jac, c);
-      for (int i = 0; i < n; ++i) column[i] = j(i, c);
-    }
-    return 0;
-  } catch (const std::exception& e) {
-    data->failure = fmt::format("Jacobian failed at t = {:.9g} s: {}", t, e.what());
-    return -1;
-  }
-}
-
-void ErrorHandler(int code, const char* module, const char* function, char* message, void* user) {
-  // Kept for the exception text instead of printed to stderr; warnings only go to the debug log.
-  auto& text = static_cast<UserData*>(user)->ida_message;
-  text = fmt::format("{}/{}: {}", module ? module : "IDA", function ? function : "?", message ? message : "");
-  if (code > 0) spdlog::debug("transient: {}", text);
-}
-
-// One IDA run: memory, vectors, dense matrix and solver, freed together.
-class Integrator {
- public:
-  Integrator(SUNContext ctx, const DaeSystem& system, const TransientOptions& options,
-             std::span<const double> y0, std::span<const double> yp0)
-      : n_(system.size()), max_steps_(options.max_steps) {
-    data_.system = &system;
-    y_ = N_VNew_Serial(n_, ctx);
-    yp_ = N_VNew_Serial(n_, ctx);
-    id_ = N_VNew_Serial(n_, ctx);
-    atol_ = N_VNew_Serial(n_, ctx);
-    matrix_ = SUNDenseMatrix(n_, n_, ctx);
-    mem_ = IDACreate(ctx);
-    if (!y_ || !yp_ || !id_ || !atol_ || !matrix_ || !mem_) throw std::bad_alloc();
-    solver_ = SUNLinSol_Dense(y_, matrix_, ctx);
-    if (!solver_) throw std::bad_alloc();
-    const auto differential = system.differential();
-    const Eigen::VectorXd scales = system.scales();
-    for (int j = 0; j < n_; ++j) {
-      NV_Ith_S(y_, j) = y0[j];
-      NV_Ith_S(yp_, j) = yp0[j];
-      NV_Ith_S(id_, j) = differential[j] ? 1.0 : 0.0;
-      NV_Ith_S(atol_, j) = options.atol_factor * scales[j];
-    }
-    Check(IDASetErrHandlerFn(mem_, ErrorHandler, &data_), "IDASetErrHandlerFn");
-    Check(IDAInit(mem_, ResidualCallback, 0.0, y_, yp_), "IDAInit");
-    Check(IDASVtolerances(mem_, options.rtol, atol_), "IDASVtolerances");
-    Check(IDASetUserData(mem_, &data_), "IDASetUserData");
-    Check(IDASetLinearSolver(mem_, solver_, matrix_), "IDASetLinearSolver");
-    Check(IDASetJacFn(mem_, JacobianCallback), "IDASetJacFn");
-    Check(IDASetId(mem_, id_), "IDASetId");
-    Check(IDASetMaxOrd(mem_, options.max_order), "IDASetMaxOrd");
-    if (options.max_step > 0) Check(IDASetMaxStep(mem_, options.max_step), "IDASetMaxStep");
-  }
-  ~Integrator() {
-    IDAFree(&mem_);
-    if (solver_) SUNLinSolFree(solver_);
-    if (matrix_) SUNMatDestroy(matrix_);
-    for (N_Vector v : {y_, yp_, id_, atol_})
-      if (v) N_VDestroy(v);
-  }
-  Integrator(const Integrator&) = delete;
-  Integrator& operator=(const Integrator&) = delete;
-
-  //! Algebraic components and all derivatives consistent with the differential ones (IDACalcIC).
-  void ConsistentStart(double tout1) {
-    Check(IDACalcIC(mem_, IDA_YA_YDP_INIT, tout1), "IDACalcIC (consistent initial conditions)");
-    Check(IDAGetConsistentIC(mem_, y_, yp_), "IDAGetConsistentIC");
-    t_ = 0.0;
-  }
-
-  //! Integrates to `tout` without passing `tstop` (>= tout); y() and yp() then hold the solution there.
-  void AdvanceTo(double tout, double tstop) {
-    const long remaining = max_steps_ - steps();
-    if (remaining <= 0) BudgetExceeded();
-    Check(IDASetMaxNumSteps(mem_, remaining), "IDASetMaxNumSteps");
-    if (tstop != tstop_) {
-      Check(IDASetStopTime(mem_, tstop), "IDASetStopTime");
-      tstop_ = tstop;
-    }
-    double reached = t_;
-    const int flag = IDASolve(mem_, tout, &reached, y_, yp_, IDA_NORMAL);
-    IDAGetCurrentTime(mem_, &t_);
-    if (flag < 0) {
-      if (flag == IDA_TOO_MUCH_WORK) BudgetExceeded();
-      Fail(flag, fmt::format("IDASolve towards t = {:.9g} s", tout));
-    }
-    t_ = reached;
-  }
-
-  std::span<const double> y() const { return {N_VGetArrayPointer(y_), static_cast<std::size_t>(n_)}; }
-  std::span<const double> yp() const { return {N_VGetArrayPointer(yp_), static_cast<std::size_t>(n_)}; }
-  double time() const { return t_; }
-  long steps() const { return Counter(IDAGetNumSteps); }
-  long residual_evaluations() const { return Counter(IDAGetNumResEvals); }
-  long jacobian_evaluations() const { return Counter(IDAGetNumJacEvals); }
-
- private:
-  long Counter(int (*get)(void*, long*)) const {
-    long value = 0;
-    get(mem_, &value);
-    return value;
-  }
-  void Check(int flag, const char* what) {
-    if (flag < 0) Fail(flag, what);
-  }
-  [[noreturn]] void BudgetExceeded() const {
-    throw TransientError(fmt::format("transient: step budget of {} internal steps used up at t = {:.9g} s with {} "
-                                     "(raise TransientOptions::max_steps or loosen rtol)",
-                                     max_steps_, t_, FlagName(IDA_TOO_MUCH_WORK)),
-                         t_, IDA_TOO_MUCH_WORK);
-  }
-  [[noreturn]] void Fail(int flag, const std::string& what) {
-    std::string detail = !data_.failure.empty() ? data_.failure : data_.ida_message;
-    throw TransientError(fmt::format("transient: {} failed at t = {:.9g} s with {}{}{}", what, t_, FlagName(flag),
-                                     detail.empty() ? "" : ": ", detail),
-                         t_, flag);
-  }
-
-  int n_;
-  long max_steps_;
-  UserData data_;
-  N_Vector y_ = nullptr, yp_ = nullptr, id_ = nullptr, atol_ = nullptr;
-  SUNMatrix matrix_ = nullptr;
-  SUNLinearSolver solver_ = nullptr;
-  void* mem_ = nullptr;
-  double t_ = 0.0;
-  double tstop_ = NAN;
-};
 
 // Y and a Y' guess at t = 0 from the model's unknowns (IDACalcIC completes Y').
 void StartVectors(const DaeSystem& system, std::span<const double> x0, double stroke_rate, std::vector<double>& y,
@@ -549,7 +365,7 @@ TransientResult TransientSimulator::Run(const Model& model, std::span<const doub
   std::vector<double> y0, yp0;
   StartVectors(system, x0, initial.stroke_rate, y0, yp0);
 
-  Integrator ida(context_->ctx, system, options_, y0, yp0);
+  detail::IdaRun ida(context_->ctx, system, options_, y0, yp0);
   const double first_positive = *std::find_if(output_times.begin(), output_times.end(), [](double t) { return t > 0; });
   ida.ConsistentStart(first_positive);
 
@@ -600,7 +416,7 @@ PeriodicSteadyStateResult TransientSimulator::PeriodicSteadyState(std::span<cons
   const DaeSystem system(model_, std::vector<double>(theta.begin(), theta.end()), signal);
   std::vector<double> y0, yp0;
   StartVectors(system, InitialUnknowns(model_, theta, signal, initial), initial.stroke_rate, y0, yp0);
-  Integrator ida(context_->ctx, system, options_, y0, yp0);
+  detail::IdaRun ida(context_->ctx, system, options_, y0, yp0);
   ida.ConsistentStart(1.0 / (n * f));
 
   Eigen::VectorXd scale(m);

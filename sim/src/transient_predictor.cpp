@@ -1,10 +1,6 @@
 #include "strut/sim/transient_predictor.h"
 
-#include <idas/idas.h>
-#include <nvector/nvector_serial.h>
-#include <sundials/sundials_context.h>
-#include <sunlinsol/sunlinsol_dense.h>
-#include <sunmatrix/sunmatrix_dense.h>
+#include "ida_run.h"
 
 #include <algorithm>
 #include <chrono>
@@ -12,6 +8,7 @@
 #include <cstdlib>
 #include <fmt/format.h>
 #include <limits>
+#include <optional>
 #include <set>
 
 namespace strut::sim {
@@ -92,210 +89,11 @@ Eigen::MatrixXd SensitivityResiduals(const Model& model, std::span<const double>
 }
 
 // ---------------------------------------------------------------------------------------------
-// IDAS plumbing
+// IDAS (ida_run.h)
 
-struct TransientPredictor::Ida {
-  SUNContext ctx = nullptr;
-  Ida() {
-    if (SUNContext_Create(nullptr, &ctx) != 0) throw std::runtime_error("transient predictor: SUNContext_Create failed");
-  }
-  ~Ida() { SUNContext_Free(&ctx); }
-  Ida(const Ida&) = delete;
-  Ida& operator=(const Ida&) = delete;
-};
+struct TransientPredictor::Ida : detail::SundialsContext {};
 
 namespace {
-
-std::string FlagName(int flag) {
-  char* name = IDAGetReturnFlagName(flag);  // malloc'ed by SUNDIALS
-  std::string s = name ? name : fmt::format("IDAS flag {}", flag);
-  std::free(name);
-  return s;
-}
-
-struct UserData {
-  const DaeSystem* system = nullptr;
-  const InputSignal* input = nullptr;
-  std::span<const double> theta;
-  std::span<const int> parameters;
-  std::string failure;      // why a callback gave up
-  std::string ida_message;  // IDAS's last message
-};
-
-int ResidualCallback(double t, N_Vector y, N_Vector yp, N_Vector r, void* user) {
-  auto* data = static_cast<UserData*>(user);
-  const int n = data->system->size();
-  try {
-    std::span<double> rs(N_VGetArrayPointer(r), n);
-    data->system->Residual(t, std::span<const double>(N_VGetArrayPointer(y), n),
-                           std::span<const double>(N_VGetArrayPointer(yp), n), rs);
-    for (double v : rs)
-      if (!std::isfinite(v)) return 1;  // recoverable: a smaller step
-    return 0;
-  } catch (const std::exception& e) {
-    data->failure = fmt::format("residual failed at t = {:.9g} s: {}", t, e.what());
-    return -1;
-  }
-}
-
-int JacobianCallback(double t, double cj, N_Vector y, N_Vector yp, N_Vector, SUNMatrix jac, void* user, N_Vector,
-                     N_Vector, N_Vector) {
-  auto* data = static_cast<UserData*>(user);
-  const int n = data->system->size();
-  try {
-    const Eigen::MatrixXd j = data->system->Jacobian(t, std::span<const double>(N_VGetArrayPointer(y), n),
-                                                     std::span<const double>(N_VGetArrayPointer(yp), n), cj);
-    if (!j.allFinite()) return 1;
-    for (int c = 0; c < n; ++c) std::copy(j.col(c).data(), j.col(c).data() + n, SUNDenseMatrix_Column(jac, c));
-    return 0;
-  } catch (const std::exception& e) {
-    data->failure = fmt::format("Jacobian failed at t = {:.9g} s: {}", t, e.what());
-    return -1;
-  }
-}
-
-int SensitivityCallback(int ns, double t, N_Vector y, N_Vector yp, N_Vector, N_Vector* ys, N_Vector* yps,
-                        N_Vector* rs, void* user, N_Vector, N_Vector, N_Vector) {
-  auto* data = static_cast<UserData*>(user);
-  const int n = data->system->size();
-  try {
-    Eigen::MatrixXd s(n, ns), sp(n, ns);
-    for (int k = 0; k < ns; ++k) {
-      s.col(k) = Eigen::Map<const Eigen::VectorXd>(N_VGetArrayPointer(ys[k]), n);
-      sp.col(k) = Eigen::Map<const Eigen::VectorXd>(N_VGetArrayPointer(yps[k]), n);
-    }
-    const Eigen::MatrixXd r = SensitivityResiduals(
-        data->system->model(), data->theta, *data->input, data->parameters, t,
-        std::span<const double>(N_VGetArrayPointer(y), n), std::span<const double>(N_VGetArrayPointer(yp), n), s, sp);
-    if (!r.allFinite()) return 1;
-    for (int k = 0; k < ns; ++k) Eigen::Map<Eigen::VectorXd>(N_VGetArrayPointer(rs[k]), n) = r.col(k);
-    return 0;
-  } catch (const std::exception& e) {
-    data->failure = fmt::format("sensitivity residual failed at t = {:.9g} s: {}", t, e.what());
-    return -1;
-  }
-}
-
-void ErrorHandler(int, const char* module, const char* function, char* message, void* user) {
-  static_cast<UserData*>(user)->ida_message =
-      fmt::format("{}/{}: {}", module ? module : "IDAS", function ? function : "?", message ? message : "");
-}
-
-// One IDAS run with forward sensitivities; everything freed together.
-class SensitivityIntegrator {
- public:
-  SensitivityIntegrator(SUNContext ctx, UserData& data, const TransientOptions& options, const Eigen::VectorXd& y0,
-                        const Eigen::MatrixXd& s0, std::span<const double> pbar, bool staggered, bool error_control)
-      : data_(data), n_(data.system->size()), ns_(static_cast<int>(s0.cols())), max_steps_(options.max_steps) {
-    y_ = N_VNew_Serial(n_, ctx);
-    yp_ = N_VNew_Serial(n_, ctx);
-    id_ = N_VNew_Serial(n_, ctx);
-    atol_ = N_VNew_Serial(n_, ctx);
-    matrix_ = SUNDenseMatrix(n_, n_, ctx);
-    mem_ = IDACreate(ctx);
-    if (!y_ || !yp_ || !id_ || !atol_ || !matrix_ || !mem_) throw std::bad_alloc();
-    solver_ = SUNLinSol_Dense(y_, matrix_, ctx);
-    ys_ = N_VCloneVectorArray(ns_, y_);
-    yps_ = N_VCloneVectorArray(ns_, y_);
-    if (!solver_ || !ys_ || !yps_) throw std::bad_alloc();
-    const auto differential = data.system->differential();
-    const Eigen::VectorXd scales = data.system->scales();
-    for (int j = 0; j < n_; ++j) {
-      NV_Ith_S(y_, j) = y0[j];
-      NV_Ith_S(yp_, j) = 0.0;  // IDACalcIC completes Y'
-      NV_Ith_S(id_, j) = differential[j] ? 1.0 : 0.0;
-      NV_Ith_S(atol_, j) = options.atol_factor * scales[j];
-    }
-    if (data.system->has_stroke_rate()) NV_Ith_S(yp_, 0) = y0[n_ - 1];
-    for (int k = 0; k < ns_; ++k)
-      for (int j = 0; j < n_; ++j) {
-        NV_Ith_S(ys_[k], j) = s0(j, k);
-        NV_Ith_S(yps_[k], j) = 0.0;
-      }
-    pbar_.assign(pbar.begin(), pbar.end());
-    Check(IDASetErrHandlerFn(mem_, ErrorHandler, &data_), "IDASetErrHandlerFn");
-    Check(IDAInit(mem_, ResidualCallback, 0.0, y_, yp_), "IDAInit");
-    Check(IDASVtolerances(mem_, options.rtol, atol_), "IDASVtolerances");
-    Check(IDASetUserData(mem_, &data_), "IDASetUserData");
-    Check(IDASetLinearSolver(mem_, solver_, matrix_), "IDASetLinearSolver");
-    Check(IDASetJacFn(mem_, JacobianCallback), "IDASetJacFn");
-    Check(IDASetId(mem_, id_), "IDASetId");
-    Check(IDASetMaxOrd(mem_, options.max_order), "IDASetMaxOrd");
-    if (options.max_step > 0) Check(IDASetMaxStep(mem_, options.max_step), "IDASetMaxStep");
-    Check(IDASensInit(mem_, ns_, staggered ? IDA_STAGGERED : IDA_SIMULTANEOUS, SensitivityCallback, ys_, yps_),
-          "IDASensInit");
-    // p is not needed (the sensitivity residual is exact); pbar scales the sensitivity tolerances.
-    Check(IDASetSensParams(mem_, nullptr, pbar_.data(), nullptr), "IDASetSensParams");
-    Check(IDASensEEtolerances(mem_), "IDASensEEtolerances");
-    Check(IDASetSensErrCon(mem_, error_control ? SUNTRUE : SUNFALSE), "IDASetSensErrCon");
-  }
-  ~SensitivityIntegrator() {
-    IDAFree(&mem_);
-    if (ys_) N_VDestroyVectorArray(ys_, ns_);
-    if (yps_) N_VDestroyVectorArray(yps_, ns_);
-    if (solver_) SUNLinSolFree(solver_);
-    if (matrix_) SUNMatDestroy(matrix_);
-    for (N_Vector v : {y_, yp_, id_, atol_})
-      if (v) N_VDestroy(v);
-  }
-  SensitivityIntegrator(const SensitivityIntegrator&) = delete;
-  SensitivityIntegrator& operator=(const SensitivityIntegrator&) = delete;
-
-  void ConsistentStart(double tout1) {
-    Check(IDACalcIC(mem_, IDA_YA_YDP_INIT, tout1), "IDACalcIC (consistent initial conditions)");
-    Check(IDAGetConsistentIC(mem_, y_, yp_), "IDAGetConsistentIC");
-    Check(IDAGetSensConsistentIC(mem_, ys_, yps_), "IDAGetSensConsistentIC");
-  }
-
-  //! Integrates to `tout` without passing `tstop`; y() and s() then hold the solution there.
-  void AdvanceTo(double tout, double tstop) {
-    const long remaining = max_steps_ - steps();
-    if (remaining <= 0) Fail(IDA_TOO_MUCH_WORK, fmt::format("the step budget of {} steps", max_steps_));
-    Check(IDASetMaxNumSteps(mem_, remaining), "IDASetMaxNumSteps");
-    if (tstop != tstop_) {
-      Check(IDASetStopTime(mem_, tstop), "IDASetStopTime");
-      tstop_ = tstop;
-    }
-    double reached = 0.0;
-    const int flag = IDASolve(mem_, tout, &reached, y_, yp_, IDA_NORMAL);
-    if (flag < 0) Fail(flag, fmt::format("IDASolve towards t = {:.9g} s", tout));
-    Check(IDAGetSens(mem_, &reached, ys_), "IDAGetSens");
-  }
-
-  double y(int j) const { return NV_Ith_S(y_, j); }
-  double s(int j, int k) const { return NV_Ith_S(ys_[k], j); }
-  long steps() const {
-    long value = 0;
-    IDAGetNumSteps(mem_, &value);
-    return value;
-  }
-
- private:
-  void Check(int flag, const char* what) {
-    if (flag < 0) Fail(flag, what);
-  }
-  [[noreturn]] void Fail(int flag, const std::string& what) {
-    double t = NAN;
-    IDAGetCurrentTime(mem_, &t);
-    const std::string detail = !data_.failure.empty() ? data_.failure : data_.ida_message;
-    throw PeriodicSolverError(fmt::format("transient predictor (IDAS sensitivities): {} failed at t = {:.9g} s with "
-                                          "{}{}{}",
-                                          what, t, FlagName(flag), detail.empty() ? "" : ": ", detail),
-                              NAN, 0);
-  }
-
-  UserData& data_;
-  int n_, ns_;
-  long max_steps_;
-  std::vector<double> pbar_;
-  N_Vector y_ = nullptr, yp_ = nullptr, id_ = nullptr, atol_ = nullptr;
-  N_Vector* ys_ = nullptr;
-  N_Vector* yps_ = nullptr;
-  SUNMatrix matrix_ = nullptr;
-  SUNLinearSolver solver_ = nullptr;
-  void* mem_ = nullptr;
-  double tstop_ = NAN;
-};
 
 //! q'(t_mu) from the stroke on the periodic grid (fourth-order central differences), m/s.
 double GridRate(const Eigen::MatrixXd& unknowns, int row, int mu, double frequency) {
@@ -419,20 +217,31 @@ std::vector<Eigen::MatrixXd> TransientPredictor::OutputSensitivities(const ident
     if (pbar[k] == 1e-300) pbar[k] = 1.0;
   }
 
-  UserData data;
-  data.system = &system;
-  data.input = &signal;
-  data.theta = theta;
-  data.parameters = parameters;
-  SensitivityIntegrator ida(ida_->ctx, data, options_.integrator, y0, s0, pbar, options_.staggered,
-                            options_.sensitivity_error_control);
-  ida.ConsistentStart(1.0 / (n * f));
+  detail::SensitivitySetup setup;
+  setup.input = &signal;
+  setup.theta = theta;
+  setup.parameters = parameters;
+  setup.start = s0;
+  setup.pbar = pbar;
+  setup.staggered = options_.staggered;
+  setup.error_control = options_.sensitivity_error_control;
+  Eigen::VectorXd yp0 = Eigen::VectorXd::Zero(size);  // IDACalcIC completes Y'
+  if (system.has_stroke_rate()) yp0[0] = y0[m];
+  std::optional<detail::IdaRun> run;
+  try {
+    run.emplace(ida_->ctx, system, options_.integrator, std::span<const double>(y0.data(), size),
+                std::span<const double>(yp0.data(), size), &setup);
+    run->ConsistentStart(1.0 / (n * f));
+  } catch (const std::exception& e) {
+    throw PeriodicSolverError(fmt::format("transient predictor: sensitivities: {}", e.what()), NAN, 0);
+  }
+  detail::IdaRun& ida = *run;
 
   // Samples of one period: state (m x n), all sensitivities (size x n per parameter).
   Eigen::MatrixXd state(m, n), previous_state(m, n);
   std::vector<Eigen::MatrixXd> sens(ns, Eigen::MatrixXd(size, n)), previous_sens(ns);
   const auto store = [&](int mu) {
-    for (int j = 0; j < m; ++j) state(j, mu) = ida.y(j);
+    for (int j = 0; j < m; ++j) state(j, mu) = ida.y()[j];
     for (int k = 0; k < ns; ++k)
       for (int j = 0; j < size; ++j) sens[k](j, mu) = ida.s(j, k);
   };

@@ -245,6 +245,18 @@ struct Linearization {
     for (double t : theta) theta_jet.push_back(Constant(t));
     for (auto* v : {&x, &xd, &xdd, &residual}) v->resize(static_cast<std::size_t>(kBatch) * m);
     for (auto* v : {&u, &ud, &udd}) v->resize(kBatch);
+    // The directions are the same at every point of every batch: set once, Load writes values only.
+    using Derivatives = typename J::DerType;
+    for (int k = 0; k < kBatch; ++k) {
+      for (int j = 0; j < m; ++j) {
+        const int d0 = first_direction[j];
+        const std::size_t i = static_cast<std::size_t>(k) * m + j;
+        x[i] = J(0.0, Derivatives::Unit(directions, d0));
+        xd[i] = order[j] >= 1 ? J(0.0, Derivatives::Unit(directions, d0 + 1)) : Constant(0.0);
+        xdd[i] = order[j] >= 2 ? J(0.0, Derivatives::Unit(directions, d0 + 2)) : Constant(0.0);
+      }
+      u[k] = ud[k] = udd[k] = Constant(0.0);
+    }
     r.resize(m, kBatch);
     rx.resize(m, m * kBatch);
     rxd.resize(m, m * kBatch);
@@ -256,17 +268,15 @@ struct Linearization {
   //! Point k of the batch: the unknowns, their rates, and the input with its rates.
   void Load(int k, const double* z, const double* zd, const double* zdd, double input, double input_rate,
             double input_accel) {
-    using Derivatives = typename J::DerType;
     for (int j = 0; j < m; ++j) {
-      const int d0 = first_direction[j];
       const std::size_t i = static_cast<std::size_t>(k) * m + j;
-      x[i] = J(z[j], Derivatives::Unit(directions, d0));
-      xd[i] = order[j] >= 1 ? J(zd[j], Derivatives::Unit(directions, d0 + 1)) : Constant(zd[j]);
-      xdd[i] = order[j] >= 2 ? J(zdd[j], Derivatives::Unit(directions, d0 + 2)) : Constant(zdd[j]);
+      x[i].value() = z[j];
+      xd[i].value() = zd[j];
+      xdd[i].value() = zdd[j];
     }
-    u[k] = Constant(input);
-    ud[k] = Constant(input_rate);
-    udd[k] = Constant(input_accel);
+    u[k].value() = input;
+    ud[k].value() = input_rate;
+    udd[k].value() = input_accel;
   }
 
   //! Evaluates the first `count` loaded points.

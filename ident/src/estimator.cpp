@@ -406,9 +406,10 @@ FitSummary Estimator::Fit(const std::vector<ExperimentData>& data, const Paramet
   std::vector<double> variance(nc);
   int iteration = 0;
   bool converged = l == 0;
-  // Frozen sensitivities (modified Gauss-Newton): after a step below this fraction of every
-  // parameter's sd the sensitivities change by far less than the few percent the steps tolerate.
-  constexpr double kFrozenSensitivityStep = 0.1;
+  // Frozen sensitivities (modified Gauss-Newton): they change with the parameters relative to their
+  // size, so after a step below this fraction of every parameter (scaled units) they are within
+  // about that fraction, inside the few percent the steps tolerate.
+  constexpr double kFrozenSensitivityStep = 0.01;
   bool reuse_sensitivities = false;
   for (; iteration < options_.max_iterations && !converged; ++iteration) {
     // Stage 1 (eq. 18): channel variances with bias correction.
@@ -497,7 +498,7 @@ FitSummary Estimator::Fit(const std::vector<ExperimentData>& data, const Paramet
     damping_sd = lambda == 1.0 ? std::min(damping_sd * 2.0, 1e3) : std::max(damping_sd * 0.25, 1e-6);
     const double step_in_sd = (lambda * step.array().abs() / step_sd.array()).maxCoeff();
     converged = step_in_sd < options_.step_tolerance;
-    reuse_sensitivities = step_in_sd < kFrozenSensitivityStep;
+    reuse_sensitivities = (lambda * step.array().abs()).maxCoeff() < kFrozenSensitivityStep;
   }
   summary.converged = converged;
   summary.iterations = iteration;

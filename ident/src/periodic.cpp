@@ -209,8 +209,8 @@ void GridRates(const Stencil& s, const Eigen::MatrixXd& z, double frequency, Eig
   }
 }
 
-// Periodic cubic (Catmull-Rom) resampling of every row onto `points` equidistant points of the
-// same period: the coarse-grid start's interpolation in both directions.
+}  // namespace
+
 Eigen::MatrixXd PeriodicResample(const Eigen::MatrixXd& rows, int points) {
   const int n = static_cast<int>(rows.cols());
   Eigen::MatrixXd out(rows.rows(), points);
@@ -224,6 +224,8 @@ Eigen::MatrixXd PeriodicResample(const Eigen::MatrixXd& rows, int points) {
   }
   return out;
 }
+
+namespace {
 
 // Residuals of a batch of grid points and their derivatives with respect to the unknowns and their
 // rates, scaled like G: r, dr/dx, dr/dx', dr/dx'' per point. J is the Jet type that carries the
@@ -878,31 +880,51 @@ Eigen::MatrixXd PeriodicSolver::InputGradients(const PeriodicSolution& solution,
   }
   solution.jacobian->SolveTransposed(lambda);
   // G_u^T lambda: per point the input, rate and acceleration parts, the rate parts through D^T.
+  // The residual's derivatives in the input and its rates: batches of points, as the Jacobian's.
   Eigen::MatrixXd a0(columns, n), a1(columns, n), a2(columns, n);
   {
-    const auto constant = [&](double v) { return jets.Constant(v); };
-    std::vector<J> x(m), xd(m), xdd(m), r(m);
-    for (int mu = 0; mu < n; ++mu) {
-      for (int j = 0; j < m; ++j) {
-        x[j] = constant(z(j, mu));
-        xd[j] = constant(zd(j, mu));
-        xdd[j] = constant(zdd(j, mu));
-      }
-      model_.Residual<J>(x, xd, xdd, J(input.values[mu], J::DerType::Unit(0)),
-                         J(rates.first(0, mu), J::DerType::Unit(1)), J(rates.second(0, mu), J::DerType::Unit(2)),
-                         jets.theta_jet, r);
-      for (Eigen::Index b = 0; b < columns; ++b) {
-        double v0 = 0.0, v1 = 0.0, v2 = 0.0;
-        for (int i = 0; i < m; ++i) {
-          const double l = lambda(mu * m + i, b) * equation_weight_[i];
-          const auto& d = r[i].derivatives();
-          v0 += l * d[0];
-          v1 += l * d[1];
-          v2 += l * d[2];
+    constexpr int kBatch = 32;
+    std::vector<J> x(kBatch * m), xd(kBatch * m), xdd(kBatch * m), r(kBatch * m), u(kBatch), ud(kBatch), udd(kBatch);
+    for (int k = 0; k < kBatch; ++k) {  // the directions: the input, its rate and its acceleration
+      u[k] = J(0.0, J::DerType::Unit(0));
+      ud[k] = J(0.0, J::DerType::Unit(1));
+      udd[k] = J(0.0, J::DerType::Unit(2));
+    }
+    for (auto* v : {&x, &xd, &xdd})
+      for (J& jet : *v) jet = jets.Constant(0.0);
+    for (int start = 0; start < n; start += kBatch) {
+      const int size = std::min(kBatch, n - start);
+      for (int k = 0; k < size; ++k) {
+        const int mu = start + k;
+        for (int j = 0; j < m; ++j) {
+          x[k * m + j].value() = z(j, mu);
+          xd[k * m + j].value() = zd(j, mu);
+          xdd[k * m + j].value() = zdd(j, mu);
         }
-        a0(b, mu) = v0;
-        a1(b, mu) = v1;
-        a2(b, mu) = v2;
+        u[k].value() = input.values[mu];
+        ud[k].value() = rates.first(0, mu);
+        udd[k].value() = rates.second(0, mu);
+      }
+      const std::size_t values = static_cast<std::size_t>(size) * m;
+      model_.Residuals<J>(std::span<const J>(x.data(), values), std::span<const J>(xd.data(), values),
+                          std::span<const J>(xdd.data(), values), std::span<const J>(u.data(), size),
+                          std::span<const J>(ud.data(), size), std::span<const J>(udd.data(), size), jets.theta_jet,
+                          std::span<J>(r.data(), values));
+      for (int k = 0; k < size; ++k) {
+        const int mu = start + k;
+        for (Eigen::Index b = 0; b < columns; ++b) {
+          double v0 = 0.0, v1 = 0.0, v2 = 0.0;
+          for (int i = 0; i < m; ++i) {
+            const double l = lambda(mu * m + i, b) * equation_weight_[i];
+            const auto& d = r[k * m + i].derivatives();
+            v0 += l * d[0];
+            v1 += l * d[1];
+            v2 += l * d[2];
+          }
+          a0(b, mu) = v0;
+          a1(b, mu) = v1;
+          a2(b, mu) = v2;
+        }
       }
     }
   }

@@ -52,6 +52,10 @@ struct Stencil {
 Eigen::MatrixXd PeriodSynchronousSamples(std::span<const double> samples, double sample_rate, double frequency,
                                          long periods, int n);
 
+//! Periodic cubic (Catmull-Rom) resampling of every row (one period on equidistant points starting
+//! at phase 0) onto `points` equidistant points: the coarse-grid start's interpolation both ways.
+Eigen::MatrixXd PeriodicResample(const Eigen::MatrixXd& rows, int points);
+
 //! One period of the input (force or measured stroke) on the grid t_mu = mu / (n f).
 struct PeriodicInput {
   double frequency = 0.0;      //!< Hz

@@ -755,6 +755,46 @@ struct ParameterJets {
   std::vector<J> theta_jet;
 };
 
+// The residual Jets of every grid point, a batch of points at a time (one call per term and batch,
+// as the Jacobian's): the unknowns and their rates as constants, the input and its rate and
+// acceleration as directions 0, 1, 2 when `input_directions` (else constants), the parameters as
+// `jets` has them. `use(start, size, r)` reads the residuals of the points start .. start + size - 1.
+template <class J, class Use>
+void ResidualJetBatches(const Model& model, const Eigen::MatrixXd& z, const Eigen::MatrixXd& zd,
+                        const Eigen::MatrixXd& zdd, const PeriodicInput& input, const Eigen::MatrixXd& input_first,
+                        const Eigen::MatrixXd& input_second, const ParameterJets<J>& jets, bool input_directions,
+                        const Use& use) {
+  constexpr int kBatch = 32;
+  const int m = model.unknown_count(), n = static_cast<int>(z.cols());
+  std::vector<J> x(kBatch * m, jets.Constant(0.0)), xd(x), xdd(x), r(x), u(kBatch, jets.Constant(0.0)), ud(u), udd(u);
+  if (input_directions)
+    for (int k = 0; k < kBatch; ++k) {
+      u[k] = J(0.0, J::DerType::Unit(jets.directions, 0));
+      ud[k] = J(0.0, J::DerType::Unit(jets.directions, 1));
+      udd[k] = J(0.0, J::DerType::Unit(jets.directions, 2));
+    }
+  for (int start = 0; start < n; start += kBatch) {  // the directions stay; each point loads values
+    const int size = std::min(kBatch, n - start);
+    for (int k = 0; k < size; ++k) {
+      const int mu = start + k;
+      for (int j = 0; j < m; ++j) {
+        x[k * m + j].value() = z(j, mu);
+        xd[k * m + j].value() = zd(j, mu);
+        xdd[k * m + j].value() = zdd(j, mu);
+      }
+      u[k].value() = input.values[mu];
+      ud[k].value() = input_first(0, mu);
+      udd[k].value() = input_second(0, mu);
+    }
+    const std::size_t values = static_cast<std::size_t>(size) * m;
+    model.Residuals<J>(std::span<const J>(x.data(), values), std::span<const J>(xd.data(), values),
+                       std::span<const J>(xdd.data(), values), std::span<const J>(u.data(), size),
+                       std::span<const J>(ud.data(), size), std::span<const J>(udd.data(), size), jets.theta_jet,
+                       std::span<J>(r.data(), values));
+    use(start, size, r);
+  }
+}
+
 }  // namespace
 
 template <class J>
@@ -768,33 +808,15 @@ Eigen::MatrixXd PeriodicSolver::ParameterResiduals(const PeriodicSolution& solut
   Eigen::MatrixXd zd, zdd;
   GridRates(stencil_, z, input.frequency, zd, zdd);
   Eigen::MatrixXd rhs(n * m, nd);
-  constexpr int kBatch = 32;
-  std::vector<J> x(kBatch * m), xd(kBatch * m), xdd(kBatch * m), r(kBatch * m), u(kBatch), ud(kBatch), udd(kBatch);
-  for (int start = 0; start < n; start += kBatch) {
-    const int size = std::min(kBatch, n - start);
-    for (int k = 0; k < size; ++k) {
-      const int mu = start + k;
-      for (int j = 0; j < m; ++j) {
-        x[k * m + j] = jets.Constant(z(j, mu));
-        xd[k * m + j] = jets.Constant(zd(j, mu));
-        xdd[k * m + j] = jets.Constant(zdd(j, mu));
-      }
-      u[k] = jets.Constant(input.values[mu]);
-      ud[k] = jets.Constant(rates.first(0, mu));
-      udd[k] = jets.Constant(rates.second(0, mu));
-    }
-    const std::size_t values = static_cast<std::size_t>(size) * m;
-    model_.Residuals<J>(std::span<const J>(x.data(), values), std::span<const J>(xd.data(), values),
-                        std::span<const J>(xdd.data(), values), std::span<const J>(u.data(), size),
-                        std::span<const J>(ud.data(), size), std::span<const J>(udd.data(), size), jets.theta_jet,
-                        std::span<J>(r.data(), values));
-    for (int k = 0; k < size; ++k)
-      for (int i = 0; i < m; ++i) {
-        const auto& d = r[k * m + i].derivatives();
-        for (int p = 0; p < nd; ++p)
-          rhs((start + k) * m + i, p) = d.size() >= nd ? -d[p] * equation_weight_[i] : 0.0;
-      }
-  }
+  ResidualJetBatches(model_, z, zd, zdd, input, rates.first, rates.second, jets, false,
+                     [&](int start, int size, const std::vector<J>& r) {
+                       for (int k = 0; k < size; ++k)
+                         for (int i = 0; i < m; ++i) {
+                           const auto& d = r[k * m + i].derivatives();
+                           for (int p = 0; p < nd; ++p)
+                             rhs((start + k) * m + i, p) = d.size() >= nd ? -d[p] * equation_weight_[i] : 0.0;
+                         }
+                     });
   return rhs;
 }
 
@@ -880,54 +902,26 @@ Eigen::MatrixXd PeriodicSolver::InputGradients(const PeriodicSolution& solution,
   }
   solution.jacobian->SolveTransposed(lambda);
   // G_u^T lambda: per point the input, rate and acceleration parts, the rate parts through D^T.
-  // The residual's derivatives in the input and its rates: batches of points, as the Jacobian's.
   Eigen::MatrixXd a0(columns, n), a1(columns, n), a2(columns, n);
-  {
-    constexpr int kBatch = 32;
-    std::vector<J> x(kBatch * m), xd(kBatch * m), xdd(kBatch * m), r(kBatch * m), u(kBatch), ud(kBatch), udd(kBatch);
-    for (int k = 0; k < kBatch; ++k) {  // the directions: the input, its rate and its acceleration
-      u[k] = J(0.0, J::DerType::Unit(0));
-      ud[k] = J(0.0, J::DerType::Unit(1));
-      udd[k] = J(0.0, J::DerType::Unit(2));
-    }
-    for (auto* v : {&x, &xd, &xdd})
-      for (J& jet : *v) jet = jets.Constant(0.0);
-    for (int start = 0; start < n; start += kBatch) {
-      const int size = std::min(kBatch, n - start);
-      for (int k = 0; k < size; ++k) {
-        const int mu = start + k;
-        for (int j = 0; j < m; ++j) {
-          x[k * m + j].value() = z(j, mu);
-          xd[k * m + j].value() = zd(j, mu);
-          xdd[k * m + j].value() = zdd(j, mu);
-        }
-        u[k].value() = input.values[mu];
-        ud[k].value() = rates.first(0, mu);
-        udd[k].value() = rates.second(0, mu);
-      }
-      const std::size_t values = static_cast<std::size_t>(size) * m;
-      model_.Residuals<J>(std::span<const J>(x.data(), values), std::span<const J>(xd.data(), values),
-                          std::span<const J>(xdd.data(), values), std::span<const J>(u.data(), size),
-                          std::span<const J>(ud.data(), size), std::span<const J>(udd.data(), size), jets.theta_jet,
-                          std::span<J>(r.data(), values));
-      for (int k = 0; k < size; ++k) {
-        const int mu = start + k;
-        for (Eigen::Index b = 0; b < columns; ++b) {
-          double v0 = 0.0, v1 = 0.0, v2 = 0.0;
-          for (int i = 0; i < m; ++i) {
-            const double l = lambda(mu * m + i, b) * equation_weight_[i];
-            const auto& d = r[k * m + i].derivatives();
-            v0 += l * d[0];
-            v1 += l * d[1];
-            v2 += l * d[2];
-          }
-          a0(b, mu) = v0;
-          a1(b, mu) = v1;
-          a2(b, mu) = v2;
-        }
-      }
-    }
-  }
+  ResidualJetBatches(model_, z, zd, zdd, input, rates.first, rates.second, jets, true,
+                     [&](int start, int size, const std::vector<J>& r) {
+                       for (int k = 0; k < size; ++k) {
+                         const int mu = start + k;
+                         for (Eigen::Index b = 0; b < columns; ++b) {
+                           double v0 = 0.0, v1 = 0.0, v2 = 0.0;
+                           for (int i = 0; i < m; ++i) {
+                             const double l = lambda(mu * m + i, b) * equation_weight_[i];
+                             const auto& d = r[k * m + i].derivatives();
+                             v0 += l * d[0];
+                             v1 += l * d[1];
+                             v2 += l * d[2];
+                           }
+                           a0(b, mu) = v0;
+                           a1(b, mu) = v1;
+                           a2(b, mu) = v2;
+                         }
+                       }
+                     });
   // (D1^T a1)(nu) = f sum_k first[k] a1(nu - k): the stencil read backwards.
   const double f = input.frequency;
   for (int k = stencil_.kmin; k <= stencil_.kmax; ++k) {

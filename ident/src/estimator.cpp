@@ -58,6 +58,18 @@ Eigen::MatrixXd InputNoiseCovariance(const ExperimentData& d, const Eigen::Matri
   return covariance;
 }
 
+//! The composition of a force-driven damper model under stroke input, for MeasuredStrokeStart;
+//! empty for other models.
+std::optional<Model> StrokeDrivenTwin(const Model& model) {
+  if (model.causality() != Causality::kForceInput || model.mechanical_channel() != "stroke") return std::nullopt;
+  try {
+    Model twin = Model::Build(model.composition(), Causality::kStrokeInput);
+    if (twin.unknown_count() == model.unknown_count()) return twin;
+  } catch (const ModelError&) {
+  }
+  return std::nullopt;
+}
+
 constexpr double kMeasuredStartMismatch = 0.1;  // rms over the force's range, periodic solution
 constexpr double kStaticStartMismatch = 1.0;    // largest over the force's range, static solutions
 
@@ -67,15 +79,13 @@ constexpr double kStaticStartMismatch = 1.0;    // largest over the force's rang
 //! factorisations on the standard matrix); from here it needs 3-8. Empty when the model is not a
 //! force-driven damper, the stroke was not recorded, the stroke-driven solve fails, or the model on
 //! the measured stroke misses the measured force (parameters far from the record's).
-std::optional<PeriodicSolution> MeasuredStrokeStart(const Model& model, const ExperimentData& d,
-                                                    std::span<const double> theta, int n,
+//! `stroke_driven`: the same composition under stroke input (StrokeDrivenTwin).
+std::optional<PeriodicSolution> MeasuredStrokeStart(const Model& model, const Model& stroke_driven,
+                                                    const ExperimentData& d, std::span<const double> theta, int n,
                                                     const PeriodicSolverOptions& options) {
-  if (model.causality() != Causality::kForceInput || model.mechanical_channel() != "stroke") return std::nullopt;
   const auto stroke = d.channels.find("stroke");
   if (stroke == d.channels.end() || stroke->second.mean.size() < 8) return std::nullopt;
   try {
-    const Model stroke_driven = Model::Build(model.composition(), Causality::kStrokeInput);
-    if (stroke_driven.unknown_count() != model.unknown_count()) return std::nullopt;
     const PeriodicSeries series = PeriodicSeries::Fit(stroke->second.mean, d.frequency);
     const PeriodicInput measured = series.OnGrid(n);
     const Eigen::Map<const Eigen::VectorXd> force(d.input.values.data(), n);
@@ -135,7 +145,7 @@ struct ExperimentState {
   std::string error;
   bool dropped_at_start = false;      // no solution at the starting values; retried as the fit moves
   //! Per fitted channel, d(prediction at the phases)/d(scaled parameters) of the last iteration that
-  //! computed them: reused while the fit's steps are a small fraction of the parameters' sd.
+  //! computed them: reused while the fit's steps are below a percent of the parameters.
   std::vector<Eigen::MatrixXd> sensitivities_at_phases;
   // Cubic (4-point Lagrange) interpolation from the n-point grid to the data phases: grid points
   // j0 - 1 .. j0 + 2 (mod n). Linear interpolation would bias the fit by h^2 y''/8, comparable to
@@ -328,8 +338,11 @@ FitSummary Estimator::Fit(const std::vector<ExperimentData>& data, const Paramet
   const int threads = options_.threads > 0 ? options_.threads
                                            : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
   // The first solve of an experiment (no warm start): from the measured stroke when that fits, else cold.
+  const std::optional<Model> stroke_driven = StrokeDrivenTwin(model_);
   const auto first_solve = [&](const ExperimentState& s, const std::vector<double>& values) {
-    if (const auto measured = MeasuredStrokeStart(model_, *s.data, values, n, solver_options)) {
+    const auto measured = stroke_driven ? MeasuredStrokeStart(model_, *stroke_driven, *s.data, values, n, solver_options)
+                                        : std::nullopt;
+    if (measured) {
       try {
         return s.solver->Solve(s.data->input, values, &*measured);
       } catch (const PeriodicSolverError& e) {

@@ -36,6 +36,13 @@ double ThreadCpuMs() {
   return t.tv_sec * 1e3 + t.tv_nsec * 1e-6;
 }
 
+//! The q-quantile (0..1) of `times` (reordered); q = 0.5: element size / 2, the median.
+double Quantile(std::vector<double>& times, double q) {
+  const auto k = static_cast<std::ptrdiff_t>(q * (times.size() - 1) + 0.5);
+  std::nth_element(times.begin(), times.begin() + k, times.end());
+  return times[k];
+}
+
 //! Median CPU time (ms) of the calling thread over `repeats` calls: the solvers are single
 //! threaded, so this is their one-core time, without what other processes of a shared machine
 //! take from it (wall time there varies by a factor of two from run to run).
@@ -46,15 +53,7 @@ double MedianCpuMs(int repeats, const std::function<void()>& run) {
     run();
     times.push_back(ThreadCpuMs() - start);
   }
-  std::nth_element(times.begin(), times.begin() + times.size() / 2, times.end());
-  return times[times.size() / 2];
-}
-
-//! The q-quantile (0..1) of `times` (reordered).
-double Quantile(std::vector<double>& times, double q) {
-  const auto k = static_cast<std::ptrdiff_t>(q * (times.size() - 1) + 0.5);
-  std::nth_element(times.begin(), times.begin() + k, times.end());
-  return times[k];
+  return Quantile(times, 0.5);
 }
 
 rig::MatrixEntry Experiment(const std::string& label) {
@@ -417,10 +416,8 @@ TimedFit TimeFit(const ident::Model& model, const std::vector<ident::ExperimentD
     out.fit = std::move(fit);
     out.tally = tally;
   }
-  std::nth_element(times.begin(), times.begin() + times.size() / 2, times.end());
-  std::nth_element(cpu.begin(), cpu.begin() + cpu.size() / 2, cpu.end());
-  out.ms = times[times.size() / 2];
-  out.cpu_ms = cpu[cpu.size() / 2];
+  out.ms = Quantile(times, 0.5);
+  out.cpu_ms = Quantile(cpu, 0.5);
   out.runs = repeats;
   return out;
 }

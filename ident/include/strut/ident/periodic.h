@@ -108,8 +108,9 @@ struct PeriodicSolution {
 
   //! The factorised Newton Jacobian this solution was reached with (null for a guess): warm starts
   //! from this solution take simplified Newton steps with it, and sensitivities (eq. 14) reuse it
-  //! when it is current (`jacobian_contraction` 0). A cache, so OutputSensitivities may replace it by one at the solution
-  //! (so one solution object must not be passed to two such calls on different threads at once).
+  //! when it is current (`jacobian_contraction` 0). A cache, so OutputSensitivities may replace it
+  //! by one at the solution (so one solution object must not be passed to two such calls on
+  //! different threads at once).
   mutable std::shared_ptr<const CyclicBandedLU> jacobian;
   //! How far `jacobian` is from the one at the solution. 0: it was factorised for the final Newton
   //! step (at the last iterate but one, a step below the tolerance away), so sensitivities are

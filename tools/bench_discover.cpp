@@ -23,7 +23,10 @@ struct BenchDiscover {
     // The simulated rig with every effect on: the hardest case, every round refits all candidates.
     const sim::SimulatedRig rig(sim::DefaultTruth());
     const daq::Session session = rig.RunMatrix(sim::StandardMatrixPlan());
-    const auto data = ident::PrepareExperiments(session, ident::Causality::kStrokeInput, 800);
+    ident::SessionFitOptions fit;
+    fit.composition = "1dof";
+    const ident::FitData data =
+        ident::PrepareFitData(session, "simulated session", ident::Model::Build("1dof", fit.causality), fit.estimator.n);
     nlohmann::json rows = nlohmann::json::array();
     std::cout << "discover on the 14-experiment standard matrix from the simulated rig (every effect on), "
                  "stroke input, n = 800:\n";
@@ -34,7 +37,7 @@ struct BenchDiscover {
       ident::DiscoveryResult result;
       for (int r = 0; r < repeats; ++r) {
         const auto start = std::chrono::steady_clock::now();
-        result = ident::Discover(data, "1dof", ident::Causality::kStrokeInput, options);
+        result = ident::Discover(data, fit, options);
         seconds.push_back(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
       }
       std::sort(seconds.begin(), seconds.end());

@@ -13,7 +13,7 @@
 #include "strut/daq/session.h"
 #include "strut/ident/estimator.h"
 #include "strut/ident/fit_report.h"
-#include "strut/ident/initial_values.h"
+#include "strut/ident/session_fit.h"
 #include "strut/rig/test_matrix.h"
 #include "strut/ident/discover.h"
 #include "strut/sim/simulated_rig.h"
@@ -44,18 +44,19 @@ struct DemoCommand {
 
     // 2. Identification: the paper's 1 dof and 2 dof models, starting values from the data.
     const daq::Session session = daq::ReadSession(session_path);
-    std::cout << "2. identification (stroke input; the paper's parameter sets plus sensor offsets):\n";
+    std::cout << "2. identification (stroke input; every parameter the data determine):\n";
     std::vector<ident::FitSummary> fits;
     for (const char* composition : {"1dof", "2dof"}) {
-      const ident::Model model = ident::Model::Build(composition, ident::Causality::kStrokeInput);
-      std::vector<ident::DataIssue> issues;
-      const auto data = ident::PrepareExperiments(session, model.causality(), 800, &issues);
-      const ident::ParameterSet initial = ident::InitialValuesFromData(model, data, nullptr);
+      ident::SessionFitOptions options;
+      options.composition = composition;
+      const ident::Model model = ident::Model::Build(composition, options.causality);
       start = Clock::now();
-      ident::FitSummary fit = ident::Estimator(model).Fit(data, initial, ident::DefaultChoices(model), issues);
+      ident::FitSummary fit =
+          ident::FitPrepared(ident::PrepareFitData(session, session_path, model, options.estimator.n), model, options)
+              .summary;
       const double seconds = std::chrono::duration<double>(Clock::now() - start).count();
-      std::cout << fmt::format("\n   {} fitted in {:.2f} s, {} iterations, BIC {:.6g}\n", composition, seconds,
-                               fit.iterations, fit.bic);
+      std::cout << fmt::format("\n   {} fitted in {:.2f} s, {} iterations, BIC {:.6g}\n   {}\n", composition, seconds,
+                               fit.iterations, fit.bic, fit.VerdictText());
       for (int i : fit.estimated_positions) {
         const auto& spec = fit.parameters.spec(i);
         const auto t = truth.find(spec.key());
@@ -66,7 +67,7 @@ struct DemoCommand {
       }
       for (const auto& c : fit.channels)
         std::cout << fmt::format("     {:<9} residual rms {:9.4g}, {:6.1f} x the noise floor\n", c.name, c.rms,
-                                 c.rms * c.rms / c.noise_floor_variance);
+                                 c.noise_ratio);
       for (const auto& w : fit.warnings) std::cout << "     warning: " << w << "\n";
       const std::string stem = out_dir + "/fit-" + composition;
       std::ofstream(stem + ".json") << ident::FitToJson(fit).dump(1) << "\n";
@@ -79,10 +80,13 @@ struct DemoCommand {
     // 3. Discovery from 1 dof: what physics do the recordings show beyond it?
     std::cout << "\n3. discovery from 1dof (the truth has every effect of the catalogue):\n";
     start = Clock::now();
-    const auto data = ident::PrepareExperiments(session, ident::Causality::kStrokeInput, 800);
-    const ident::DiscoveryResult found = ident::Discover(data, "1dof", ident::Causality::kStrokeInput, {});
+    ident::SessionFitOptions baseline;
+    baseline.composition = "1dof";
+    const ident::DiscoveryResult found = ident::Discover(
+        ident::PrepareFitData(session, session_path, ident::Model::Build("1dof", baseline.causality), baseline.estimator.n),
+        baseline, {});
     for (const auto& step : found.steps)
-      std::cout << fmt::format("   + {:<20} BIC {:+11.1f}   {}\n", step.term, step.delta_bic, step.evidence);
+      std::cout << fmt::format("   + {:<20} ΔBIC {:+11.1f}   {}\n", step.term, step.delta_bic, step.evidence);
     std::cout << fmt::format("   {} ({:.1f} s)\n", found.conclusion,
                              std::chrono::duration<double>(Clock::now() - start).count());
     std::cout << fmt::format("\n   Fits: {0}/fit-*.json, reports: {0}/fit-*.html, session: {1}\n", out_dir, session_path);

@@ -5,6 +5,8 @@
 #include <iostream>
 
 #include "commands.h"
+#include "model_options.h"
+#include "output_files.h"
 #include "strut/daq/session.h"
 #include "strut/ident/discover.h"
 #include "strut/ident/fit_report.h"
@@ -28,7 +30,8 @@ nlohmann::json DiscoveryJson(const ident::DiscoveryResult& r) {
   j["baseline"] = {{"model", r.baseline.model},
                    {"loglik", r.baseline.loglik},
                    {"bic", r.baseline.bic},
-                   {"noise_ratio", RatiosJson(ident::PooledNoiseRatio(r.baseline))}};
+                   {"noise_ratio", RatiosJson(ident::PooledNoiseRatio(r.baseline))},
+                   {"verdict", ident::ToString(r.baseline.Verdict())}};
   j["nothing_missing"] = r.nothing_missing;
   j["mismatch"] = nlohmann::json::array();
   for (const auto& f : r.mismatch) j["mismatch"].push_back(FindingJson(f));
@@ -41,6 +44,8 @@ nlohmann::json DiscoveryJson(const ident::DiscoveryResult& r) {
                         {"delta_bic", s.delta_bic},
                         {"noise_before", RatiosJson(s.noise_before)},
                         {"noise_after", RatiosJson(s.noise_after)},
+                        {"cv_noise_ratio_before", s.cv_before},
+                        {"cv_noise_ratio_after", s.cv_after},
                         {"parameters", nlohmann::json::object()},
                         {"candidates", nlohmann::json::array()}};
     for (const auto& [key, value] : s.parameters) step["parameters"][key] = value;
@@ -50,6 +55,8 @@ nlohmann::json DiscoveryJson(const ident::DiscoveryResult& r) {
                                     {"delta_bic", c.delta_bic},
                                     {"evidence", c.evidence},
                                     {"noise_ratio", RatiosJson(c.noise_ratio)},
+                                    {"cv_noise_ratio", std::isfinite(c.cv_ratio) ? nlohmann::json(c.cv_ratio) : nlohmann::json(nullptr)},
+                                    {"verdict", c.verdict},
                                     {"error", c.error}});
     j["steps"].push_back(step);
   }
@@ -102,33 +109,32 @@ void WriteDiscoveryReport(const ident::DiscoveryResult& r, const std::string& pa
 
 struct DiscoverCommand {
   std::vector<std::string> sessions;
-  std::string base = "1dof";
-  std::string input = "force";
+  ModelOptions model;
+  std::vector<std::string> exclude;
   std::string json_path, report_path;
   int n = 800;
   int threads = 2;
 
   void Run() const {
-    const ident::Causality causality = ident::ParseCausality(input);
-    std::vector<ident::ExperimentData> data;
-    std::vector<ident::DataIssue> issues;
-    for (const auto& path : sessions) {
-      auto prepared = ident::PrepareExperiments(daq::ReadSession(path), causality, n, &issues);
-      for (auto& e : prepared) data.push_back(std::move(e));
-    }
-    if (data.empty()) throw std::invalid_argument("no complete periodic experiment in the given sessions");
+    CheckOutputPath("--json", json_path, sessions);
+    CheckOutputPath("--report", report_path, sessions);
+    ident::SessionFitOptions fit;
+    fit.composition = model.composition;
+    fit.causality = ident::ParseCausality(model.input);
+    fit.params_file = model.params_file;
+    fit.assignments = model.assignments;
+    fit.exclude = exclude;
+    fit.estimator.n = n;
+    const ident::FitData data = ident::ReadFitData(sessions, model.BuildModel(), n, exclude);
+    for (const auto& line : data.excluded) spdlog::info("{}", line);
     ident::DiscoverOptions options;
-    options.estimator.n = n;
     options.threads = threads;
-    const ident::DiscoveryResult result = ident::Discover(data, base, causality, options, issues);
+    const ident::DiscoveryResult result = ident::Discover(data, fit, options);
+    // The conclusion was logged (stderr); stdout carries it once, as data.
     std::cout << result.conclusion << "\n";
     for (const auto& s : result.steps)
-      std::cout << fmt::format("  + {:<20} dBIC {:+.1f}  {}\n", s.term, s.delta_bic, s.evidence);
-    if (!json_path.empty()) {
-      std::ofstream out(json_path);
-      out << DiscoveryJson(result).dump(1) << "\n";
-      if (!out) throw std::runtime_error("cannot write " + json_path);
-    }
+      std::cout << fmt::format("  + {:<20} ΔBIC {:+.1f}  {}\n", s.term, s.delta_bic, s.evidence);
+    if (!json_path.empty()) WriteTextOutput(json_path, DiscoveryJson(result).dump(1) + "\n");
     if (!report_path.empty()) WriteDiscoveryReport(result, report_path);
   }
 };
@@ -137,17 +143,21 @@ struct DiscoverCommand {
 
 void RegisterDiscoverCommand(CLI::App& app) {
   auto command = std::make_shared<DiscoverCommand>();
-  CLI::App* sub = app.add_subcommand("discover", "Find the physics a model leaves out, add it, show the fit improve");
-  sub->add_option("sessions", command->sessions, "Session files (HDF5)")->required()->check(CLI::ExistingFile);
-  sub->add_option("--model", command->base, "The baseline composition (1dof, 2dof, 1dof+heat-exchange, ...)")
+  CLI::App* sub = app.add_subcommand(
+      "discover",
+      "Find the physics a model leaves out: fit the baseline with every parameter the data can determine, locate "
+      "the mismatch, add the catalogue term that explains it (BIC and cross-validation), and show the fit improve.");
+  sub->add_option("sessions", command->sessions, "Session files (HDF5).")->required()->check(CLI::ExistingFile);
+  command->model.Add(*sub);
+  sub->add_option("--exclude", command->exclude,
+                  "Leave out an experiment (LABEL) or one of its channels (LABEL:CHANNEL); repeat or separate by commas.")
+      ->delimiter(',');
+  sub->add_option("--json", command->json_path, "Write the findings as JSON to this file.");
+  sub->add_option("--report", command->report_path, "Write a self-contained HTML report to this file.");
+  sub->add_option("--n", command->n, "Grid points per period.")->check(CLI::Range(16, 100000))->capture_default_str();
+  sub->add_option("--threads", command->threads, "Candidate refits run in parallel.")
+      ->check(CLI::Range(1, 64))
       ->capture_default_str();
-  sub->add_option("--input", command->input, "Causality: force or stroke")
-      ->check(CLI::IsMember({"force", "stroke"}))
-      ->capture_default_str();
-  sub->add_option("--json", command->json_path, "Write the findings as JSON");
-  sub->add_option("--report", command->report_path, "Write a self-contained HTML report");
-  sub->add_option("--n", command->n, "Grid points per period")->check(CLI::Range(16, 100000))->capture_default_str();
-  sub->add_option("--threads", command->threads, "Candidate refits in parallel")->check(CLI::Range(1, 64))->capture_default_str();
   sub->callback([command] { command->Run(); });
 }
 

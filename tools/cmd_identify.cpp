@@ -8,10 +8,9 @@
 
 #include "commands.h"
 #include "model_options.h"
-#include "strut/daq/session.h"
-#include "strut/ident/estimator.h"
+#include "output_files.h"
 #include "strut/ident/fit_report.h"
-#include "strut/ident/initial_values.h"
+#include "strut/ident/session_fit.h"
 
 namespace strut::tools {
 namespace {
@@ -20,56 +19,34 @@ struct IdentifyCommand {
   std::vector<std::string> sessions;
   ModelOptions model;
   std::string estimate;
+  std::vector<std::string> exclude;
   std::string json_path, report_path;
   int n = 800;
   std::string scheme = "backward2";
   bool no_progress = false;
 
   void Run() const {
+    // Before any work: no output may replace an input or a session.
+    CheckOutputPath("--json", json_path, sessions);
+    CheckOutputPath("--report", report_path, sessions);
+    if (!json_path.empty() && json_path == report_path)
+      throw std::invalid_argument("--json and --report name the same file " + json_path);
+    ident::SessionFitOptions options;
+    options.composition = model.composition;
+    options.causality = ident::ParseCausality(model.input);
+    options.estimate = estimate;
+    options.params_file = model.params_file;
+    options.assignments = model.assignments;
+    options.exclude = exclude;
+    options.estimator.n = n;
+    options.estimator.scheme = ident::ParseScheme(scheme);
     const ident::Model m = model.BuildModel();
-    ident::ParameterSet initial = model.Parameters(m);
-    std::vector<ident::ParameterChoice> choices =
-        estimate.empty() ? ident::DefaultChoices(m) : ident::ChoicesFromList(initial, estimate);
-    if (!model.params_file.empty())
-      for (const auto& entry : ident::ReadParameterFile(model.params_file)) {
-        const int i = initial.position(entry.name);
-        if (entry.estimate && estimate.empty()) choices[i].estimate = *entry.estimate;
-        if (entry.prior_sd) choices[i].prior_sd = entry.prior_sd;
-      }
-
-    std::vector<ident::ExperimentData> data;
-    std::vector<ident::DataIssue> issues;
-    for (const std::string& path : sessions) {
-      const daq::Session session = daq::ReadSession(path);
-      auto prepared = ident::PrepareExperiments(session, m, n, &issues);
-      for (auto& e : prepared) {
-        const bool clash = std::any_of(data.begin(), data.end(), [&](const auto& d) { return d.label == e.label; });
-        if (clash) e.label = path + ":" + e.label;  // several sessions may reuse labels
-        data.push_back(std::move(e));
-      }
-    }
-    if (data.empty()) throw std::invalid_argument("no complete periodic experiment in the given sessions");
-    for (const auto& issue : issues)
+    ident::FitData data = ident::ReadFitData(sessions, m, n, exclude);
+    for (const auto& issue : data.issues)
       spdlog::warn("{}: experiment '{}', channel '{}': {}: {}", sessions.size() == 1 ? sessions[0] : "session",
                    issue.experiment, issue.channel, issue.kind, issue.detail);
-    if (model.params_file.empty()) {
-      // No parameter file: every starting value comes from the data (then --set wins).
-      std::vector<std::string> log;
-      initial = ident::InitialValuesFromData(m, data, &log);
-      spdlog::info("starting values from the data:");
-      for (const auto& line : log) spdlog::info("  {}", line);
-      if (!model.assignments.empty()) initial.apply_assignments(model.assignments);
-    }
-    std::string estimated;
-    for (int i = 0; i < initial.size(); ++i)
-      if (choices[i].estimate) estimated += " " + initial.spec(i).key();
-    spdlog::info("{} ({} input): {} experiments, estimating{}; the rest fixed", m.composition(),
-                 ident::ToString(m.causality()), data.size(), estimated);
+    for (const auto& line : data.excluded) spdlog::info("{}", line);
 
-    ident::EstimatorOptions options;
-    options.n = n;
-    options.scheme = ident::ParseScheme(scheme);
-    ident::Estimator estimator(m, options);
     const bool tty = !no_progress && isatty(fileno(stderr));
     const auto progress = [&](const ident::FitProgress& p) {
       if (!tty) return;
@@ -78,20 +55,33 @@ struct IdentifyCommand {
       else
         std::fprintf(stderr, "\r  iteration %2d  loglik %.8g            \n", p.iteration, p.objective);
     };
-    const ident::FitSummary fit = estimator.Fit(data, initial, choices, issues, progress);
+    const ident::SessionFit fit = ident::FitPrepared(std::move(data), m, options, progress);
     if (tty) std::fprintf(stderr, "\r%60s\r", "");
-    std::cout << fit.FullReport();
+    spdlog::info("{} ({} input), {} experiments; starting values as used:", m.composition(),
+                 ident::ToString(m.causality()), fit.data.experiments.size());
+    for (const auto& line : fit.plan.Describe()) spdlog::info("  {}", line);
+    std::cout << fit.summary.FullReport();
     if (!json_path.empty()) {
-      std::ofstream out(json_path);
-      out << ident::FitToJson(fit).dump(1) << "\n";
-      if (!out) throw std::runtime_error("cannot write " + json_path);
-      spdlog::info("wrote {}", json_path);
+      nlohmann::json j = ident::FitToJson(fit.summary);
+      j["sessions"] = sessions;
+      j["excluded"] = exclude;
+      WriteTextOutput(json_path, j.dump(1) + "\n");
     }
     if (!report_path.empty()) {
-      ident::WriteFitReport(fit, report_path, "strut identify: " + m.composition());
+      ident::WriteFitReport(fit.summary, report_path, "strut identify: " + m.composition());
       spdlog::info("wrote {}", report_path);
     }
-    if (!fit.IsSolutionUsable()) throw std::runtime_error("the fit gave no usable solution");
+    switch (fit.summary.Verdict()) {
+      case ident::FitVerdict::kAtNoiseFloor:
+        spdlog::info("{}", fit.summary.VerdictText());
+        return;
+      case ident::FitVerdict::kAboveNoiseFloor:
+        spdlog::warn("{}", fit.summary.VerdictText());
+        throw ExitCode(kExitAboveNoiseFloor);
+      case ident::FitVerdict::kNotConverged:
+        spdlog::error("{}", fit.summary.VerdictText());
+        throw ExitCode(kExitNotConverged);
+    }
   }
 };
 
@@ -99,18 +89,25 @@ struct IdentifyCommand {
 
 void RegisterIdentifyCommand(CLI::App& app) {
   auto command = std::make_shared<IdentifyCommand>();
-  CLI::App* sub = app.add_subcommand("identify", "Estimate model parameters from recorded sessions (periodic equilibria)");
-  sub->add_option("sessions", command->sessions, "Session files (HDF5)")->required()->check(CLI::ExistingFile);
+  CLI::App* sub = app.add_subcommand(
+      "identify",
+      "Estimate the damper model's parameters from recorded sessions (periodic equilibria, all experiments at once). "
+      "Exit code 0: converged at the noise floor; 3: converged but above the noise floor; 2: not converged; 1: error.");
+  sub->add_option("sessions", command->sessions, "Session files (HDF5).")->required()->check(CLI::ExistingFile);
   command->model.Add(*sub);
   sub->add_option("--estimate", command->estimate,
-                  "Parameters to estimate, e.g. theta4,theta6,theta16 (default: the paper's set plus sensor offsets)");
-  sub->add_option("--json", command->json_path, "Write the fit as JSON");
-  sub->add_option("--report", command->report_path, "Write a self-contained HTML report");
-  sub->add_option("--n", command->n, "Grid points per period")->check(CLI::Range(16, 100000))->capture_default_str();
-  sub->add_option("--scheme", command->scheme, "backward2, central2, central4 or spectral")
+                  "Parameters to estimate: a list such as theta4,theta6,theta16, or 'paper' for the paper's set. "
+                  "Default: every parameter the data can determine, with a prior on the stroke sensor's zero.");
+  sub->add_option("--exclude", command->exclude,
+                  "Leave out an experiment (LABEL) or one of its channels (LABEL:CHANNEL); repeat or separate by commas.")
+      ->delimiter(',');
+  sub->add_option("--json", command->json_path, "Write the fit as JSON to this file.");
+  sub->add_option("--report", command->report_path, "Write a self-contained HTML report to this file.");
+  sub->add_option("--n", command->n, "Grid points per period.")->check(CLI::Range(16, 100000))->capture_default_str();
+  sub->add_option("--scheme", command->scheme, "Difference scheme: backward2, central2, central4 or spectral.")
       ->check(CLI::IsMember({"backward2", "central2", "central4", "spectral"}))
       ->capture_default_str();
-  sub->add_flag("--no-progress", command->no_progress, "No progress display");
+  sub->add_flag("--no-progress", command->no_progress, "Do not show the progress line.");
   sub->callback([command] { command->Run(); });
 }
 

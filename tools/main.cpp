@@ -6,6 +6,7 @@
 #include <exception>
 
 #include "commands.h"
+#include "output_files.h"
 
 int main(int argc, char** argv) {
   CLI::App app{"strut: shaker testing and identification of landing-gear dampers"};
@@ -44,6 +45,8 @@ int main(int argc, char** argv) {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     return app.exit(e);
+  } catch (const strut::tools::ExitCode& e) {
+    return e.code();
   } catch (const std::exception& e) {
     spdlog::error("{}", e.what());
     return 1;

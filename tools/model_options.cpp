@@ -5,7 +5,9 @@ namespace strut::tools {
 void ModelOptions::Add(CLI::App& command) {
   command.add_option("--model", composition, "Model: BASE[+term...], BASE 1dof or 2dof (e.g. 1dof+heat-exchange)")
       ->capture_default_str();
-  command.add_option("--input", input, "Causality: force (stroke and pressure are outputs) or stroke")
+  command.add_option("--input", input,
+                     "Causality: stroke (the measured stroke drives the model; force and pressure are outputs) or "
+                     "force (the paper's choice; stroke and pressure are outputs).")
       ->check(CLI::IsMember({"force", "stroke"}))
       ->capture_default_str();
   command.add_option("--set", assignments, "Parameter values: NAME=VALUE[,NAME=VALUE...] (NAME: theta4 or gas_area)");

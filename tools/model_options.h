@@ -10,7 +10,7 @@ namespace strut::tools {
 
 struct ModelOptions {
   std::string composition = "2dof";
-  std::string input = "force";
+  std::string input = "stroke";
   std::string assignments;  //!< --set NAME=VALUE[,NAME=VALUE...]
   std::string params_file;  //!< --params FILE
 

@@ -50,30 +50,21 @@ std::string Group(const ExperimentFit& e) { return e.group.empty() ? "(none)" : 
 }  // namespace
 
 bool DiscoverOptions::IsValid(std::string* error) const {
-  if (!estimator.IsValid(error)) return false;
   const auto fail = [&](const std::string& m) {
     if (error) *error = m;
     return false;
   };
   if (!(bic_threshold >= 0)) return fail("bic_threshold must not be negative");
+  if (cv_folds < 0 || cv_folds == 1) return fail("cv_folds must be 0 (off) or at least 2");
+  if (!(cv_improvement > 0 && cv_improvement <= 1)) return fail("cv_improvement must be in (0, 1]");
   if (!(noise_ratio_threshold > 1)) return fail("noise_ratio_threshold must be above 1");
   if (max_terms < 0 || threads < 1) return fail("max_terms must not be negative and threads at least 1");
   return true;
 }
 
 std::map<std::string, double> PooledNoiseRatio(const FitSummary& fit) {
-  std::map<std::string, std::pair<double, long>> sums;
-  for (const ExperimentFit& e : fit.experiments)
-    for (const auto& [channel, r] : e.residual) {
-      const double variance = e.noise_variance.count(channel) ? e.noise_variance.at(channel) : NAN;
-      const bool fitted = std::any_of(e.channels.begin(), e.channels.end(),
-                                      [&](const ChannelStatistics& c) { return c.channel == channel && c.fitted; });
-      if (!(variance > 0) || !fitted) continue;
-      sums[channel].first += r.squaredNorm() / variance;
-      sums[channel].second += r.size();
-    }
   std::map<std::string, double> ratio;
-  for (const auto& [channel, s] : sums) ratio[channel] = s.second > 0 ? s.first / s.second : NAN;
+  for (const FitChannel& c : fit.channels) ratio[c.name] = c.noise_ratio;
   return ratio;
 }
 
@@ -172,41 +163,76 @@ std::vector<Finding> LocateMismatch(const FitSummary& fit) {
   return findings;
 }
 
-DiscoveryResult Discover(const std::vector<ExperimentData>& data, const std::string& base, Causality causality,
-                         const DiscoverOptions& options, const std::vector<DataIssue>& issues,
+double CrossValidatedNoiseRatio(const FitData& data, const Model& model, const FitSummary& fit,
+                                const EstimatorOptions& estimator, int folds) {
+  const int count = static_cast<int>(data.experiments.size());
+  folds = std::min(folds, count);
+  if (folds < 2) return NAN;
+  std::vector<ParameterChoice> choices(fit.parameters.size());
+  for (int i = 0; i < fit.parameters.size(); ++i) {
+    choices[i].estimate = fit.estimated[i];
+    if (fit.estimated[i] && fit.parameters.spec(i).prior_sd > 0) choices[i].prior_sd = fit.parameters.spec(i).prior_sd;
+  }
+  const std::vector<ParameterChoice> fixed(fit.parameters.size());
+  double sum = 0.0;
+  long n = 0;
+  // Folds interleave the experiments (a, e, i, m; b, f, j, n; ...), so no fold takes a whole
+  // static-position group or frequency away and the refit need not extrapolate.
+  for (int k = 0; k < folds; ++k) {
+    std::vector<ExperimentData> train, held;
+    for (int a = 0; a < count; ++a) (a % folds == k ? held : train).push_back(data.experiments[a]);
+    try {
+      const FitSummary refit = Estimator(model, estimator).Fit(train, fit.parameters, choices, data.issues);
+      if (!refit.IsSolutionUsable()) return NAN;
+      const FitSummary predicted = Estimator(model, estimator).Fit(held, refit.parameters, fixed, data.issues);
+      for (const ExperimentFit& e : predicted.experiments) {
+        if (!e.converged) return NAN;
+        for (const auto& [channel, r] : e.residual) {
+          const double variance = e.noise_variance.at(channel);
+          if (!(variance > 0)) continue;
+          sum += r.squaredNorm() / variance;
+          n += r.size();
+        }
+      }
+    } catch (const std::exception& e) {
+      spdlog::debug("cross-validation fold {} of {}: {}", k + 1, model.composition(), e.what());
+      return NAN;
+    }
+  }
+  return n > 0 ? sum / n : NAN;
+}
+
+DiscoveryResult Discover(const FitData& data, const SessionFitOptions& fit_options, const DiscoverOptions& options,
                          const std::function<void(const std::string&)>& progress) {
   std::string error;
-  if (!options.IsValid(&error)) throw std::invalid_argument("discover options: " + error);
+  if (!options.IsValid(&error) || !fit_options.IsValid(&error)) throw std::invalid_argument("discover options: " + error);
+  const Causality causality = fit_options.causality;
+  const EstimatorOptions& estimator = fit_options.estimator;
   const auto say = [&](const std::string& text) {
     spdlog::info("{}", text);
     if (progress) progress(text);
   };
-  // A fit of `composition`, starting from `previous` where parameters mean the same.
-  const auto fit = [&](const std::string& composition, const FitSummary* previous) {
+  // A candidate: the current fit's values and estimated set, plus the new term's own parameters
+  // (sizes and shapes estimated, from their defaults).
+  const auto candidate_fit = [&](const std::string& composition, const FitSummary& previous) {
     const Model model = Model::Build(composition, causality);
-    ParameterSet start = InitialValuesFromData(model, data, nullptr);
+    ParameterSet start = model.defaults();
     std::vector<ParameterChoice> choices = DefaultChoices(model);
     for (int i = 0; i < start.size(); ++i) {
       const ParameterSpec& spec = start.spec(i);
-      // Friction enters every experiment: a baseline with it pre-identified but fixed would show
-      // friction residuals that no missing physics explains.
-      if (spec.index >= 8 && spec.index <= 10 && model.has_term("pressure-friction")) choices[i].estimate = true;
-      if (spec.sizes_term && !(previous && previous->parameters.find(spec.key()))) choices[i].estimate = true;
-      if (!previous) continue;
-      const auto p = previous->parameters.find(spec.key());
-      if (p && previous->parameters.spec(*p).name == spec.name) {
-        start.values()[i] = previous->parameters.value(*p);
-        choices[i].estimate = previous->estimated[*p] || choices[i].estimate;
+      const auto p = previous.parameters.find(spec.key());
+      if (p && previous.parameters.spec(*p).name == spec.name) {
+        start.values()[i] = previous.parameters.value(*p);
+        if (!previous.estimated[*p]) choices[i] = ParameterChoice{};
       }
     }
-    return Estimator(model, options.estimator).Fit(data, start, choices, issues);
+    return Estimator(model, estimator).Fit(data.experiments, start, choices, data.issues);
   };
   const auto worst_ratio = [](const std::map<std::string, double>& ratio) {
     double worst = 0.0;
-    for (const auto& [c, r] : ratio) worst = std::max(worst, r);
+    for (const auto& [c, r] : ratio) worst = std::max(worst, std::isfinite(r) ? r : INFINITY);
     return worst;
   };
-
   const auto mean_ratio = [](const std::map<std::string, double>& ratio) {
     double sum = 0.0;
     for (const auto& [c, r] : ratio) sum += r;
@@ -215,14 +241,18 @@ DiscoveryResult Discover(const std::vector<ExperimentData>& data, const std::str
 
   DiscoveryResult result;
   bool exhausted = false;  // stopped because no candidate qualified (not because of max_terms)
-  say(fmt::format("fitting the baseline {}", base));
-  result.baseline = fit(base, nullptr);
+  const std::string base = fit_options.composition;
+  say(fmt::format("fitting the baseline {} (every parameter the data can determine)", base));
+  result.baseline = FitPrepared(data, Model::Build(base, causality), fit_options).summary;
   result.mismatch = LocateMismatch(result.baseline);
   FitSummary current = result.baseline;
   std::map<std::string, double> ratio = PooledNoiseRatio(current);
   result.nothing_missing = worst_ratio(ratio) < options.noise_ratio_threshold;
+  if (!result.baseline.converged)
+    say("the baseline fit did not converge: " + result.baseline.VerdictText());
 
   const auto& catalogue = Catalogue();
+  double current_cv = NAN;  // held-out noise ratio of `current`, computed when a candidate needs it
   for (int round = 0; round < options.max_terms && worst_ratio(ratio) >= options.noise_ratio_threshold; ++round) {
     const std::vector<Finding> findings = LocateMismatch(current);
     const Model model = Model::Build(current.model, causality);
@@ -246,8 +276,9 @@ DiscoveryResult Discover(const std::vector<ExperimentData>& data, const std::str
         running.push_back(std::async(std::launch::async, [&, c] {
           results[c].term = candidates[c].first;
           try {
-            fits[c] = fit(candidates[c].second, &current);
-            results[c].ok = fits[c].IsSolutionUsable();
+            fits[c] = candidate_fit(candidates[c].second, current);
+            results[c].ok = fits[c].IsSolutionUsable() && fits[c].converged;
+            if (!results[c].ok) results[c].error = fits[c].VerdictText();
             results[c].delta_bic = fits[c].bic - current.bic;
             results[c].noise_ratio = PooledNoiseRatio(fits[c]);
           } catch (const std::exception& e) {
@@ -261,26 +292,57 @@ DiscoveryResult Discover(const std::vector<ExperimentData>& data, const std::str
       for (const Finding& f : findings)
         if (f.locus == entry->locus) c.evidence = std::max(c.evidence, f.score);
     }
-    // The best candidate by BIC that also brings the off channels down.
-    int best = -1;
+    // Candidates by BIC; the best that also brings the off channels down and predicts experiments
+    // left out of its fit better than the current model is kept.
+    std::vector<std::size_t> order;
     for (std::size_t c = 0; c < results.size(); ++c) {
-      if (!results[c].ok || results[c].delta_bic > -options.bic_threshold) continue;
-      if (mean_ratio(results[c].noise_ratio) > options.min_improvement * mean_ratio(ratio)) continue;
-      if (best < 0 || results[c].delta_bic < results[best].delta_bic) best = static_cast<int>(c);
+      CandidateFit& r = results[c];
+      if (!r.ok) {
+        r.verdict = "no converged fit";
+      } else if (r.delta_bic > -options.bic_threshold) {
+        r.verdict = fmt::format("BIC does not fall by {}", options.bic_threshold);
+      } else if (mean_ratio(r.noise_ratio) > options.min_improvement * mean_ratio(ratio)) {
+        r.verdict = "noise ratio barely falls";
+      } else {
+        order.push_back(c);
+      }
+    }
+    std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return results[a].delta_bic < results[b].delta_bic; });
+    int best = -1;
+    for (const std::size_t c : order) {
+      if (options.cv_folds == 0) {
+        best = static_cast<int>(c);
+        break;
+      }
+      if (!std::isfinite(current_cv))
+        current_cv = CrossValidatedNoiseRatio(data, model, current, estimator, options.cv_folds);
+      const Model candidate_model = Model::Build(candidates[c].second, causality);
+      results[c].cv_ratio = CrossValidatedNoiseRatio(data, candidate_model, fits[c], estimator, options.cv_folds);
+      spdlog::info("  {:<20} cross-validated noise ratio {:.3f} against {:.3f}", results[c].term, results[c].cv_ratio,
+                   current_cv);
+      if (std::isfinite(results[c].cv_ratio) &&
+          (!std::isfinite(current_cv) || results[c].cv_ratio <= options.cv_improvement * current_cv)) {
+        best = static_cast<int>(c);
+        break;
+      }
+      results[c].verdict = "does not predict left-out experiments better";
     }
     for (const CandidateFit& c : results)
-      spdlog::info("  {:<20} dBIC {:>12.1f}  worst noise ratio {:8.2f}  evidence {:6.1f}{}", c.term, c.delta_bic,
-                   worst_ratio(c.noise_ratio), c.evidence, c.ok ? "" : "  (" + c.error + ")");
+      spdlog::info("  {:<20} ΔBIC {:>12.1f}  worst noise ratio {:8.2f}  evidence {:6.1f}  {}", c.term, c.delta_bic,
+                   worst_ratio(c.noise_ratio), c.evidence, c.ok ? c.verdict : c.error);
     if (best < 0) {
-      say("no candidate improves the fit beyond what its parameters cost");
+      say("no candidate improves the fit beyond what its parameters cost and predicts left-out experiments better");
       exhausted = true;
       break;
     }
+    results[best].verdict = "kept";
     DiscoveryStep step;
     step.term = results[best].term;
     step.delta_bic = results[best].delta_bic;
     step.noise_before = ratio;
     step.noise_after = results[best].noise_ratio;
+    step.cv_before = current_cv;
+    step.cv_after = results[best].cv_ratio;
     step.candidates = results;
     const auto entry = std::find_if(catalogue.begin(), catalogue.end(), [&](const TermEntry& e) { return e.name == step.term; });
     step.evidence = entry->signature;
@@ -291,12 +353,13 @@ DiscoveryResult Discover(const std::vector<ExperimentData>& data, const std::str
       }
     const FitSummary& chosen = fits[best];
     for (int i = 0; i < chosen.parameters.size(); ++i)
-      if (chosen.parameters.spec(i).sizes_term && !current.parameters.find(chosen.parameters.spec(i).key()))
+      if (!current.parameters.find(chosen.parameters.spec(i).key()) && chosen.estimated[i])
         step.parameters.emplace_back(chosen.parameters.spec(i).key(), chosen.parameters.value(i));
-    say(fmt::format("added {}: BIC {:+.1f}; {}", step.term, step.delta_bic, step.evidence));
+    say(fmt::format("added {}: ΔBIC {:+.1f}; {}", step.term, step.delta_bic, step.evidence));
     result.missing.push_back(step.term);
     result.steps.push_back(std::move(step));
     current = chosen;
+    current_cv = results[best].cv_ratio;
     ratio = PooledNoiseRatio(current);
   }
 
@@ -318,8 +381,9 @@ DiscoveryResult Discover(const std::vector<ExperimentData>& data, const std::str
     std::string after;
     for (const auto& [c, r] : ratio) after += fmt::format(" {} {:.2f}", c, r);
     result.conclusion = fmt::format(
-        "{} left residuals above the noise floor (noise ratios{}). {} Final model {} (noise ratios{}).{}", base, ratios,
+        "{} left residuals above the noise floor (noise ratios{}). {} Final model {} (noise ratios{}{}).{}", base, ratios,
         added.empty() ? "No catalogue term explains them." : "Missing: " + added + ".", result.final_model, after,
+        final_worst < options.noise_ratio_threshold ? ", at the noise floor" : ", still above the noise floor",
         result.unexplained.empty()
             ? ""
             : (exhausted ? " What is left matches no catalogue term: "

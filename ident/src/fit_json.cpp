@@ -13,6 +13,8 @@ nlohmann::json FitToJson(const FitSummary& fit) {
   nlohmann::json j;
   j["model"] = fit.model;
   j["converged"] = fit.converged;
+  j["verdict"] = ToString(fit.Verdict());
+  j["verdict_text"] = fit.VerdictText();
   j["iterations"] = fit.iterations;
   j["parameters"] = nlohmann::json::array();
   for (int i = 0; i < fit.parameters.size(); ++i) {
@@ -33,7 +35,8 @@ nlohmann::json FitToJson(const FitSummary& fit) {
     j["channels"].push_back({{"name", c.name},
                              {"variance", Number(c.variance)},
                              {"noise_floor_variance", Number(c.noise_floor_variance)},
-                             {"rms", Number(c.rms)}});
+                             {"rms", Number(c.rms)},
+                             {"noise_ratio", Number(c.noise_ratio)}});
   j["experiments"] = nlohmann::json::array();
   for (const ExperimentFit& e : fit.experiments) {
     nlohmann::json x{{"label", e.label},

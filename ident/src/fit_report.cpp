@@ -38,6 +38,7 @@ Display DisplayOf(const std::string& channel) {
 void WriteFitReport(const FitSummary& fit, const std::string& path, const std::string& title) {
   HtmlReport report(title);
   report.AddHeading("Summary");
+  report.AddParagraph(fit.VerdictText());
   report.AddParagraph(fmt::format("Model {}: {} after {} iterations. Log-likelihood {:.6g}, AIC {:.6g}, BIC {:.6g}, "
                                   "{} residuals over {} experiments.",
                                   fit.model, fit.converged ? "converged" : "NOT converged", fit.iterations, fit.loglik,
@@ -65,8 +66,8 @@ void WriteFitReport(const FitSummary& fit, const std::string& path, const std::s
   for (const FitChannel& c : fit.channels)
     rows.push_back({c.name, fmt::format("{:.4g}", c.rms), fmt::format("{:.4g}", c.variance),
                     fmt::format("{:.4g}", c.noise_floor_variance),
-                    fmt::format("{:.3g}", c.rms * c.rms / c.noise_floor_variance)});
-  report.AddTable({"channel", "residual rms (SI)", "variance v_b", "noise floor variance", "ratio"}, rows,
+                    fmt::format("{:.3g}", c.noise_ratio)});
+  report.AddTable({"channel", "residual rms (SI)", "variance v_b", "noise floor variance", "noise ratio"}, rows,
                   "A ratio near 1 means the model explains all the data can show; far above 1, physics is missing.");
 
   // Residual mean and 2 sigma per experiment (paper Figs. 8 and 11), one plot per channel.

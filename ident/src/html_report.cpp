@@ -136,6 +136,9 @@ nlohmann::json DefaultLayout() {
 
 nlohmann::json Title(const std::string& text) { return {{"text", text}}; }
 
+
+}  // namespace
+
 // Crash-safe file replacement: write and fsync path.partial, then rename over the target.
 void WriteFileAtomically(const std::string& path, std::string_view bytes) {
   const std::string partial = path + ".partial";
@@ -143,7 +146,7 @@ void WriteFileAtomically(const std::string& path, std::string_view bytes) {
     const int error = errno;
     std::error_code ignored;
     std::filesystem::remove(partial, ignored);
-    throw std::runtime_error("HTML report " + path + ": " + step + " failed: " + std::strerror(error));
+    throw std::runtime_error(path + ": " + step + " failed: " + std::strerror(error));
   };
   const int fd = ::open(partial.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666);
   if (fd < 0) fail("creating " + partial);
@@ -169,8 +172,6 @@ void WriteFileAtomically(const std::string& path, std::string_view bytes) {
   if (::close(fd) != 0) fail("closing " + partial);
   if (std::rename(partial.c_str(), path.c_str()) != 0) fail("renaming " + partial + " onto it");
 }
-
-}  // namespace
 
 HtmlReport::HtmlReport(std::string title) : title_(std::move(title)), generated_(LocalTimeNow()) {}
 

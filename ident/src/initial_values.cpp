@@ -124,9 +124,13 @@ FrictionEstimate PreidentifyFriction(const std::vector<ExperimentData>& data) {
 }
 
 ParameterSet InitialValuesFromData(const Model& model, const std::vector<ExperimentData>& data,
-                                   std::vector<std::string>* log) {
+                                   std::vector<std::string>* log, std::vector<std::string>* sources) {
+  if (sources) sources->assign(model.parameter_count(), "physical default");
   // Generic oscillators have their own (equation-error) starting values.
-  if (model.has_term("linear-oscillator")) return OscillatorInitialValues(model, data, log);
+  if (model.has_term("linear-oscillator")) {
+    if (sources) sources->assign(model.parameter_count(), "equation-error fit");
+    return OscillatorInitialValues(model, data, log);
+  }
   ParameterSet values = model.defaults();
   const auto note = [&](const std::string& line) {
     if (log) log->push_back(line);
@@ -135,6 +139,7 @@ ParameterSet InitialValuesFromData(const Model& model, const std::vector<Experim
     const int position = values.position_of_index(index);
     if (position < 0 || !std::isfinite(value)) return;
     values.values()[position] = value;
+    if (sources) (*sources)[position] = source;
     note(fmt::format("{} {} = {:.6g} {} ({})", values.spec(position).key(), values.spec(position).name, value,
                      values.spec(position).unit, source));
   };

@@ -22,7 +22,7 @@ class Inertia final : public Term {
   unsigned phases() const override { return kBalancePhase; }
   std::string_view name() const override { return "inertia"; }
   void Declare(ModelBuilder& b) override {
-    b.add_parameter({1, "moving_mass", "kg", 40.0, "mass moving with the stroke (piston, axle, fixture)"});
+    b.add_parameter({1, "moving_mass", "kg", 40.0, "mass moving with the stroke (piston, axle, fixture)", true});
     b.add_parameter({2, "gravity", "m/s^2", 9.81, "gravitational acceleration"});
   }
   void Bind(const ModelBuilder& b) override {
@@ -69,7 +69,7 @@ class QuadraticDamping final : public Term {
   unsigned phases() const override { return kBalancePhase; }
   std::string_view name() const override { return "quadratic-damping"; }
   void Declare(ModelBuilder& b) override {
-    b.add_parameter({3, "orifice_damping", "N s^2/m^2", 8.0e3, "quadratic (orifice) damping coefficient"});
+    b.add_parameter({3, "orifice_damping", "N s^2/m^2", 8.0e3, "quadratic (orifice) damping coefficient", true});
   }
   void Bind(const ModelBuilder& b) override { damping_ = b.parameter_position(3); }
   template <class S>
@@ -90,9 +90,9 @@ class PressureFriction final : public Term {
   unsigned phases() const override { return kBalancePhase; }
   std::string_view name() const override { return "pressure-friction"; }
   void Declare(ModelBuilder& b) override {
-    b.add_parameter({8, "friction_base", "N", 190.0, "pressure-independent friction amplitude"});
-    b.add_parameter({9, "friction_pressure", "m^2", 4.8e-5, "friction amplitude per unit gas pressure"});
-    b.add_parameter({10, "friction_sharpness", "s/m", 2000.0, "arctan sharpness of friction in stroke rate"});
+    b.add_parameter({8, "friction_base", "N", 190.0, "pressure-independent friction amplitude", true});
+    b.add_parameter({9, "friction_pressure", "m^2", 4.8e-5, "friction amplitude per unit gas pressure", true});
+    b.add_parameter({10, "friction_sharpness", "s/m", 2000.0, "arctan sharpness of friction in stroke rate", true});
   }
   void Bind(const ModelBuilder& b) override {
     base_ = b.parameter_position(8);
@@ -137,7 +137,8 @@ class StrokeOffset final : public Term {
   unsigned phases() const override { return 0; }
   std::string_view name() const override { return "stroke-offset"; }
   void Declare(ModelBuilder& b) override {
-    b.add_parameter({12, "stroke_offset", "m", 0.0, "stroke sensor offset: measured = true + offset", true, 1e-3});
+    b.add_parameter({12, "stroke_offset", "m", 0.0, "stroke sensor offset: measured = true + offset", true, 1e-3, false,
+                     kStrokeZeroPriorSd});
     b.set_output_offset(12);
   }
   void Bind(const ModelBuilder&) override {}
@@ -171,7 +172,7 @@ class PolytropicGas final : public Term {
   unsigned phases() const override { return kGasStatePhase | kGasLawPhase; }
   std::string_view name() const override { return "polytropic-gas"; }
   void Declare(ModelBuilder& b) override {
-    b.add_parameter({5, "extended_pressure", "Pa", 7.0e5, "absolute gas pressure at full extension"});
+    b.add_parameter({5, "extended_pressure", "Pa", 7.0e5, "absolute gas pressure at full extension", true});
     b.add_parameter({7, "polytropic_exponent", "-", 1.2, "polytropic exponent of the gas", true});
     b.add_state(kPressureState);
   }
@@ -205,8 +206,8 @@ class HeatExchange final : public Term {
   std::string_view name() const override { return "heat-exchange"; }
   void Declare(ModelBuilder& b) override {
     b.add_parameter({5, "pressure_per_temperature", "Pa/K", 7.0e5 * (1.0 + 2.0e-5 * kAmbientK) / kAmbientK,
-                     "gas pressure per temperature at full extension (m R / V0)"});
-    b.add_parameter({15, "gas_heat_capacity", "J/K", 17.9, "effective heat capacity of the gas"});
+                     "gas pressure per temperature at full extension (m R / V0)", true});
+    b.add_parameter({15, "gas_heat_capacity", "J/K", 17.9, "effective heat capacity of the gas", true});
     b.add_parameter({16, "wall_heat_conductance", "W/K", 2.24, "heat conductance through the wall at full extension", true, 0.0, true});
     b.add_parameter({17, "minus_ambient_temperature", "K", -kAmbientK, "minus the ambient (wall) temperature"});
     b.add_state(kPressureState);
@@ -256,7 +257,7 @@ class GasSolubility final : public Term {
   unsigned phases() const override { return kGasStatePhase; }
   std::string_view name() const override { return "gas-solubility"; }
   void Declare(ModelBuilder& b) override {
-    b.add_parameter({7, "gas_solubility", "1/K", 2.0e-5, "linear gas solubility coefficient", false, 0.0, true});
+    b.add_parameter({7, "gas_solubility", "1/K", 2.0e-5, "linear gas solubility coefficient", true, 0.0, true});
   }
   void Bind(const ModelBuilder& b) override {
     if (!b.has_term("heat-exchange"))

@@ -9,18 +9,23 @@
 #include <vector>
 
 #include "strut/ident/estimator.h"
+#include "strut/ident/session_fit.h"
 
 namespace strut::ident {
 
 struct DiscoverOptions {
-  EstimatorOptions estimator;
   //! A term is kept when BIC falls by more than this (10: "very strong" evidence).
   double bic_threshold = 10.0;
-  //! Nothing is missing when every channel's residual variance is below this many times its
-  //! noise floor (the ratio of a correct model scatters around 1).
-  double noise_ratio_threshold = 1.5;
+  //! Nothing is missing when every channel's pooled noise ratio is below this (the ratio of a
+  //! correct model scatters around 1): discovery stops there.
+  double noise_ratio_threshold = kNoiseFloorRatio;
   //! A kept term must also lower the mean noise ratio over the channels to this fraction or less.
   double min_improvement = 0.95;
+  //! Cross-validation: the experiments are split into this many folds; a kept term must also
+  //! predict every fold's experiments, fitted without them, better than the current model does
+  //! (its held-out noise ratio at most `cv_improvement` times the current one). 0: no cross-validation.
+  int cv_folds = 4;
+  double cv_improvement = 0.98;
   int max_terms = 8;
   int threads = 2;  //!< candidate refits in parallel
   bool IsValid(std::string* error) const;
@@ -41,6 +46,9 @@ struct CandidateFit {
   double delta_bic = 0.0;  //!< candidate BIC - current BIC (negative: better)
   double evidence = 0.0;   //!< score of the term's locus in the current residuals
   std::map<std::string, double> noise_ratio;  //!< per channel after the refit
+  //! Noise ratio of the experiments left out of the fit, over all folds (NaN: not cross-validated)
+  double cv_ratio = NAN;
+  std::string verdict;     //!< kept, or why not ("BIC", "noise ratio", "cross-validation", "no solution")
 };
 
 struct DiscoveryStep {
@@ -50,6 +58,7 @@ struct DiscoveryStep {
   std::map<std::string, double> noise_before, noise_after;
   std::vector<std::pair<std::string, double>> parameters;  //!< the term's fitted sizes: key, value
   std::vector<CandidateFit> candidates;                     //!< every candidate of this round
+  double cv_before = NAN, cv_after = NAN;                   //!< held-out noise ratio, current model and with the term
 };
 
 struct DiscoveryResult {
@@ -64,16 +73,22 @@ struct DiscoveryResult {
   std::string conclusion;            //!< one paragraph for people
 };
 
-//! Per channel: residual mean square over the noise variance of the averaged data, pooled over
-//! the experiments that were fitted.
+//! Per channel: the pooled noise ratio (FitChannel::noise_ratio) of a fit.
 std::map<std::string, double> PooledNoiseRatio(const FitSummary& fit);
 
 //! The located features of a fit's residuals (needs stroke, force and pressure measured).
 std::vector<Finding> LocateMismatch(const FitSummary& fit);
 
-//! Runs discovery from `base` (any composition) on prepared experiments.
-DiscoveryResult Discover(const std::vector<ExperimentData>& data, const std::string& base, Causality causality,
-                         const DiscoverOptions& options, const std::vector<DataIssue>& issues = {},
+//! The held-out noise ratio of a composition under K-fold cross-validation: for each fold, the model
+//! refitted (from `fit`'s values, the same parameters estimated) without the fold's experiments
+//! predicts them; the result pools their residuals over the noise of the averaged data, all channels
+//! and folds. NaN when a refit or a prediction has no solution.
+double CrossValidatedNoiseRatio(const FitData& data, const Model& model, const FitSummary& fit,
+                                const EstimatorOptions& estimator, int folds);
+
+//! Runs discovery from the baseline `fit.composition` (any composition; its fit is the full default
+//! fit of SessionFitOptions) on prepared experiments.
+DiscoveryResult Discover(const FitData& data, const SessionFitOptions& fit, const DiscoverOptions& options,
                          const std::function<void(const std::string&)>& progress = {});
 
 }  // namespace strut::ident

@@ -87,6 +87,10 @@ struct FitChannel {
   double variance = 0.0;             //!< bias-corrected residual variance v_b = M_bb / (nN - l)
   double noise_floor_variance = NAN; //!< mean noise variance of the averaged data over the experiments
   double rms = 0.0;
+  //! Pooled over the fitted experiments: sum of e^2 / s_a^2 over the count, s_a^2 each experiment's
+  //! noise variance of the averaged data (about 1 at the noise floor; agrees with the per-experiment
+  //! ratios, unlike variance / noise_floor_variance when the experiments' noise differs).
+  double noise_ratio = NAN;
 };
 
 struct FitIteration {
@@ -95,6 +99,18 @@ struct FitIteration {
   double step = 1.0;       //!< step fraction accepted
   std::vector<double> values;
 };
+
+//! Pooled noise ratio (FitChannel::noise_ratio) below which a fit explains all the data can show:
+//! the ratio of a right model scatters around 1 by a few percent over a standard matrix.
+inline constexpr double kNoiseFloorRatio = 1.2;
+
+//! What a fit amounts to, in the order a user must hear it.
+enum class FitVerdict {
+  kAtNoiseFloor,     //!< converged, every fitted channel at the noise floor
+  kAboveNoiseFloor,  //!< converged, but the model does not explain the data
+  kNotConverged,
+};
+const char* ToString(FitVerdict verdict);  //!< "at-noise-floor", "above-noise-floor", "not-converged"
 
 //! Everything a fit found; BriefReport()/FullReport() for people, the fields for JSON and reports.
 struct FitSummary {
@@ -119,6 +135,10 @@ struct FitSummary {
   std::string BriefReport() const;
   std::string FullReport() const;
   bool IsSolutionUsable() const;
+  FitVerdict Verdict() const;
+  //! The verdict in one or two sentences: converged or not, at the noise floor or how far above it
+  //! and where (experiments and channels), and what to do next.
+  std::string VerdictText() const;
 };
 
 struct FitProgress {
@@ -127,11 +147,19 @@ struct FitProgress {
   double objective = NAN;
 };
 
-//! The parameters the paper estimated for the model's base plus the sensor offsets, and the
-//! main parameter of each extra term.
+//! What a fit of a unit nobody has characterised estimates: every parameter the shaker data can
+//! determine (ParameterSpec::estimate_by_default) and the sizes of the composition's optional terms,
+//! with the specs' default priors (the stroke zero: kStrokeZeroPriorSd). Known constants (gravity,
+//! the ambient temperature, the fixed shapes of optional terms) stay at their values.
+std::vector<ParameterChoice> DefaultChoices(const ParameterSet& parameters);
 std::vector<ParameterChoice> DefaultChoices(const Model& model);
 
-//! Applies "--estimate theta4,theta6" (estimate these, fix the rest).
+//! The paper's set (1 dof: theta4, theta6, theta7; 2 dof: theta4, theta6, theta16) plus the sensor
+//! offsets theta11, theta12; for models that are not dampers, their defaults.
+std::vector<ParameterChoice> PaperChoices(const ParameterSet& parameters);
+
+//! Applies "--estimate": "theta4,theta6" (estimate these, fix the rest), "paper" (PaperChoices) or
+//! empty / "default" (DefaultChoices). Named parameters keep their specs' default priors.
 std::vector<ParameterChoice> ChoicesFromList(const ParameterSet& parameters, const std::string& list);
 
 class Estimator {

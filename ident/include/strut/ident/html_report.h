@@ -11,6 +11,10 @@
 
 namespace strut::ident {
 
+//! Crash-safe file replacement: writes and fsyncs `path`.partial, then renames it over `path`.
+//! Throws std::runtime_error naming the path and the failed step.
+void WriteFileAtomically(const std::string& path, std::string_view bytes);
+
 //! One line or scatter trace of a line plot.
 struct Series {
   std::string name;          //!< legend entry

@@ -39,8 +39,9 @@ FrictionEstimate PreidentifyFriction(const std::vector<ExperimentData>& data);
 
 //! Starting values for every parameter of `model`: the static force-stroke-pressure relation of
 //! the slowest experiment (gas area, charge, volume change, exponent, force offset), friction from
-//! the reversals, and physical defaults where the data cannot say. `log` says where each came from.
+//! the reversals, and physical defaults where the data cannot say. `log` says where each came from;
+//! `sources`, per parameter position, the same in a few words ("physical default", ...).
 ParameterSet InitialValuesFromData(const Model& model, const std::vector<ExperimentData>& data,
-                                   std::vector<std::string>* log);
+                                   std::vector<std::string>* log, std::vector<std::string>* sources = nullptr);
 
 }  // namespace strut::ident

@@ -12,6 +12,10 @@
 
 namespace strut::ident {
 
+//! What a lab knows of its stroke sensor's zero without a calibration against the damper's
+//! extension stop: a few millimetres (the default prior on theta12).
+inline constexpr double kStrokeZeroPriorSd = 2.0e-3;
+
 //! A user mistake in naming or giving parameters (unknown name, bad number, bad file line).
 class ParameterError : public std::invalid_argument {
  public:
@@ -25,9 +29,15 @@ struct ParameterSpec {
   std::string unit;           //!< SI unit, e.g. "m^2"
   double default_value = 0.0; //!< physically consistent default (damper-physics.md, lab charge)
   std::string description;    //!< one line for tables and reports
-  bool estimate_by_default = false;  //!< estimated when the user names no parameters (paper's set, offsets)
+  //! Estimated when the user names no parameters: everything the shaker data can determine (not the
+  //! known constants: gravity, the ambient temperature, fixed shapes of optional terms).
+  bool estimate_by_default = false;
   double typical = 0.0;              //!< size of a meaningful value (0: |default_value|); scales the estimator
   bool sizes_term = false;           //!< sizes its term's effect: estimated when discovery adds the term
+  //! sd of the prior the estimator puts on it by default (0: none; mean: the starting value): for
+  //! what the data can barely tell apart from other parameters and a lab knows roughly (the
+  //! stroke zero).
+  double prior_sd = 0.0;
 
   double typical_size() const { return typical > 0 ? typical : std::abs(default_value); }
 

@@ -1,0 +1,113 @@
+// The evaluator of a multi-experiment fit: every experiment's periodic solution at a parameter
+// vector, the residuals of the fitted channels, their sensitivities (eqs. 14, 15) and the normal
+// equations of eq. 19. The Bard iteration (estimator.h) and the uncertainty (covariance.h) are
+// built on it; so are cross-validation and the starting-value checks. It owns the experiments'
+// solvers and solutions (state), so one FitProblem serves one fit at a time.
+#pragma once
+
+#include <Eigen/Dense>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "strut/ident/experiment_data.h"
+#include "strut/ident/model.h"
+#include "strut/ident/periodic.h"
+
+namespace strut::ident {
+
+struct EstimatorOptions;
+struct FitSummary;
+struct FitProgress;
+
+//! Residual sums of one evaluation, per fitted channel over the active experiments.
+struct ResidualSums {
+  std::vector<double> sum_squares;
+  std::vector<long> counts;
+  bool finite = true;
+  //! Log-likelihood with each channel's variance at its maximum-likelihood value M_bb / count.
+  double LogLikelihood() const;
+  //! Bias-corrected channel variances of eq. 18, v_b = M_bb / (count_b - l).
+  std::vector<double> Variances(int estimated) const;
+};
+
+//! Eq. 19's sums at one iterate, in scaled parameters (theta_i / scale_i).
+struct NormalEquations {
+  Eigen::MatrixXd information;  //!< sum J^T W J
+  Eigen::VectorXd gradient;     //!< sum J^T W e
+  //! The scaled-gradient covariance that the measured inputs' noise causes (errors in variables:
+  //! sum over each input's noisy Fourier coefficients c of var(c) q_c q_c^T, q_c = J^T W dy/dc);
+  //! empty unless asked for.
+  Eigen::MatrixXd input_noise;
+  //! Per experiment, its share of `gradient` (zero for inactive experiments).
+  std::vector<Eigen::VectorXd> experiment_gradient;
+};
+
+//! How Linearise computes sensitivities.
+struct LinearisationMode {
+  bool exact = false;        //!< sensitivities at the solution itself (else the carried factorisation may serve)
+  bool reuse = false;        //!< the previous call's sensitivities where an experiment has them (modified Gauss-Newton)
+  bool input_noise = false;  //!< also NormalEquations::input_noise (one adjoint solve per parameter and experiment)
+};
+
+class FitProblem {
+ public:
+  //! `estimated`: positions of the estimated parameters; `scale`: per parameter (all of them) the
+  //! size the sensitivities are scaled by. Throws std::invalid_argument for data that do not suit
+  //! the model (grid size, channels).
+  FitProblem(const Model& model, const EstimatorOptions& options, const std::vector<ExperimentData>& data,
+             const std::vector<DataIssue>& issues, std::vector<int> estimated, std::vector<double> scale);
+  ~FitProblem();
+  FitProblem(const FitProblem&) = delete;
+  FitProblem& operator=(const FitProblem&) = delete;
+
+  const std::vector<std::string>& channels() const { return channels_; }
+  int experiment_count() const;
+  int active_count() const;
+  //! Why an experiment has no solution (empty: it has one).
+  const std::string& error(int experiment) const;
+  //! Warnings found while setting up (missing channels, data defects).
+  const std::vector<std::string>& warnings() const { return warnings_; }
+
+  //! Solves every active experiment at `theta`, warm-started from its current solution. With
+  //! `allow_drop`, experiments without a solution are named, left out and retried by Readmit;
+  //! without it, any failure returns false (Snapshot and Restore undo a trial).
+  bool Solve(const std::vector<double>& theta, bool allow_drop, int iteration = 0,
+             const std::function<void(const FitProgress&)>& progress = {});
+  //! Experiments left out at the start that have a solution at `theta` now come back in.
+  bool Readmit(const std::vector<double>& theta);
+  //! The current solutions, to undo a rejected trial with Restore.
+  std::vector<PeriodicSolution> Snapshot() const;
+  void Restore(std::vector<PeriodicSolution> solutions);
+  //! Residual sums of the current solutions.
+  ResidualSums Evaluate() const;
+  //! Eq. 19's sums at `theta` (the current solutions) with channel `variance`s.
+  NormalEquations Linearise(const std::vector<double>& theta, const std::vector<double>& variance,
+                            LinearisationMode mode);
+
+  //! Per fitted channel: pooled residual mean square over each experiment's noise variance of the
+  //! averaged data, sum_a sum_mu e^2 / s_a^2 over the count (about 1 at the noise floor). NaN where
+  //! no experiment knows its noise.
+  std::vector<double> NoiseRatios() const;
+  //! Fills the summary's channel and experiment statistics (and moves the solutions into it).
+  void Summarise(const ResidualSums& sums, const std::vector<double>& variance, FitSummary& summary);
+
+ private:
+  struct Experiment;
+  //! The first solve of an experiment: from the measured stroke when that fits, else cold.
+  PeriodicSolution FirstSolve(Experiment& experiment, const std::vector<double>& theta) const;
+  const Model& model_;
+  const EstimatorOptions& options_;
+  std::vector<std::string> channels_;
+  std::vector<int> output_row_;
+  std::vector<int> estimated_;
+  std::vector<double> scale_;
+  std::vector<Experiment> experiments_;
+  std::vector<std::string> warnings_;
+  std::optional<Model> stroke_driven_;
+  int threads_ = 1;
+};
+
+}  // namespace strut::ident

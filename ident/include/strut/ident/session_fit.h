@@ -1,0 +1,81 @@
+// One entry point for a fit from recorded sessions: read, prepare, exclude, choose what to
+// estimate, starting values, fit. `strut identify`, `strut discover`, the demo, the benchmarks and
+// QC all go through it, so a fit means the same everywhere.
+#pragma once
+
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "strut/ident/estimator.h"
+#include "strut/ident/experiment_data.h"
+#include "strut/ident/model.h"
+
+namespace strut::ident {
+
+struct SessionFitOptions {
+  std::string composition = "2dof";
+  //! Stroke input by default: the LVDT's noise is far below what the load cell's does to a
+  //! force-driven fit (docs/identification.md, causality).
+  Causality causality = Causality::kStrokeInput;
+  //! "" or "default": every parameter the data can determine (DefaultChoices, then parameters the
+  //! data leave undetermined at the start are fixed and named); "paper"; or "theta4,theta6,...".
+  std::string estimate;
+  std::string params_file;  //!< starting values (and "sd=", "estimate"/"fixed") from a parameter file
+  std::string assignments;  //!< "NAME=VALUE,...": starting values over the data's and the file's
+  //! Experiments or channels left out: "c" (experiment c), "c:force" (its force channel).
+  std::vector<std::string> exclude;
+  EstimatorOptions estimator;
+  bool IsValid(std::string* error) const;
+};
+
+//! The recorded experiments a fit uses, prepared for one model's causality and grid.
+struct FitData {
+  std::vector<std::string> sessions;
+  std::vector<ExperimentData> experiments;
+  std::vector<DataIssue> issues;  //!< data defects found, and the channels excluded by the user
+  std::vector<std::string> excluded;  //!< what --exclude left out, in words
+};
+
+//! Reads sessions and prepares their periodic experiments for `model` on the n-point grid. Labels
+//! that repeat across sessions are prefixed with the file. Throws daq::SessionError or
+//! std::invalid_argument naming the file, experiment and channel; an --exclude item that names
+//! no experiment or channel is an error too.
+FitData ReadFitData(const std::vector<std::string>& sessions, const Model& model, int n,
+                    const std::vector<std::string>& exclude = {});
+
+//! The same for a session in memory (simulated, imported); `name` stands for its file in messages.
+FitData PrepareFitData(const daq::Session& session, const std::string& name, const Model& model, int n,
+                       const std::vector<std::string>& exclude = {});
+
+//! What a fit starts from and what it estimates.
+struct FitPlan {
+  ParameterSet start;
+  std::vector<ParameterChoice> choices;
+  std::vector<std::string> sources;       //!< per parameter: where its starting value came from
+  std::vector<std::string> undetermined;  //!< parameters fixed because the data do not determine them, with why
+  //! Lines for the log: every parameter's starting value as used, its source, estimated or fixed.
+  std::vector<std::string> Describe() const;
+};
+
+//! Starting values (from the data, then the parameter file, then the assignments) and choices.
+//! With the default choices, a parameter whose sd at the start (from the information of all
+//! experiments) exceeds its typical size is fixed and named in `undetermined` (an optional term
+//! whose effect no experiment reaches, for example).
+FitPlan PlanFit(const Model& model, const FitData& data, const SessionFitOptions& options);
+
+struct SessionFit {
+  Model model;
+  FitData data;
+  FitPlan plan;
+  FitSummary summary;
+};
+
+//! Reads, plans and fits.
+SessionFit FitSessions(const std::vector<std::string>& sessions, const SessionFitOptions& options,
+                       const std::function<void(const FitProgress&)>& progress = {});
+//! Plans and fits already prepared data.
+SessionFit FitPrepared(FitData data, const Model& model, const SessionFitOptions& options,
+                   const std::function<void(const FitProgress&)>& progress = {});
+
+}  // namespace strut::ident

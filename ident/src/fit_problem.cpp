@@ -1,0 +1,525 @@
+#include "strut/ident/fit_problem.h"
+
+#include <algorithm>
+#include <array>
+#include <atomic>
+#include <cmath>
+#include <exception>
+#include <fmt/format.h>
+#include <mutex>
+#include <numbers>
+#include <spdlog/spdlog.h>
+#include <thread>
+#include <unsupported/Eigen/FFT>
+
+#include "strut/ident/estimator.h"
+
+namespace strut::ident {
+namespace {
+
+std::vector<std::string> DefaultChannels(const Model& model) {
+  // The mechanical output (stroke under force input, force under stroke input; y for a generic
+  // oscillator) and the gas pressure when the model has one.
+  std::vector<std::string> channels = {model.mechanical_channel()};
+  const auto& states = model.states();
+  if (std::any_of(states.begin(), states.end(), [](const StateSpec& s) { return s.name == "pressure"; }))
+    channels.push_back("pressure");
+  return channels;
+}
+
+//! The covariance that the noise of a measured input puts on a gradient: for g = dF/du on the
+//! n-point input grid (one column per function F), sum over the input's noisy Fourier coefficients
+//! c of var(c) (dF/dc)(dF/dc)^T, where dF/dc is g projected on that coefficient's grid function
+//! (the mean: 1; harmonic h: cos and sin of 2 pi h mu / n). The projections are one FFT per column.
+Eigen::MatrixXd InputNoiseCovariance(const ExperimentData& d, const Eigen::MatrixXd& gradient) {
+  const Eigen::Index k = gradient.cols();
+  const int n = static_cast<int>(gradient.rows());
+  Eigen::MatrixXd covariance = Eigen::MatrixXd::Zero(k, k);
+  if (!(d.input_harmonic_variance > 0) || d.input_harmonics.empty() || k == 0) return covariance;
+  Eigen::FFT<double> fft;
+  Eigen::MatrixXcd spectra(n, k);  // sum_mu g(mu) exp(-i 2 pi h mu / n)
+  for (Eigen::Index b = 0; b < k; ++b) {
+    Eigen::VectorXcd column(n);
+    fft.fwd(column, Eigen::VectorXd(gradient.col(b)));
+    spectra.col(b) = column;
+  }
+  for (const int h : d.input_harmonics) {
+    if (h >= n) continue;
+    if (h == 0) {
+      const Eigen::VectorXd q = spectra.row(0).real().transpose();
+      covariance.noalias() += d.input_mean_variance * q * q.transpose();
+      continue;
+    }
+    // cos: Re of the spectrum; sin: -Im (the sign drops out of q q^T).
+    const Eigen::VectorXd qc = spectra.row(h).real().transpose(), qs = spectra.row(h).imag().transpose();
+    covariance.noalias() += d.input_harmonic_variance * (qc * qc.transpose() + qs * qs.transpose());
+  }
+  return covariance;
+}
+
+//! The composition of a force-driven damper model under stroke input, for MeasuredStrokeStart;
+//! empty for other models.
+std::optional<Model> StrokeDrivenTwin(const Model& model) {
+  if (model.causality() != Causality::kForceInput || model.mechanical_channel() != "stroke") return std::nullopt;
+  try {
+    Model twin = Model::Build(model.composition(), Causality::kStrokeInput);
+    if (twin.unknown_count() == model.unknown_count()) return twin;
+  } catch (const ModelError&) {
+  }
+  return std::nullopt;
+}
+
+constexpr double kMeasuredStartMismatch = 0.1;  // rms over the force's range, periodic solution
+constexpr double kStaticStartMismatch = 1.0;    // largest over the force's range, static solutions
+
+//! A first guess for a force-driven experiment from what was measured: the recorded stroke (less
+//! its sensor offset) and the states of the stroke-driven model on it. From the quasi-static guess a
+//! cold solve must find the response to the measured force's noise and friction jumps itself (3-11
+//! factorisations on the standard matrix); from here it needs 3-8. Empty when the model is not a
+//! force-driven damper, the stroke was not recorded, the stroke-driven solve fails, or the model on
+//! the measured stroke misses the measured force (parameters far from the record's).
+//! `stroke_driven`: the same composition under stroke input (StrokeDrivenTwin).
+std::optional<PeriodicSolution> MeasuredStrokeStart(const Model& model, const Model& stroke_driven,
+                                                    const ExperimentData& d, std::span<const double> theta, int n,
+                                                    const PeriodicSolverOptions& options) {
+  const auto stroke = d.channels.find("stroke");
+  if (stroke == d.channels.end() || stroke->second.mean.size() < 8) return std::nullopt;
+  try {
+    const PeriodicSeries series = PeriodicSeries::Fit(stroke->second.mean, d.frequency);
+    const PeriodicInput measured = series.OnGrid(n);
+    const Eigen::Map<const Eigen::VectorXd> force(d.input.values.data(), n);
+    const double range = force.maxCoeff() - force.minCoeff();
+    // A cheap first test (8 static solves): far from the parameters that explain the record the
+    // stroke-driven solve below can take as long as a failed cold solve. On the standard matrix the
+    // static force misses the measured one by 0.14-0.48 of its range at the truth, 0.56-348 from
+    // 20 % off (experiments a and b: 5-12).
+    std::vector<double> at_rest;
+    for (int mu = 0; mu < n; mu += std::max(1, n / 8)) {
+      at_rest = stroke_driven.StaticEquilibrium(measured.values[mu], theta, at_rest);
+      if (!(std::abs(at_rest[0] - force[mu]) <= kStaticStartMismatch * range)) return std::nullopt;
+    }
+    // The states only start Newton: the stroke-driven solution on the coarse grid (a third of
+    // the cost of this start), interpolated.
+    const int coarse = options.coarse_points >= 8 && n >= 2 * options.coarse_points && n % options.coarse_points == 0
+                           ? options.coarse_points
+                           : n;
+    PeriodicSolverOptions coarse_options = options;
+    coarse_options.coarse_points = 0;
+    PeriodicSolver solver(stroke_driven, coarse_options);
+    const PeriodicSolution states = solver.Solve(series.OnGrid(coarse), theta);
+    // Only near the parameters that explain the record: the model driven by the measured stroke
+    // must predict the measured force within a tenth of its range (rms). On the standard matrix
+    // that is 0.0002-0.04 at the truth and 0.45-86 from 20 % off, where this start is worse than
+    // the quasi-static guess and the force-driven Newton can fail from it.
+    const Eigen::VectorXd predicted = states.channel("force");
+    const int stride = n / coarse;
+    double mismatch = 0.0;
+    for (int k = 0; k < coarse; ++k) mismatch += std::pow(predicted[k] - force[k * stride], 2);
+    if (!(std::sqrt(mismatch / coarse) <= kMeasuredStartMismatch * range)) return std::nullopt;
+    // The stroke unknown is the true stroke: the measured one less the output a zero stroke has
+    // (the sensor offset, when the model has one).
+    const int m = model.unknown_count();
+    std::vector<double> zero(m, 0.0), outputs(model.output_channels().size());
+    model.Outputs<double>(zero, 0.0, theta, outputs);
+    PeriodicSolution guess;
+    guess.scheme = options.scheme;
+    guess.frequency = d.frequency;
+    guess.n = n;
+    guess.unknowns = PeriodicResample(states.unknowns, n);
+    for (int mu = 0; mu < n; ++mu) guess.unknowns(0, mu) = measured.values[mu] - outputs[0];
+    return guess;
+  } catch (const std::exception& e) {  // no stroke-driven solution there: the usual cold start
+    spdlog::debug("experiment '{}': no start from the measured stroke ({})", d.label, e.what());
+    return std::nullopt;
+  }
+}
+
+// Runs f(0) .. f(count - 1) on up to `threads` threads; the first exception is rethrown.
+void ParallelFor(int count, int threads, const std::function<void(int)>& f) {
+  threads = std::min(threads, count);
+  if (threads <= 1) {
+    for (int i = 0; i < count; ++i) f(i);
+    return;
+  }
+  std::atomic<int> next{0};
+  std::exception_ptr error;
+  std::mutex error_mutex;
+  const auto work = [&] {
+    for (int i = next++; i < count; i = next++) {
+      try {
+        f(i);
+      } catch (...) {
+        const std::lock_guard lock(error_mutex);
+        if (!error) error = std::current_exception();
+      }
+    }
+  };
+  std::vector<std::thread> pool;
+  for (int t = 1; t < threads; ++t) pool.emplace_back(work);
+  work();
+  for (auto& t : pool) t.join();
+  if (error) std::rethrow_exception(error);
+}
+
+
+PeriodicSolverOptions SolverOptions(const EstimatorOptions& options) {
+  PeriodicSolverOptions o;
+  o.scheme = options.scheme;
+  o.start_up_periods = options.start_up_periods;
+  o.coarse_points = options.coarse_points;
+  return o;
+}
+
+}  // namespace
+
+// Everything one iterate of the fit needs per experiment.
+struct FitProblem::Experiment {
+  const ExperimentData* data = nullptr;
+  std::unique_ptr<PeriodicPredictor> solver;
+  PeriodicSolution solution;
+  bool active = true;
+  std::vector<bool> channel_fitted;  // per fitted channel: false when the channel has a data defect
+  std::string error;
+  bool dropped_at_start = false;  // no solution at the starting values; retried as the fit moves
+  //! Per fitted channel, d(prediction at the phases)/d(scaled parameters) of the last call that
+  //! computed them: reused while the fit's steps are below a percent of the parameters.
+  std::vector<Eigen::MatrixXd> sensitivities_at_phases;
+  // Cubic (4-point Lagrange) interpolation from the n-point grid to the data phases: grid points
+  // j0 - 1 .. j0 + 2 (mod n). Linear interpolation would bias the fit by h^2 y''/8, comparable to
+  // the parameter uncertainty at n = 800.
+  std::vector<int> j0;
+  std::vector<std::array<double, 4>> weights;
+
+  void MapPhases(int n) {
+    j0.resize(data->phases.size());
+    weights.resize(data->phases.size());
+    for (std::size_t i = 0; i < data->phases.size(); ++i) {
+      const double position = data->phases[i] * n;
+      j0[i] = static_cast<int>(std::floor(position)) % n;
+      const double t = position - std::floor(position);
+      weights[i] = {-t * (t - 1) * (t - 2) / 6, (t + 1) * (t - 1) * (t - 2) / 2, -(t + 1) * t * (t - 2) / 2,
+                    (t + 1) * t * (t - 1) / 6};
+    }
+  }
+  //! A grid function (n values, any stride) at the data phases.
+  template <class Grid>
+  Eigen::VectorXd AtPhases(const Grid& grid) const {
+    const int n = static_cast<int>(grid.size());
+    Eigen::VectorXd out(j0.size());
+    for (std::size_t i = 0; i < j0.size(); ++i) {
+      double v = 0.0;
+      for (int k = 0; k < 4; ++k) v += weights[i][k] * grid((j0[i] + k - 1 + n) % n);
+      out[i] = v;
+    }
+    return out;
+  }
+  //! The transpose of AtPhases: values at the data phases spread back onto the n grid points.
+  Eigen::VectorXd ToGrid(const Eigen::VectorXd& at_phases, int n) const {
+    Eigen::VectorXd grid = Eigen::VectorXd::Zero(n);
+    for (std::size_t i = 0; i < j0.size(); ++i)
+      for (int k = 0; k < 4; ++k) grid[(j0[i] + k - 1 + n) % n] += weights[i][k] * at_phases[static_cast<int>(i)];
+    return grid;
+  }
+  Eigen::VectorXd Residual(const std::string& channel, int row) const {
+    return data->channels.at(channel).mean - AtPhases(solution.outputs.row(row));
+  }
+};
+
+double ResidualSums::LogLikelihood() const {
+  double value = 0.0;
+  for (std::size_t b = 0; b < counts.size(); ++b)
+    if (counts[b] > 0)
+      value -= 0.5 * counts[b] * (std::log(2 * std::numbers::pi * std::max(sum_squares[b] / counts[b], 1e-300)) + 1.0);
+  return value;
+}
+
+std::vector<double> ResidualSums::Variances(int estimated) const {
+  std::vector<double> v(counts.size());
+  for (std::size_t b = 0; b < counts.size(); ++b)
+    v[b] = std::max(sum_squares[b] / std::max(1.0, double(counts[b] - estimated)), 1e-300);
+  return v;
+}
+
+FitProblem::FitProblem(const Model& model, const EstimatorOptions& options, const std::vector<ExperimentData>& data,
+                       const std::vector<DataIssue>& issues, std::vector<int> estimated, std::vector<double> scale)
+    : model_(model),
+      options_(options),
+      estimated_(std::move(estimated)),
+      scale_(std::move(scale)),
+      stroke_driven_(StrokeDrivenTwin(model)) {
+  channels_ = options.channels.empty() ? DefaultChannels(model) : options.channels;
+  const std::vector<std::string> outputs = model.output_channels();
+  for (const auto& c : channels_) {
+    const auto it = std::find(outputs.begin(), outputs.end(), c);
+    if (it == outputs.end())
+      throw std::invalid_argument(fmt::format("estimator: model {} has no output '{}'", model.composition(), c));
+    output_row_.push_back(static_cast<int>(it - outputs.begin()));
+  }
+  threads_ = options.threads > 0 ? options.threads : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
+  const int nc = static_cast<int>(channels_.size());
+  const PeriodicSolverOptions solver_options = SolverOptions(options);
+  experiments_.reserve(data.size());
+  for (const ExperimentData& d : data) {
+    Experiment s;
+    s.data = &d;
+    s.solver = options.predictor ? options.predictor(model) : std::make_unique<PeriodicSolver>(model, solver_options);
+    s.channel_fitted.assign(nc, true);
+    if (static_cast<int>(d.input.values.size()) != options.n)
+      throw std::invalid_argument(fmt::format("estimator: experiment '{}' has {} grid points, the fit uses n = {}",
+                                              d.label, d.input.values.size(), options.n));
+    s.MapPhases(options.n);
+    for (int b = 0; b < nc; ++b) {
+      if (!d.channels.count(channels_[b])) {
+        s.channel_fitted[b] = false;
+        warnings_.push_back(fmt::format("{}: experiment '{}' has no '{}' channel; left out of that channel", d.session,
+                                        d.label, channels_[b]));
+      }
+      for (const DataIssue& issue : issues)
+        if (issue.experiment == d.label && issue.channel == channels_[b] && s.channel_fitted[b]) {
+          s.channel_fitted[b] = false;
+          warnings_.push_back(fmt::format("experiment '{}', channel '{}': {} ({}); not fitted", d.label, channels_[b],
+                                          issue.kind, issue.detail));
+        }
+    }
+    experiments_.push_back(std::move(s));
+  }
+  for (const DataIssue& issue : issues)
+    if (std::find(channels_.begin(), channels_.end(), issue.channel) == channels_.end())
+      warnings_.push_back(
+          fmt::format("experiment '{}', channel '{}': {} ({})", issue.experiment, issue.channel, issue.kind, issue.detail));
+}
+
+FitProblem::~FitProblem() = default;
+
+int FitProblem::experiment_count() const { return static_cast<int>(experiments_.size()); }
+
+int FitProblem::active_count() const {
+  return static_cast<int>(std::count_if(experiments_.begin(), experiments_.end(), [](const Experiment& e) { return e.active; }));
+}
+
+const std::string& FitProblem::error(int experiment) const { return experiments_.at(experiment).error; }
+
+bool FitProblem::Solve(const std::vector<double>& theta, bool allow_drop, int iteration,
+                       const std::function<void(const FitProgress&)>& progress) {
+  const int n = options_.n;
+  // Experiments are independent: solved on `threads` threads (progress is reported as they start).
+  std::vector<std::optional<std::string>> failure(experiments_.size());
+  std::mutex progress_mutex;
+  ParallelFor(experiment_count(), threads_, [&](int a) {
+    Experiment& s = experiments_[a];
+    if (!s.active) return;
+    if (progress) {
+      const std::lock_guard lock(progress_mutex);
+      progress({iteration, a + 1, experiment_count(), NAN});
+    }
+    try {
+      s.solution = s.solution.n == n ? s.solver->Solve(s.data->input, theta, &s.solution) : FirstSolve(s, theta);
+    } catch (const PeriodicSolverError& e) {
+      failure[a] = e.what();
+    }
+  });
+  for (std::size_t a = 0; a < experiments_.size(); ++a) {
+    if (!failure[a]) continue;
+    if (!allow_drop) return false;
+    Experiment& s = experiments_[a];
+    s.active = false;
+    s.dropped_at_start = true;
+    s.error = *failure[a];
+    spdlog::warn("experiment '{}': no periodic solution at the starting values ({}); left out until the "
+                 "parameters improve",
+                 s.data->label, s.error);
+  }
+  return true;
+}
+
+bool FitProblem::Readmit(const std::vector<double>& theta) {
+  bool readmitted = false;
+  for (Experiment& s : experiments_) {
+    if (s.active || !s.dropped_at_start) continue;
+    try {
+      s.solution = FirstSolve(s, theta);
+      s.active = true;
+      s.error.clear();
+      s.sensitivities_at_phases.clear();
+      readmitted = true;
+      spdlog::info("experiment '{}' has a periodic solution again; back in the fit", s.data->label);
+    } catch (const PeriodicSolverError&) {
+    }
+  }
+  return readmitted;
+}
+
+PeriodicSolution FitProblem::FirstSolve(Experiment& s, const std::vector<double>& theta) const {
+  // From the measured stroke when that fits, else cold.
+  const auto measured = stroke_driven_ ? MeasuredStrokeStart(model_, *stroke_driven_, *s.data, theta, options_.n,
+                                                             SolverOptions(options_))
+                                       : std::nullopt;
+  if (measured) {
+    try {
+      return s.solver->Solve(s.data->input, theta, &*measured);
+    } catch (const PeriodicSolverError& e) {
+      spdlog::debug("experiment '{}': no solution from the measured stroke ({}); cold start", s.data->label, e.what());
+    }
+  }
+  return s.solver->Solve(s.data->input, theta);
+}
+
+std::vector<PeriodicSolution> FitProblem::Snapshot() const {
+  std::vector<PeriodicSolution> v;
+  for (const Experiment& s : experiments_) v.push_back(s.solution);
+  return v;
+}
+
+void FitProblem::Restore(std::vector<PeriodicSolution> solutions) {
+  for (std::size_t a = 0; a < experiments_.size(); ++a) experiments_[a].solution = std::move(solutions[a]);
+}
+
+ResidualSums FitProblem::Evaluate() const {
+  const int nc = static_cast<int>(channels_.size());
+  ResidualSums e;
+  e.sum_squares.assign(nc, 0.0);
+  e.counts.assign(nc, 0);
+  for (const Experiment& s : experiments_) {
+    if (!s.active) continue;
+    for (int b = 0; b < nc; ++b) {
+      if (!s.channel_fitted[b]) continue;
+      const Eigen::VectorXd r = s.Residual(channels_[b], output_row_[b]);
+      e.sum_squares[b] += r.squaredNorm();
+      e.counts[b] += r.size();
+    }
+  }
+  for (double v : e.sum_squares) e.finite = e.finite && std::isfinite(v);
+  return e;
+}
+
+NormalEquations FitProblem::Linearise(const std::vector<double>& theta, const std::vector<double>& variance,
+                                      LinearisationMode mode) {
+  const int l = static_cast<int>(estimated_.size());
+  const int nc = static_cast<int>(channels_.size());
+  const int n = options_.n;
+  NormalEquations eq;
+  eq.information.setZero(l, l);
+  eq.gradient.setZero(l);
+  // Per experiment on `threads` threads, summed in experiment order (the same result for any count).
+  std::vector<Eigen::MatrixXd> hs(experiments_.size(), Eigen::MatrixXd::Zero(l, l));
+  eq.experiment_gradient.assign(experiments_.size(), Eigen::VectorXd::Zero(l));
+  std::vector<Eigen::MatrixXd> ns(experiments_.size(), Eigen::MatrixXd::Zero(l, l));
+  ParallelFor(experiment_count(), threads_, [&](int a) {
+    Experiment& s = experiments_[a];
+    if (!s.active) return;
+    if (!mode.reuse || static_cast<int>(s.sensitivities_at_phases.size()) != nc) {
+      const auto sens = s.solver->OutputSensitivities(s.solution, theta, estimated_, mode.exact);
+      s.sensitivities_at_phases.assign(nc, Eigen::MatrixXd());
+      for (int b = 0; b < nc; ++b) {
+        if (!s.channel_fitted[b]) continue;
+        Eigen::MatrixXd& j = s.sensitivities_at_phases[b];
+        j.resize(static_cast<Eigen::Index>(s.j0.size()), l);
+        for (int k = 0; k < l; ++k) j.col(k) = s.AtPhases(sens[output_row_[b]].col(k)) * scale_[estimated_[k]];
+      }
+    }
+    // The gradient's noise from the input's: J^T W P dy = (P^T W J)^T dy on the grid (P the
+    // interpolation to the phases), so the output weights P^T W J give it by one adjoint solve.
+    const bool with_input = mode.input_noise && s.data->input_harmonic_variance > 0;
+    std::vector<Eigen::MatrixXd> weights;
+    if (with_input) weights.assign(s.solution.channels.size(), Eigen::MatrixXd::Zero(n, l));
+    for (int b = 0; b < nc; ++b) {
+      if (!s.channel_fitted[b]) continue;
+      const Eigen::MatrixXd& j = s.sensitivities_at_phases[b];
+      const Eigen::VectorXd r = s.Residual(channels_[b], output_row_[b]);
+      hs[a].noalias() += j.transpose() * j / variance[b];
+      eq.experiment_gradient[a].noalias() += j.transpose() * r / variance[b];
+      if (with_input)
+        for (int k = 0; k < l; ++k) weights[output_row_[b]].col(k) += s.ToGrid(j.col(k), n) / variance[b];
+    }
+    if (with_input) {
+      const Eigen::MatrixXd gradient = s.solver->InputGradients(s.solution, theta, weights);
+      if (gradient.size() > 0) ns[a] = InputNoiseCovariance(*s.data, gradient);
+    }
+  });
+  for (std::size_t a = 0; a < experiments_.size(); ++a) {
+    eq.information += hs[a];
+    eq.gradient += eq.experiment_gradient[a];
+  }
+  if (mode.input_noise) {
+    eq.input_noise.setZero(l, l);
+    for (const auto& m_a : ns) eq.input_noise += m_a;
+  }
+  return eq;
+}
+
+std::vector<double> FitProblem::NoiseRatios() const {
+  const int nc = static_cast<int>(channels_.size());
+  std::vector<double> sum(nc, 0.0);
+  std::vector<long> count(nc, 0);
+  for (const Experiment& s : experiments_) {
+    if (!s.active) continue;
+    for (int b = 0; b < nc; ++b) {
+      const auto it = s.data->channels.find(channels_[b]);
+      if (!s.channel_fitted[b] || it == s.data->channels.end() || !(it->second.mean_noise_variance > 0)) continue;
+      sum[b] += s.Residual(channels_[b], output_row_[b]).squaredNorm() / it->second.mean_noise_variance;
+      count[b] += static_cast<long>(s.j0.size());
+    }
+  }
+  std::vector<double> ratio(nc);
+  for (int b = 0; b < nc; ++b) ratio[b] = count[b] > 0 ? sum[b] / count[b] : NAN;
+  return ratio;
+}
+
+void FitProblem::Summarise(const ResidualSums& sums, const std::vector<double>& variance, FitSummary& summary) {
+  const int nc = static_cast<int>(channels_.size());
+  const std::vector<double> ratio = NoiseRatios();
+  for (int b = 0; b < nc; ++b) {
+    FitChannel c;
+    c.name = channels_[b];
+    c.variance = variance[b];
+    c.rms = sums.counts[b] > 0 ? std::sqrt(sums.sum_squares[b] / sums.counts[b]) : NAN;
+    double noise = 0.0;
+    int count = 0;
+    for (const Experiment& s : experiments_) {
+      const auto it = s.data->channels.find(channels_[b]);
+      if (s.active && s.channel_fitted[b] && it != s.data->channels.end() && std::isfinite(it->second.mean_noise_variance)) {
+        noise += it->second.mean_noise_variance;
+        ++count;
+      }
+    }
+    c.noise_floor_variance = count > 0 ? noise / count : NAN;
+    c.noise_ratio = ratio[b];
+    summary.channels.push_back(c);
+  }
+  for (Experiment& s : experiments_) {
+    ExperimentFit f;
+    f.label = s.data->label;
+    f.group = s.data->group;
+    f.session = s.data->session;
+    f.frequency = s.data->frequency;
+    f.amplitude = s.data->amplitude;
+    f.static_position = s.data->static_position;
+    f.converged = s.active;
+    f.error = s.error;
+    f.phases = s.data->phases;
+    for (const auto& [name, channel] : s.data->channels) f.measured[name] = channel.mean;
+    if (!s.active)
+      summary.warnings.push_back(
+          fmt::format("experiment '{}': no periodic solution ({}); left out of the fit", s.data->label, s.error));
+    for (int b = 0; b < nc; ++b) {
+      ChannelStatistics st;
+      st.channel = channels_[b];
+      st.fitted = s.channel_fitted[b] && s.active;
+      const auto it = s.data->channels.find(channels_[b]);
+      if (s.active && it != s.data->channels.end()) {
+        const Eigen::VectorXd r = s.Residual(channels_[b], output_row_[b]);
+        f.residual[channels_[b]] = r;
+        f.noise_variance[channels_[b]] = it->second.mean_noise_variance;
+        st.mean = r.mean();
+        st.sd = std::sqrt((r.array() - st.mean).square().sum() / std::max<Eigen::Index>(1, r.size() - 1));
+        st.rms = std::sqrt(r.squaredNorm() / r.size());
+        st.noise_ratio = st.rms * st.rms / it->second.mean_noise_variance;
+      }
+      f.channels.push_back(st);
+    }
+    if (s.active) f.solution = std::move(s.solution);
+    summary.experiments.push_back(std::move(f));
+  }
+}
+
+}  // namespace strut::ident

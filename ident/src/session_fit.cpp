@@ -1,0 +1,229 @@
+#include "strut/ident/session_fit.h"
+
+#include <algorithm>
+#include <cmath>
+#include <fmt/format.h>
+#include <set>
+#include <spdlog/spdlog.h>
+
+#include "strut/daq/session.h"
+#include "strut/ident/fit_problem.h"
+#include "strut/ident/initial_values.h"
+
+namespace strut::ident {
+namespace {
+
+//! "c" or "c:force" split into experiment and channel (empty: the whole experiment).
+std::pair<std::string, std::string> SplitExclusion(const std::string& item) {
+  const std::size_t colon = item.rfind(':');
+  if (colon == std::string::npos) return {item, ""};
+  return {item.substr(0, colon), item.substr(colon + 1)};
+}
+
+}  // namespace
+
+bool SessionFitOptions::IsValid(std::string* error) const {
+  if (!estimator.IsValid(error)) return false;
+  for (const std::string& item : exclude)
+    if (SplitExclusion(item).first.empty()) {
+      if (error) *error = fmt::format("exclusion '{}' names no experiment (use LABEL or LABEL:CHANNEL)", item);
+      return false;
+    }
+  return true;
+}
+
+namespace {
+
+//! Prepares one session's experiments into `fit`; `used` marks the exclusions that named something.
+void AddSession(FitData& fit, const daq::Session& session, const std::string& path, const Model& model, int n,
+                const std::vector<std::string>& exclude, std::vector<bool>& used) {
+  // Whole experiments left out are not prepared at all: a defect there must not stop the rest.
+  daq::Session kept = session;
+  kept.experiments.clear();
+  for (const daq::Experiment& e : session.experiments) {
+    bool dropped = false;
+    for (std::size_t k = 0; k < exclude.size(); ++k) {
+      const auto [label, channel] = SplitExclusion(exclude[k]);
+      if (label != e.label) continue;
+      if (channel.empty()) {
+        dropped = used[k] = true;
+        fit.excluded.push_back(fmt::format("{}: experiment '{}' excluded by the user", path, e.label));
+      } else if (std::any_of(e.channels.begin(), e.channels.end(), [&](const auto& c) { return c.name == channel; })) {
+        used[k] = true;
+      }
+    }
+    if (!dropped) kept.experiments.push_back(e);
+  }
+  std::vector<DataIssue> issues;
+  auto prepared = PrepareExperiments(kept, model, n, &issues);
+  for (auto& e : prepared) {
+    const std::string original = e.label;
+    const bool clash = std::any_of(fit.experiments.begin(), fit.experiments.end(),
+                                   [&](const ExperimentData& d) { return d.label == e.label; });
+    if (clash) e.label = path + ":" + e.label;  // several sessions may reuse labels
+    for (DataIssue& issue : issues)
+      if (issue.experiment == original) issue.experiment = e.label;
+    // Channels left out by the user: recorded as issues, so the estimator does not fit them.
+    for (const std::string& item : exclude) {
+      const auto [label, channel] = SplitExclusion(item);
+      if (label == original && !channel.empty() && e.channels.count(channel)) {
+        issues.push_back({e.label, channel, "excluded", "left out by the user (--exclude)"});
+        fit.excluded.push_back(
+            fmt::format("{}: experiment '{}', channel '{}' excluded by the user", path, original, channel));
+      }
+    }
+    fit.experiments.push_back(std::move(e));
+  }
+  fit.issues.insert(fit.issues.end(), issues.begin(), issues.end());
+}
+
+void CheckFitData(const FitData& fit, const std::vector<std::string>& exclude, const std::vector<bool>& used) {
+  const std::string where = fit.sessions.size() == 1 ? fit.sessions[0] : "the sessions";
+  for (std::size_t k = 0; k < exclude.size(); ++k)
+    if (!used[k]) throw std::invalid_argument(fmt::format("--exclude {}: no such experiment or channel in {}", exclude[k], where));
+  if (fit.experiments.empty()) throw std::invalid_argument(fmt::format("no complete periodic experiment in {}", where));
+}
+
+}  // namespace
+
+FitData ReadFitData(const std::vector<std::string>& sessions, const Model& model, int n,
+                    const std::vector<std::string>& exclude) {
+  FitData fit;
+  fit.sessions = sessions;
+  std::vector<bool> used(exclude.size(), false);
+  for (const std::string& path : sessions) AddSession(fit, daq::ReadSession(path), path, model, n, exclude, used);
+  CheckFitData(fit, exclude, used);
+  return fit;
+}
+
+FitData PrepareFitData(const daq::Session& session, const std::string& name, const Model& model, int n,
+                       const std::vector<std::string>& exclude) {
+  FitData fit;
+  fit.sessions = {name};
+  std::vector<bool> used(exclude.size(), false);
+  AddSession(fit, session, name, model, n, exclude, used);
+  CheckFitData(fit, exclude, used);
+  return fit;
+}
+
+std::vector<std::string> FitPlan::Describe() const {
+  std::vector<std::string> lines;
+  for (int i = 0; i < start.size(); ++i) {
+    const ParameterSpec& spec = start.spec(i);
+    std::string how = choices[i].estimate ? "estimated" : "fixed";
+    if (choices[i].estimate && choices[i].prior_sd)
+      how += fmt::format(", prior sd {:.3g} {}", *choices[i].prior_sd, spec.unit);
+    lines.push_back(fmt::format("{:<8} {:<28} = {:<12.6g} {:<10} {:<9} ({})", spec.key(), spec.name, start.value(i),
+                                spec.unit, how, sources[i]));
+  }
+  for (const std::string& u : undetermined) lines.push_back("fixed, the data do not determine it: " + u);
+  return lines;
+}
+
+FitPlan PlanFit(const Model& model, const FitData& data, const SessionFitOptions& options) {
+  FitPlan plan;
+  plan.start = InitialValuesFromData(model, data.experiments, nullptr, &plan.sources);
+  // The user's values win over the data's: the file, then the assignments.
+  std::vector<ParameterFileEntry> file;
+  if (!options.params_file.empty()) {
+    file = ReadParameterFile(options.params_file);
+    for (const ParameterFileEntry& entry : file) {
+      const int i = plan.start.position(entry.name);
+      plan.start.values()[i] = entry.value;
+      plan.sources[i] = fmt::format("{} line {}", options.params_file, entry.line);
+    }
+  }
+  if (!options.assignments.empty()) {
+    const ParameterSet before = plan.start;
+    plan.start.apply_assignments(options.assignments);
+    for (int i = 0; i < plan.start.size(); ++i)
+      if (plan.start.value(i) != before.value(i) || options.assignments.find(plan.start.spec(i).key() + "=") != std::string::npos)
+        plan.sources[i] = "--set";
+  }
+  plan.choices = ChoicesFromList(plan.start, options.estimate);
+  const bool defaults = options.estimate.empty() || options.estimate == "default";
+  for (const ParameterFileEntry& entry : file) {
+    const int i = plan.start.position(entry.name);
+    if (entry.estimate && defaults) plan.choices[i] = ParameterChoice{*entry.estimate, plan.choices[i].prior_sd};
+    if (entry.prior_sd) plan.choices[i].prior_sd = entry.prior_sd;
+  }
+  if (!defaults) return plan;
+
+  // What the data can determine: at the start, with the channels' noise floors as their variances,
+  // the sd each estimated parameter would have. One that exceeds its typical size is fixed and
+  // named, the least determined first (fixing it can make the others determinable).
+  std::vector<int> est;
+  std::vector<double> scale(plan.start.size());
+  for (int i = 0; i < plan.start.size(); ++i) {
+    scale[i] = std::max({std::abs(plan.start.value(i)), plan.start.spec(i).typical_size(), 1e-300});
+    if (plan.choices[i].estimate) est.push_back(i);
+  }
+  if (est.empty()) return plan;
+  FitProblem problem(model, options.estimator, data.experiments, data.issues, est, scale);
+  problem.Solve(plan.start.values(), true);
+  if (problem.active_count() == 0) return plan;  // the fit itself will say why
+  std::vector<double> variance;
+  for (const std::string& channel : problem.channels()) {
+    double sum = 0.0;
+    int count = 0;
+    for (const ExperimentData& e : data.experiments) {
+      const auto it = e.channels.find(channel);
+      if (it != e.channels.end() && it->second.mean_noise_variance > 0) sum += it->second.mean_noise_variance, ++count;
+    }
+    variance.push_back(count > 0 ? sum / count : 1.0);
+  }
+  const NormalEquations eq = problem.Linearise(plan.start.values(), variance, {true, false, false});
+  std::vector<int> kept(est.size());
+  for (std::size_t k = 0; k < est.size(); ++k) kept[k] = static_cast<int>(k);
+  while (!kept.empty()) {
+    const Eigen::Index m = static_cast<Eigen::Index>(kept.size());
+    Eigen::MatrixXd h(m, m);
+    for (Eigen::Index a = 0; a < m; ++a) {
+      for (Eigen::Index b = 0; b < m; ++b) h(a, b) = eq.information(kept[a], kept[b]);
+      const auto& prior = plan.choices[est[kept[a]]].prior_sd;
+      if (prior) h(a, a) += std::pow(scale[est[kept[a]]] / *prior, 2);
+    }
+    const Eigen::VectorXd sd = h.completeOrthogonalDecomposition().pseudoInverse().diagonal().cwiseMax(0.0).cwiseSqrt();
+    // In scaled units the typical size is 1 (or the start's size when that is larger).
+    Eigen::Index worst = -1;
+    double worst_ratio = 1.0;
+    for (Eigen::Index a = 0; a < m; ++a) {
+      const int i = est[kept[a]];
+      const double typical = plan.start.spec(i).typical_size() / scale[i];
+      const double ratio = (std::isfinite(sd[a]) ? sd[a] : INFINITY) / std::max(typical, 1e-300);
+      if (plan.choices[i].prior_sd || !(ratio > worst_ratio)) continue;
+      worst_ratio = ratio;
+      worst = a;
+    }
+    if (worst < 0) break;
+    const int i = est[kept[worst]];
+    plan.choices[i].estimate = false;
+    plan.undetermined.push_back(fmt::format("{} {} (sd at the start {:.3g} {}, {:.3g} times its typical size {:.3g})",
+                                            plan.start.spec(i).key(), plan.start.spec(i).name,
+                                            worst_ratio * plan.start.spec(i).typical_size(), plan.start.spec(i).unit,
+                                            worst_ratio, plan.start.spec(i).typical_size()));
+    kept.erase(kept.begin() + worst);
+  }
+  return plan;
+}
+
+SessionFit FitPrepared(FitData data, const Model& model, const SessionFitOptions& options,
+                       const std::function<void(const FitProgress&)>& progress) {
+  SessionFit fit{model, std::move(data), {}, {}};
+  fit.plan = PlanFit(fit.model, fit.data, options);
+  fit.summary = Estimator(fit.model, options.estimator)
+                    .Fit(fit.data.experiments, fit.plan.start, fit.plan.choices, fit.data.issues, progress);
+  for (const std::string& u : fit.plan.undetermined)
+    fit.summary.warnings.push_back("fixed at its starting value, the data do not determine it: " + u);
+  return fit;
+}
+
+SessionFit FitSessions(const std::vector<std::string>& sessions, const SessionFitOptions& options,
+                       const std::function<void(const FitProgress&)>& progress) {
+  std::string error;
+  if (!options.IsValid(&error)) throw std::invalid_argument(error);
+  const Model model = Model::Build(options.composition, options.causality);
+  return FitPrepared(ReadFitData(sessions, model, options.estimator.n, options.exclude), model, options, progress);
+}
+
+}  // namespace strut::ident

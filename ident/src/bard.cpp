@@ -65,10 +65,12 @@ Posterior PosteriorCovariance(const Eigen::MatrixXd& information, const Eigen::M
   Posterior p;
   Eigen::MatrixXd h = information;
   if (priors.precision.size() == l) h.diagonal() += priors.precision;
-  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(h);
-  const double largest = l > 0 ? eig.eigenvalues().maxCoeff() : 0.0;
+  // Near-null directions of the information normalised to a unit diagonal: collinearity among the
+  // parameters, whatever their scales (a prior's small precision on its own is not one).
+  const Eigen::VectorXd norm = h.diagonal().cwiseMax(1e-300).cwiseSqrt().cwiseInverse();
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(norm.asDiagonal() * h * norm.asDiagonal());
   for (Eigen::Index k = 0; k < l; ++k) {
-    if (eig.eigenvalues()[k] > 1e-10 * largest) continue;
+    if (eig.eigenvalues()[k] > 1e-10) continue;
     std::vector<int> members;
     for (Eigen::Index a = 0; a < l; ++a)
       if (std::abs(eig.eigenvectors()(a, k)) > 0.3) members.push_back(static_cast<int>(a));
@@ -85,6 +87,20 @@ Posterior PosteriorCovariance(const Eigen::MatrixXd& information, const Eigen::M
     p.covariance += extra;
   }
   return p;
+}
+
+Eigen::MatrixXd ExperimentSandwich(const Eigen::MatrixXd& covariance, const std::vector<Eigen::VectorXd>& gradients) {
+  const Eigen::Index l = covariance.rows();
+  Eigen::MatrixXd meat = Eigen::MatrixXd::Zero(l, l);
+  int count = 0;
+  for (const Eigen::VectorXd& g : gradients) {
+    if (g.size() != l || g.isZero(0.0)) continue;
+    meat.noalias() += g * g.transpose();
+    ++count;
+  }
+  if (count < 2) return Eigen::MatrixXd::Zero(l, l);
+  meat *= static_cast<double>(count) / (count - 1);
+  return covariance * meat * covariance;
 }
 
 }  // namespace strut::ident

@@ -220,7 +220,34 @@ FitSummary Estimator::Fit(const std::vector<ExperimentData>& data, const Paramet
   if (l > 0) {
     const NormalEquations eq = problem.Linearise(theta, variance, {true, false, options_.input_noise});
     const Posterior posterior = PosteriorCovariance(eq.information, eq.input_noise, priors);
-    const Eigen::MatrixXd& covariance = posterior.covariance;
+    Eigen::MatrixXd covariance = posterior.covariance;
+    // Honest intervals above the noise floor: residuals of a model that lacks physics are
+    // systematic, not white, and the covariance above (white noise at the residual variance) is
+    // then far too narrow. Each parameter's sd is widened to what the experiments' disagreement
+    // implies (the sandwich over experiments) where that is larger.
+    const std::vector<double> ratios = problem.NoiseRatios();
+    const bool above_floor = std::any_of(ratios.begin(), ratios.end(), [](double r) { return !(r < kNoiseFloorRatio); });
+    if (above_floor) {
+      const Eigen::MatrixXd robust = ExperimentSandwich(posterior.covariance, eq.experiment_gradient);
+      summary.misfit_sd_factor.assign(np, NAN);
+      double widest = 1.0;
+      for (int a = 0; a < l; ++a) {
+        const double factor = std::sqrt(std::max(1.0, robust(a, a) / std::max(covariance(a, a), 1e-300)));
+        summary.misfit_sd_factor[est[a]] = factor;
+        widest = std::max(widest, factor);
+      }
+      // Widen whole rows and columns, keeping the correlations of the white-noise covariance.
+      for (int a = 0; a < l; ++a)
+        for (int b = 0; b < l; ++b) covariance(a, b) *= summary.misfit_sd_factor[est[a]] * summary.misfit_sd_factor[est[b]];
+      std::string channels;
+      for (std::size_t b = 0; b < ratios.size(); ++b)
+        channels += fmt::format("{}{} {:.3g}", channels.empty() ? "" : ", ", problem.channels()[b], ratios[b]);
+      summary.warnings.push_back(fmt::format(
+          "above the noise floor (residual over noise variance: {}): the intervals are widened by up to {:.3g} times "
+          "for what the experiments disagree on (sandwich over experiments); a model that lacks physics is biased "
+          "beyond any interval",
+          channels, widest));
+    }
     if (options_.input_noise && eq.input_noise.size() > 0) {
       summary.input_noise_sd_factor.assign(np, NAN);
       for (int a = 0; a < l; ++a) summary.input_noise_sd_factor[est[a]] = posterior.input_noise_factor[a];
@@ -230,6 +257,15 @@ FitSummary Estimator::Fit(const std::vector<ExperimentData>& data, const Paramet
       summary.sd[est[a]] = std::sqrt(std::max(covariance(a, a), 0.0)) * scale[est[a]];
       for (int b = 0; b < l; ++b)
         summary.correlation(a, b) = covariance(a, b) / std::sqrt(std::max(covariance(a, a) * covariance(b, b), 1e-300));
+    }
+    // Estimated parameters the data add nothing to: their interval is their prior's.
+    for (int a = 0; a < l; ++a) {
+      const auto& prior = choices[est[a]].prior_sd;
+      if (prior && summary.sd[est[a]] > 0.9 * *prior)
+        summary.warnings.push_back(fmt::format(
+            "{} {}: the data barely determine it; its interval is essentially its prior's (sd {:.3g} {}), and the "
+            "parameters correlated with it are uncertain accordingly",
+            initial.spec(est[a]).key(), initial.spec(est[a]).name, *prior, initial.spec(est[a]).unit));
     }
     // Parameters the data cannot determine: a near-null direction of the information matrix.
     for (const std::vector<int>& direction : posterior.undetermined) {

@@ -28,6 +28,9 @@ nlohmann::json FitToJson(const FitSummary& fit) {
                                 Number(static_cast<std::size_t>(i) < fit.input_noise_sd_factor.size()
                                            ? fit.input_noise_sd_factor[i]
                                            : NAN)},
+                               {"sd_misfit_factor",
+                                Number(static_cast<std::size_t>(i) < fit.misfit_sd_factor.size() ? fit.misfit_sd_factor[i]
+                                                                                                 : NAN)},
                                {"estimated", static_cast<bool>(fit.estimated[i])}});
   }
   j["channels"] = nlohmann::json::array();

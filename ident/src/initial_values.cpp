@@ -123,6 +123,60 @@ FrictionEstimate PreidentifyFriction(const std::vector<ExperimentData>& data) {
   return result;
 }
 
+namespace {
+
+//! theta1, theta3, theta4, theta8, theta9, theta11 (and theta18 with viscous damping) by linear
+//! least squares on F = theta1 (q'' + g) + theta3 q'|q'| + theta4 p + (theta8 + theta9 p)
+//! atan(theta10 q') [+ theta18 q'] + theta11 over all experiments, theta10 as `values` hold it.
+//! Applied only when every coefficient comes out physical.
+template <class Set>
+void ForceBalanceRegression(const Model& model, const std::vector<ExperimentData>& data, const ParameterSet& values,
+                            const Set& set) {
+  const int sharpness = values.position_of_index(10), gravity = values.position_of_index(2);
+  if (sharpness < 0 || gravity < 0 || !model.has_term("quadratic-damping") || !model.has_term("inertia")) return;
+  const bool viscous = model.has_term("viscous-damping");
+  const int columns = viscous ? 7 : 6;
+  std::vector<Eigen::RowVectorXd> rows;
+  std::vector<double> force;
+  int experiments = 0;
+  for (const ExperimentData& e : data) {
+    if (!e.channels.count("stroke") || !e.channels.count("force") || !e.channels.count("pressure")) continue;
+    const PeriodicSeries stroke = PeriodicSeries::Fit(e.channels.at("stroke").mean, e.frequency);
+    const Eigen::VectorXd& f = e.channels.at("force").mean;
+    const Eigen::VectorXd& p = e.channels.at("pressure").mean;
+    ++experiments;
+    for (std::size_t i = 0; i < e.phases.size(); ++i) {
+      const double rate = stroke.At(e.phases[i], 1), accel = stroke.At(e.phases[i], 2);
+      const double friction = std::atan(values.value(sharpness) * rate);
+      Eigen::RowVectorXd row(columns);
+      row << accel, rate * std::abs(rate), p[static_cast<Eigen::Index>(i)], friction,
+          friction * p[static_cast<Eigen::Index>(i)], 1.0;
+      if (viscous) row[6] = rate;
+      rows.push_back(row);
+      force.push_back(f[static_cast<Eigen::Index>(i)]);
+    }
+  }
+  if (experiments < 2 || rows.size() < 50) return;
+  Eigen::MatrixXd a(static_cast<Eigen::Index>(rows.size()), columns);
+  for (std::size_t i = 0; i < rows.size(); ++i) a.row(static_cast<Eigen::Index>(i)) = rows[i];
+  // Columns scaled to unit norm: accelerations, pressures and ones differ by 10 orders.
+  const Eigen::VectorXd norms = a.colwise().norm().transpose().cwiseMax(1e-300);
+  Eigen::VectorXd x;
+  LeastSquares(a * norms.cwiseInverse().asDiagonal(), Eigen::Map<Eigen::VectorXd>(force.data(), force.size()), x);
+  x = x.cwiseQuotient(norms);
+  if (!(x[0] > 0 && x[1] >= 0 && x[2] > 0 && x.allFinite())) return;
+  const std::string how = fmt::format("force balance over {} experiments with the measured pressure", experiments);
+  set(1, x[0], how);
+  set(3, x[1], how);
+  set(4, x[2], how);
+  set(8, x[3], how);
+  set(9, x[4], how);
+  set(11, x[5] - x[0] * values.value(gravity), how + ", less the weight of the moving mass");
+  if (viscous && x[6] >= 0) set(18, x[6], how);
+}
+
+}  // namespace
+
 ParameterSet InitialValuesFromData(const Model& model, const std::vector<ExperimentData>& data,
                                    std::vector<std::string>* log, std::vector<std::string>* sources) {
   if (sources) sources->assign(model.parameter_count(), "physical default");
@@ -236,6 +290,11 @@ ParameterSet InitialValuesFromData(const Model& model, const std::vector<Experim
       set(8, coulomb * 2.0 / std::numbers::pi, "Coulomb level of the static relation (" + friction.note + ")");
       set(9, 0.0, "no reversal fit: " + friction.note);
     }
+    // The force balance over every experiment, with the measured pressure: linear in the mass, the
+    // orifice damping, the gas area, the friction amplitudes and the offset once the friction's
+    // sharpness is known (stroke rates from each experiment's series). Better than the slow
+    // experiment's static relation where the fast experiments show inertia and damping.
+    ForceBalanceRegression(model, data, values, set);
   } else {
     note("no experiment with stroke, force and pressure: all starting values are the model defaults");
   }

@@ -43,8 +43,9 @@ BardStep ComputeBardStep(const Eigen::MatrixXd& h, const Eigen::VectorXd& g, con
 struct Posterior {
   Eigen::MatrixXd covariance;            //!< scaled
   Eigen::VectorXd input_noise_factor;    //!< sd with the input's noise over sd without (1: none)
-  //! Near-null directions of the information (eigenvalue below 1e-10 of the largest): per
-  //! direction the estimated parameters (positions among the estimated) that make it up.
+  //! Near-null directions of the information normalised to a unit diagonal (eigenvalue below
+  //! 1e-10: collinear parameters): per direction the estimated parameters (positions among the
+  //! estimated) that make it up.
   std::vector<std::vector<int>> undetermined;
 };
 
@@ -52,5 +53,13 @@ struct Posterior {
 //! the priors' precision. Pseudo-inverse where H is singular.
 Posterior PosteriorCovariance(const Eigen::MatrixXd& information, const Eigen::MatrixXd& input_noise,
                               const ScaledPriors& priors);
+
+//! The covariance the experiments' disagreement implies (a cluster-robust sandwich over the
+//! experiments): C M C with C the posterior covariance and M = A/(A-1) sum_a g_a g_a^T from each
+//! experiment's gradient g_a = J_a^T W e_a at the optimum. When the model is right E[g_a g_a^T] is
+//! experiment a's information and this is about C; when physics is missing the residuals are
+//! systematic within each experiment, the experiments pull the parameters apart, and this grows
+//! where the white-noise covariance C cannot. Zero with fewer than 2 experiments.
+Eigen::MatrixXd ExperimentSandwich(const Eigen::MatrixXd& covariance, const std::vector<Eigen::VectorXd>& gradients);
 
 }  // namespace strut::ident

@@ -123,6 +123,9 @@ struct FitSummary {
   //! sd over the sd from the output noise alone: what the measured input's noise adds (NaN when
   //! fixed, or when the input's noise is unknown or not propagated)
   std::vector<double> input_noise_sd_factor;
+  //! Above the noise floor: how much each sd was widened for the misfit (ExperimentSandwich); empty
+  //! at the noise floor, NaN when fixed.
+  std::vector<double> misfit_sd_factor;
   std::vector<int> estimated_positions;
   Eigen::MatrixXd correlation;       //!< among the estimated parameters
   std::vector<FitChannel> channels;

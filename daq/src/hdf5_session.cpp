@@ -230,6 +230,31 @@ std::optional<std::string> GetText(hid_t attribute) {
   return std::nullopt;
 }
 
+// A single integer (as long long), floating-point number (as double) or string; nullopt otherwise.
+std::optional<AttributeValue> GetValue(hid_t attribute) {
+  std::string error;
+  hdf5::Datatype type(H5Aget_type(attribute));
+  if (!type) return std::nullopt;
+  const H5T_class_t type_class = H5Tget_class(type.get());
+  const auto count = ValueCount(attribute, error);
+  if (!count || *count != 1) return std::nullopt;
+  if (type_class == H5T_STRING) {
+    auto text = GetString(attribute, error);
+    return text ? std::optional<AttributeValue>(std::move(*text)) : std::nullopt;
+  }
+  if (type_class == H5T_INTEGER) {
+    long long value = 0;
+    if (H5Aread(attribute, H5T_NATIVE_LLONG, &value) < 0) return std::nullopt;
+    return AttributeValue(value);
+  }
+  if (type_class == H5T_FLOAT) {
+    double value = 0.0;
+    if (H5Aread(attribute, H5T_NATIVE_DOUBLE, &value) < 0) return std::nullopt;
+    return AttributeValue(value);
+  }
+  return std::nullopt;
+}
+
 // Samples of a numeric dataset of shape (N), (N,1) or (1,N); anything else sets `error`.
 std::optional<hsize_t> SampleCount(hid_t dataset, std::string& error) {
   hdf5::Datatype type(H5Dget_type(dataset));
@@ -365,6 +390,7 @@ class Reader {
     session.source_path = path_;
     ReadRoot(file.get(), session);
     ReadExperiments(file.get(), session);
+    ReadMetadata(file.get(), session);
     detail::CheckSession(session, defects_);
     if (!defects_.empty()) throw SessionError(defects_.Joined());
     return session;
@@ -493,6 +519,46 @@ class Reader {
         spdlog::debug("{}: /experiments/{} is not a group, ignored", path_, label);
       }
     }
+  }
+
+  // Extra root groups (strut's metadata, e.g. /truth): their attributes and subgroups; datasets
+  // in them and attributes without a single number or text are ignored (logged at debug level).
+  void ReadMetadata(hid_t file, Session& session) {
+    const auto names = LinkNames(file);
+    if (!names) return;
+    for (const std::string& name : *names) {
+      if (name == "experiments" || ObjectType(file, name) != H5I_GROUP) continue;
+      session.metadata.push_back(ReadMetadataGroup(file, name, "/" + name));
+    }
+  }
+
+  MetadataGroup ReadMetadataGroup(hid_t parent, const std::string& name, const std::string& path) {
+    MetadataGroup m;
+    m.name = name;
+    hdf5::Group group(H5Gopen2(parent, name.c_str(), H5P_DEFAULT));
+    if (!group) {
+      spdlog::debug("{}: group {} cannot be opened, ignored", path_, path);
+      return m;
+    }
+    for (const std::string& attribute_name : AttributeNames(group.get())) {
+      hdf5::Attribute attribute(H5Aopen(group.get(), attribute_name.c_str(), H5P_DEFAULT));
+      if (auto value = attribute ? GetValue(attribute.get()) : std::nullopt) {
+        m.attributes.emplace(attribute_name, std::move(*value));
+      } else {
+        spdlog::debug("{}: {}: attribute '{}' is not a single number or text, ignored", path_, path,
+                      attribute_name);
+      }
+    }
+    if (const auto links = LinkNames(group.get())) {
+      for (const std::string& link : *links) {
+        if (ObjectType(group.get(), link) == H5I_GROUP) {
+          m.groups.push_back(ReadMetadataGroup(group.get(), link, path + "/" + link));
+        } else {
+          spdlog::debug("{}: {}/{} is not a group, ignored", path_, path, link);
+        }
+      }
+    }
+    return m;
   }
 
   Experiment ReadExperiment(hid_t parent, const std::string& label) {
@@ -703,6 +769,7 @@ class Writer {
         H5Gcreate2(root, "experiments", H5P_DEFAULT, create.get(), H5P_DEFAULT), "/experiments"));
     for (const Experiment& e : session.experiments) WriteExperiment(experiments.get(), e);
     Check(experiments.Close(), "/experiments");
+    for (const MetadataGroup& m : session.metadata) WriteMetadata(root, m, "/" + m.name);
 
     Check(H5Fflush(root, H5F_SCOPE_GLOBAL), "flushing");
     const ssize_t size = H5Fget_file_image(root, nullptr, 0);
@@ -761,6 +828,25 @@ class Writer {
 
     Samples(g, "time", e.time, "s", "", where);
     for (const Channel& c : e.channels) Samples(g, c.name, c.samples, c.units, c.reference, where);
+    Check(group.Close(), where);
+  }
+
+  void WriteMetadata(hid_t parent, const MetadataGroup& m, const std::string& where) {
+    hdf5::PropertyList create(Checked(H5Pcreate(H5P_GROUP_CREATE), "group properties"));
+    Check(H5Pset_link_creation_order(create.get(), H5P_CRT_ORDER_TRACKED | H5P_CRT_ORDER_INDEXED),
+          "group properties");
+    hdf5::Group group(
+        Checked(H5Gcreate2(parent, m.name.c_str(), H5P_DEFAULT, create.get(), H5P_DEFAULT), where));
+    for (const auto& [name, value] : m.attributes) {
+      if (const double* d = std::get_if<double>(&value)) {
+        DoubleAttribute(group.get(), name, *d, where);
+      } else if (const long long* i = std::get_if<long long>(&value)) {
+        IntegerAttribute(group.get(), name, *i, H5T_STD_I64LE, where);
+      } else {
+        StringAttribute(group.get(), name, std::get<std::string>(value), where);
+      }
+    }
+    for (const MetadataGroup& g : m.groups) WriteMetadata(group.get(), g, where + "/" + g.name);
     Check(group.Close(), where);
   }
 

@@ -73,6 +73,33 @@ const Experiment& Session::experiment(std::string_view label) const {
                                  fmt::join(labels, ", ")));
 }
 
+const MetadataGroup* Session::find_metadata(std::string_view name) const {
+  const auto it = std::find_if(metadata.begin(), metadata.end(),
+                               [&](const MetadataGroup& g) { return g.name == name; });
+  return it == metadata.end() ? nullptr : &*it;
+}
+
+const MetadataGroup* MetadataGroup::find_group(std::string_view group_name) const {
+  const auto it = std::find_if(groups.begin(), groups.end(),
+                               [&](const MetadataGroup& g) { return g.name == group_name; });
+  return it == groups.end() ? nullptr : &*it;
+}
+
+std::optional<double> MetadataGroup::number(std::string_view attribute) const {
+  const auto it = attributes.find(std::string(attribute));
+  if (it == attributes.end()) return std::nullopt;
+  if (const double* d = std::get_if<double>(&it->second)) return *d;
+  if (const long long* i = std::get_if<long long>(&it->second)) return static_cast<double>(*i);
+  return std::nullopt;
+}
+
+std::optional<std::string> MetadataGroup::text(std::string_view attribute) const {
+  const auto it = attributes.find(std::string(attribute));
+  if (it == attributes.end()) return std::nullopt;
+  if (const std::string* t = std::get_if<std::string>(&it->second)) return *t;
+  return std::nullopt;
+}
+
 std::vector<std::string> Validate(const Session& session) {
   detail::DefectList defects(session.source_path.empty() ? "<memory>" : session.source_path);
   detail::CheckSession(session, defects);
@@ -468,6 +495,24 @@ void CheckSession(const Session& session, DefectList& defects) {
     defects.Warn("", AttributeItem("created_utc"),
                  fmt::format("'{}' does not look like an ISO 8601 time", session.created_utc));
   }
+  // Extra root groups: valid, unique link names that are not the contract's /experiments.
+  const auto check_groups = [&](const auto& self, const std::vector<MetadataGroup>& groups,
+                                const std::string& parent) -> void {
+    std::set<std::string_view> names;
+    for (const MetadataGroup& g : groups) {
+      const std::string item = fmt::format("group '{}/{}'", parent, g.name);
+      if (!IsValidName(g.name) || (parent.empty() && g.name == "experiments")) {
+        defects.Add("", item, "invalid name (empty, '.', with '/', or the contract's 'experiments')");
+      } else if (!names.insert(g.name).second) {
+        defects.Add("", item, "used by more than one group");
+      }
+      for (const auto& [name, value] : g.attributes) {
+        if (!IsValidName(name)) defects.Add("", item, fmt::format("attribute '{}': invalid name", name));
+      }
+      self(self, g.groups, parent + "/" + g.name);
+    }
+  };
+  check_groups(check_groups, session.metadata, "");
   if (session.experiments.empty() && !defects.Has("", kExperimentsItem)) {
     defects.Warn("", kExperimentsItem, "no experiments");
   }

@@ -12,6 +12,7 @@
 #include <toml++/toml.h>
 
 #include "strut/ident/periodic.h"
+#include "strut/sim/recorded_truth.h"
 
 namespace strut::sim {
 namespace {
@@ -204,6 +205,9 @@ daq::Session SimulatedRig::NewSession() const {
   session.created_utc = daq::UtcNowIso8601();
   session.damper_serial = truth_.damper_serial;
   session.rig = fmt::format("{} [simulated: {}, truth {}]", truth_.rig, model_.composition(), truth_.source);
+  ident::ParameterSet parameters = model_.defaults();
+  parameters.values() = theta_;
+  RecordTruth(truth_, parameters, model_.composition(), session);
   return session;
 }
 

@@ -8,6 +8,7 @@
 #include <stdexcept>
 #include <string>
 #include <string_view>
+#include <variant>
 #include <vector>
 
 namespace strut::daq {
@@ -75,6 +76,25 @@ struct Experiment {
   double samples_per_period() const { return sample_rate / frequency; }
 };
 
+//! The value of an attribute of an extra group: a number (float64), a whole number (int64) or a
+//! text (fixed-length string), written with that HDF5 type and read back as the same alternative.
+using AttributeValue = std::variant<double, long long, std::string>;
+
+//! An extra group under the root that the contract leaves to the project (e.g. `/truth` of a
+//! simulated session, docs/session-files.md): attributes and subgroups only; kept on rewrite.
+struct MetadataGroup {
+  std::string name;                                   //!< link name, no '/'
+  std::map<std::string, AttributeValue> attributes;  //!< by name
+  std::vector<MetadataGroup> groups;                  //!< subgroups, in file order
+
+  //! The subgroup of that name, or nullptr.
+  const MetadataGroup* find_group(std::string_view group_name) const;
+  //! The attribute as a number (a double or a whole number), or nullopt when absent or a text.
+  std::optional<double> number(std::string_view attribute) const;
+  //! The attribute as a text, or nullopt when absent or a number.
+  std::optional<std::string> text(std::string_view attribute) const;
+};
+
 //! A whole recorded session (one HDF5 file).
 struct Session {
   std::string source_path;  //!< where it was read from (for messages); empty when built in memory
@@ -84,12 +104,16 @@ struct Session {
   std::string rig;
   std::string profile = std::string(kDamperProfile);  //!< kDamperProfile or kGenericProfile
   std::vector<Experiment> experiments;
+  //! Extra root groups other than /experiments (strut's own metadata), in file order.
+  std::vector<MetadataGroup> metadata;
 
   bool generic() const { return profile == kGenericProfile; }
 
   const Experiment* find_experiment(std::string_view label) const;
   //! The experiment, or SessionError naming the file and label.
   const Experiment& experiment(std::string_view label) const;
+  //! The extra root group of that name, or nullptr.
+  const MetadataGroup* find_metadata(std::string_view name) const;
 };
 
 //! Options for writing a session file.

@@ -4,6 +4,8 @@
 // is compiled in (DefaultTruth()).
 #pragma once
 
+#include <cstdint>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <string_view>
@@ -45,6 +47,24 @@ struct AcquisitionOptions {
   bool IsValid(std::string* error) const;
 };
 
+//! The size of one extra effect of a drawn unit: the value of its sizing parameter.
+struct EffectSize {
+  std::string effect;     //!< e.g. "viscous-damping"
+  std::string parameter;  //!< its sizing parameter's key, e.g. "theta18"
+  double size = 0.0;      //!< the value, SI (e.g. 200 N s/m)
+  bool given = false;     //!< given by the caller (true) or drawn (false)
+};
+
+//! How a drawn unit was drawn (sim/draw.h, docs/simulated-rig.md "Drawn units"); recorded in
+//! every session the rig produces from it.
+struct DrawRecord {
+  std::uint64_t seed = 0;
+  std::string base;                 //!< "1dof", "1dof+heat-exchange" or "2dof"
+  std::vector<EffectSize> effects;  //!< the extra effects, in EffectNames() order
+  std::string around;               //!< source of the truth the unit was drawn around
+  int attempts = 1;                 //!< candidates drawn until one passed the feasibility rule
+};
+
 //! Everything the simulated rig needs to know about the world it simulates.
 struct Truth {
   std::string source = "<built-in default>";  //!< file it came from, for messages
@@ -57,6 +77,8 @@ struct Truth {
   SensorSet sensors;
   AcquisitionOptions acquisition;
   std::vector<FaultSpec> faults;
+  //! Set when the unit was drawn (DrawUnit) rather than read from a file.
+  std::optional<DrawRecord> drawn;
 
   //! Names of the switchable effects (the names of the identification model terms):
   //! heat-exchange, gas-solubility, oil-compressibility, viscous-damping, stribeck-friction,

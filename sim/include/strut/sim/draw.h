@@ -1,0 +1,89 @@
+// Drawn units: dampers with realistic manufacturing and physical scatter around a truth (the
+// shipped one by default), reproducible from a seed, each checked to run the test matrix
+// (docs/simulated-rig.md "Drawn units"; spreads from damper-physics.md §1.2, §1.3, §2).
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "strut/rig/test_matrix.h"
+#include "strut/sim/truth.h"
+
+namespace strut::sim {
+
+//! How a drawn quantity scatters around the base value x0.
+enum class SpreadKind {
+  kUniformFactor,     //!< x0 * U[low, high]
+  kLogUniformFactor,  //!< x0 * exp(U[ln low, ln high])
+  kUniformOffset,     //!< x0 + U[low, high]
+  kNormalOffset,      //!< x0 + N(0, sd = low), clipped to x0 +- high
+};
+
+//! One row of the spreads table: a quantity drawn for every unit (or for every unit with the
+//! effect, for an effect's size).
+struct DrawSpread {
+  std::string quantity;   //!< e.g. "gas_area", "compression_ratio", "preload_fraction"
+  std::string sets;       //!< the parameters it sets, e.g. "theta4" or "theta5, theta6"
+  SpreadKind kind = SpreadKind::kUniformFactor;
+  double low = 1.0, high = 1.0;  //!< the range (factors or offsets in SI); kNormalOffset: sd, clip
+  std::string applies;    //!< "all", "1dof", "heat-exchange", "2dof" or an effect name
+  std::string source;     //!< where the range comes from
+};
+
+//! The spreads, in draw order (the order the random numbers are taken in).
+const std::vector<DrawSpread>& DrawSpreads();
+
+//! An extra effect of a drawn unit and, optionally, its size (its sizing parameter's value).
+struct EffectRequest {
+  std::string name;            //!< oil-compressibility, viscous-damping, stribeck-friction, end-stop, real-gas
+  std::optional<double> size;  //!< SI; nullopt: drawn (real-gas: the base value, N2's constants)
+};
+
+//! What to draw.
+struct UnitDraw {
+  std::string base = "2dof";  //!< "1dof" (polytropic gas), "1dof+heat-exchange" or "2dof"
+  std::vector<EffectRequest> effects;
+  //! The experiments every unit must run (feasibility rule); the standard matrix by default.
+  std::vector<rig::MatrixEntry> matrix = rig::StandardMatrix();
+  //! Reject and redraw units that fail the feasibility rule (off only to study the raw spreads).
+  bool feasible_only = true;
+  int max_attempts = 200;       //!< candidates before giving up (TruthError)
+  double drop_mass = 350.0;     //!< kg: the drop test the lab charge is set for (damper-physics.md §1.1)
+  //! Throws TruthError naming the item: unknown base or effect, an effect twice, a bad size.
+  void Validate() const;
+};
+
+//! The feasibility of one unit for a matrix (docs/simulated-rig.md "Feasibility rule").
+struct Feasibility {
+  bool feasible = true;
+  std::string reason;                //!< why not (empty when feasible)
+  double compression_ratio = 0.0;    //!< V0 / V(0.264 m)
+  double min_stroke = 0.0;           //!< m, shallowest true stroke of the matrix
+  double peak_force = 0.0;           //!< N, largest |F| of the periodic steady states checked
+  double drop_margin = 0.0;          //!< N, m g - (p0 - p_atm) A - Coulomb friction at p0
+  double charge_pressure = 0.0;      //!< Pa abs at full extension and ambient temperature
+};
+
+//! Full dynamic stroke, m (method.md).
+inline constexpr double kFullStroke = 0.264;
+//! Fraction of the actuator's force_limit the periodic peak force may reach (margin for the
+//! actuator's tracking error, noise and the grid).
+inline constexpr double kForceLimitMargin = 0.9;
+
+//! Checks `unit` against the rule: compression ratio 5..12 at 0.264 m, the matrix's true stroke
+//! at least 1 mm inside full extension, the periodic peak force of the deepest experiments below
+//! kForceLimitMargin * force_limit; `drop_mass` > 0 also checks the drop (m g above the preload
+//! plus friction). Never throws for a physical reason: an unsolvable unit is infeasible.
+Feasibility CheckFeasibility(const Truth& unit, const std::vector<rig::MatrixEntry>& matrix, double drop_mass);
+
+//! Draws a unit around `around` (its parameter values, actuator, sensors, acquisition, faults):
+//! the same seed gives the same unit. The result records the draw (Truth::drawn) and holds every
+//! parameter of its model. Throws TruthError for an invalid spec or when max_attempts candidates
+//! all failed the rule.
+Truth DrawUnit(const Truth& around, const UnitDraw& spec, std::uint64_t seed);
+//! Draws around the shipped default truth.
+Truth DrawUnit(const UnitDraw& spec, std::uint64_t seed);
+
+}  // namespace strut::sim

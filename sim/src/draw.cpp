@@ -1,0 +1,318 @@
+#include "strut/sim/draw.h"
+
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <cmath>
+#include <fmt/format.h>
+#include <numbers>
+#include <random>
+
+#include "strut/daq/session.h"
+#include "strut/ident/model.h"
+#include "strut/ident/periodic.h"
+
+namespace strut::sim {
+namespace {
+
+constexpr double kPatm = daq::kGaugeReferencePa;
+constexpr double kHalfPi = std::numbers::pi / 2.0;
+// Periodic grid of the feasibility check, and how far (m) above the matrix's deepest set-point
+// stroke an experiment must reach to be checked (the peak force follows the deepest stroke).
+constexpr int kCheckGrid = 200;
+constexpr double kDeepWindow = 0.02;
+// The matrix stays at least this far inside full extension (true stroke), m.
+constexpr double kTopOutMargin = 1e-3;
+constexpr double kMinCompressionRatio = 5.0, kMaxCompressionRatio = 12.0;
+
+const std::vector<std::string> kBases = {"1dof", "1dof+heat-exchange", "2dof"};
+const std::vector<std::string> kExtraEffects = {"viscous-damping", "stribeck-friction", "end-stop",
+                                                "oil-compressibility", "real-gas"};
+
+//! Random numbers whose values the C++ standard fixes (mt19937_64 is fully specified; the
+//! library's distributions are not), so a seed gives the same unit with every compiler.
+class Draws {
+ public:
+  explicit Draws(std::uint64_t seed) : engine_(seed) {}
+  double Uniform() { return static_cast<double>(engine_() >> 11) * 0x1.0p-53; }  // [0, 1)
+  double Normal() {  // Box-Muller, two uniforms per value
+    const double u1 = 1.0 - Uniform(), u2 = Uniform();
+    return std::sqrt(-2.0 * std::log(u1)) * std::cos(2.0 * std::numbers::pi * u2);
+  }
+  //! One value of a spread around x0 (always takes the same count of numbers for a kind).
+  double Draw(const DrawSpread& s, double x0) {
+    switch (s.kind) {
+      case SpreadKind::kUniformFactor: return x0 * (s.low + (s.high - s.low) * Uniform());
+      case SpreadKind::kLogUniformFactor:
+        return x0 * std::exp(std::log(s.low) + (std::log(s.high) - std::log(s.low)) * Uniform());
+      case SpreadKind::kUniformOffset: return x0 + s.low + (s.high - s.low) * Uniform();
+      case SpreadKind::kNormalOffset: return x0 + std::clamp(s.low * Normal(), -s.high, s.high);
+    }
+    return x0;
+  }
+
+ private:
+  std::mt19937_64 engine_;
+};
+
+bool Contains(const std::vector<std::string>& list, std::string_view name) {
+  return std::find(list.begin(), list.end(), name) != list.end();
+}
+
+//! The pressure (Pa abs) at full extension and ambient temperature (the static state at q = 0).
+double ChargePressure(const ident::Model& model, const std::vector<double>& theta) {
+  const int offset = model.defaults().position_of_index(12);
+  const std::vector<double> x = model.StaticEquilibrium(offset >= 0 ? theta[offset] : 0.0, theta);
+  for (std::size_t i = 0; i < model.states().size(); ++i)
+    if (model.states()[i].name == "pressure") return x[1 + i];
+  throw ident::ModelError("the model has no gas pressure");
+}
+
+//! Sets theta5 (extended pressure or pressure per temperature) so the charge pressure is p0:
+//! a few fixed-point steps (p is nearly proportional to theta5; solubility and real gas bend it).
+void SetCharge(const ident::Model& model, std::vector<double>& theta, double p0) {
+  const ident::ParameterSet& d = model.defaults();
+  if (const int ref = d.position_of_index(27); ref >= 0) theta[ref] = p0;  // compliance reference
+  const int scale = d.position_of_index(5);
+  for (int i = 0; i < 20; ++i) {
+    const double p = ChargePressure(model, theta);
+    theta[scale] *= p0 / p;
+    if (std::abs(p / p0 - 1.0) < 1e-12) break;
+  }
+}
+
+double Value(const ident::ParameterSet& p, int index) { return p.value(p.position_of_index(index)); }
+
+}  // namespace
+
+const std::vector<DrawSpread>& DrawSpreads() {
+  using K = SpreadKind;
+  static const std::vector<DrawSpread> spreads = {
+      {"moving_mass", "theta1", K::kUniformFactor, 0.5, 1.5, "all", "§1.3: shaker moving mass 20-60 kg"},
+      {"orifice_damping", "theta3", K::kLogUniformFactor, 0.5, 2.0, "all",
+       "§1.3: 4e3-2e4 N s^2/m^2; §1.2: Cd 0.6-0.9 alone moves it by 2.25x"},
+      {"gas_area", "theta4", K::kUniformFactor, 0.8, 1.2, "all", "§1.2, §1.3: 4.0-6.5e-3 m^2"},
+      {"compression_ratio", "theta6", K::kUniformFactor, 0.8, 1.2, "all",
+       "§1.2: 5-12 at 0.264 m (8.3 nominal); V0 = A s CR / (CR - 1) = 1.2-2.0 L"},
+      {"preload_fraction", "theta5", K::kUniformFactor, 0.8, 1.0, "all",
+       "§1.1: the lab charge keeps (p0 - p_atm) A + friction below the drop mass's weight"},
+      {"polytropic_exponent", "theta7", K::kUniformOffset, -0.15, 0.15, "1dof", "§1.3, §1.4: 1.0-1.4 (1.05-1.35)"},
+      {"gas_solubility", "theta7", K::kUniformFactor, 0.0, 2.0, "gas-solubility", "§2.2: 0-5e-5 1/K"},
+      {"friction_base", "theta8", K::kUniformFactor, 0.5, 1.5, "all", "§1.3: 100-320 N"},
+      {"friction_pressure", "theta9", K::kUniformFactor, 0.5, 1.5, "all", "§1.3: 2e-5-1e-4 m^2"},
+      {"friction_sharpness", "theta10", K::kUniformFactor, 0.5, 1.5, "all", "§1.3: 500-2e4 s/m"},
+      {"load_cell_zero", "theta11", K::kNormalOffset, 100.0, 300.0, "all",
+       "§1.3, §1.7: theta11 = -p_atm A + a load-cell zero of about 100 N"},
+      {"stroke_offset", "theta12", K::kNormalOffset, 2e-3, 5e-3, "all", "§1.3: LVDT zero 2 mm, within 5 mm"},
+      {"gas_heat_capacity", "theta15", K::kUniformFactor, 0.6, 1.4, "heat-exchange",
+       "§1.3, §1.4: kappa m c_v with kappa 1-3 (nominal 2)"},
+      {"wall_heat_conductance", "theta16", K::kUniformFactor, 0.6, 1.4, "heat-exchange",
+       "§1.3: tau0 = theta15 / theta16 about 8 s"},
+      {"viscous_damping", "theta18", K::kLogUniformFactor, 0.5, 2.0, "viscous-damping",
+       "§2.6, §2.8: 100-1500 N s/m"},
+      {"stribeck_excess", "theta19", K::kUniformFactor, 0.5, 1.5, "stribeck-friction", "§2.8: F_S / F_C 1.2-1.5"},
+      {"end_stop_stiffness", "theta21", K::kLogUniformFactor, 0.5, 2.0, "end-stop", "§2.9: 2e6-1e7 N/m"},
+      {"oil_bulk_modulus", "theta26", K::kUniformFactor, 0.75, 1.25, "oil-compressibility",
+       "§1.2, §2.3: 0.8-1.5 GPa"},
+      {"virial_b0", "theta28", K::kUniformFactor, 1.0, 1.0, "real-gas",
+       "§2.10: a property of nitrogen, not of the unit: not drawn"},
+  };
+  return spreads;
+}
+
+void UnitDraw::Validate() const {
+  if (!Contains(kBases, base))
+    throw TruthError(fmt::format("draw: unknown base '{}' (known: 1dof, 1dof+heat-exchange, 2dof)", base));
+  std::vector<std::string> seen;
+  for (const EffectRequest& e : effects) {
+    if (!Contains(kExtraEffects, e.name))
+      throw TruthError(fmt::format("draw: unknown effect '{}' (known: {})", e.name, fmt::join(kExtraEffects, ", ")));
+    if (Contains(seen, e.name)) throw TruthError(fmt::format("draw: effect '{}' given twice", e.name));
+    seen.push_back(e.name);
+    if (e.size && !(std::isfinite(*e.size) && *e.size > 0))
+      throw TruthError(fmt::format("draw: effect '{}': the size must be a positive number, got {}", e.name, *e.size));
+  }
+  if (matrix.empty()) throw TruthError("draw: the feasibility matrix has no experiments");
+  if (max_attempts < 1) throw TruthError(fmt::format("draw: max_attempts must be at least 1, got {}", max_attempts));
+  if (!(drop_mass >= 0) || !std::isfinite(drop_mass))
+    throw TruthError(fmt::format("draw: drop_mass must be zero (no drop rule) or positive, got {}", drop_mass));
+}
+
+Feasibility CheckFeasibility(const Truth& unit, const std::vector<rig::MatrixEntry>& matrix, double drop_mass) {
+  Feasibility f;
+  const auto fail = [&](std::string reason) {
+    f.feasible = false;
+    f.reason = std::move(reason);
+    return f;
+  };
+  const ident::Model model = unit.BuildModel(ident::Causality::kStrokeInput);
+  const ident::ParameterSet p = unit.Parameters(model);
+  const std::vector<double>& theta = p.values();
+  const double per_stroke = Value(p, 6), offset = Value(p, 12), area = Value(p, 4);
+  const double end_volume = 1.0 + per_stroke * kFullStroke;
+  f.compression_ratio = end_volume > 0 ? 1.0 / end_volume : INFINITY;
+  double deepest = 0.0, shallowest = INFINITY;
+  for (const auto& e : matrix) {
+    deepest = std::max(deepest, e.static_position + e.amplitude);
+    shallowest = std::min(shallowest, e.static_position - e.amplitude);
+  }
+  f.min_stroke = shallowest - offset;
+  try {
+    f.charge_pressure = ChargePressure(model, theta);
+  } catch (const ident::ModelError& e) {
+    return fail(fmt::format("no static state at full extension: {}", e.what()));
+  }
+  const double gravity = Value(p, 2);
+  const double coulomb = (Value(p, 8) + Value(p, 9) * f.charge_pressure) * kHalfPi;
+  f.drop_margin = drop_mass * gravity - (f.charge_pressure - kPatm) * area - coulomb;
+  if (!(f.compression_ratio >= kMinCompressionRatio && f.compression_ratio <= kMaxCompressionRatio))
+    return fail(fmt::format("compression ratio {:.2f} at {} m is outside {}..{}", f.compression_ratio, kFullStroke,
+                            kMinCompressionRatio, kMaxCompressionRatio));
+  if (1.0 + per_stroke * (deepest - offset) <= 0)
+    return fail(fmt::format("the gas volume reaches zero at the deepest stroke {:.4f} m", deepest - offset));
+  if (f.min_stroke < kTopOutMargin)
+    return fail(fmt::format("the matrix reaches a true stroke of {:.1f} mm (stroke offset {:.1f} mm): within {} mm "
+                            "of full extension",
+                            f.min_stroke * 1e3, offset * 1e3, kTopOutMargin * 1e3));
+  if (drop_mass > 0 && f.drop_margin < 0)
+    return fail(fmt::format("a {} kg drop would not stay compressed: preload plus friction exceed its weight by {:.0f} N",
+                            drop_mass, -f.drop_margin));
+  const double limit = unit.actuator.ideal ? 0.0 : unit.actuator.force_limit;
+  ident::PeriodicSolver solver(model);
+  for (const auto& e : matrix) {
+    if (e.static_position + e.amplitude < deepest - kDeepWindow) continue;
+    try {
+      const ident::PeriodicSolution s =
+          solver.Solve(ident::PeriodicInput::Sine(e.frequency, e.static_position, e.amplitude, kCheckGrid), theta);
+      f.peak_force = std::max(f.peak_force, s.channel("force").cwiseAbs().maxCoeff());
+    } catch (const ident::PeriodicSolverError& error) {
+      return fail(fmt::format("experiment '{}': no periodic steady state: {}", e.label, error.what()));
+    }
+  }
+  if (limit > 0 && f.peak_force > kForceLimitMargin * limit)
+    return fail(fmt::format("peak force {:.1f} kN exceeds {:.0f} % of the actuator's force limit {:.1f} kN",
+                            f.peak_force * 1e-3, 100 * kForceLimitMargin, limit * 1e-3));
+  return f;
+}
+
+Truth DrawUnit(const UnitDraw& spec, std::uint64_t seed) { return DrawUnit(DefaultTruth(), spec, seed); }
+
+Truth DrawUnit(const Truth& around, const UnitDraw& spec, std::uint64_t seed) {
+  spec.Validate();
+  around.Validate();
+  // The base: the around-truth's values, by parameter name, in its own model.
+  const ident::Model around_model = around.BuildModel(ident::Causality::kStrokeInput);
+  const ident::ParameterSet around_values = around.Parameters(around_model);
+  double base_charge = 0.0;
+  try {
+    base_charge = ChargePressure(around_model, around_values.values());
+  } catch (const ident::ModelError& e) {
+    throw TruthError(fmt::format("{}: no static state at full extension to draw around: {}", around.source, e.what()));
+  }
+
+  Truth unit = around;
+  unit.effects.clear();
+  for (const std::string& e : Truth::EffectNames()) {
+    const bool in_base = (e == "heat-exchange" && spec.base != "1dof") || (e == "gas-solubility" && spec.base == "2dof");
+    const bool extra = std::any_of(spec.effects.begin(), spec.effects.end(),
+                                   [&](const EffectRequest& r) { return r.name == e; });
+    if (in_base || extra) unit.effects.push_back(e);
+  }
+  const ident::Model model = unit.BuildModel(ident::Causality::kStrokeInput);
+  ident::ParameterSet base = model.defaults();
+  for (int i = 0; i < base.size(); ++i)
+    if (const auto j = around_values.find(base.spec(i).name)) base.values()[i] = around_values.value(*j);
+
+  const double gravity = Value(base, 2);
+  const double a0 = Value(around_values, 4);
+  // The base's charge as a fraction of the drop budget m g - Coulomb friction (0.97 shipped).
+  const double budget0 = spec.drop_mass * gravity - (Value(around_values, 8) + Value(around_values, 9) * base_charge) * kHalfPi;
+  const bool drop_rule = spec.drop_mass > 0 && budget0 > 0 && (base_charge - kPatm) * a0 <= budget0;
+  const double k0 = drop_rule ? (base_charge - kPatm) * a0 / budget0 : 1.0;
+  if (!drop_rule)
+    spdlog::info("draw: {} is not drop-consistent (a {} kg drop would top out); the charge is drawn without the drop rule",
+                 around.source, spec.drop_mass);
+  const double ratio0 = 1.0 / (1.0 + Value(around_values, 6) * kFullStroke);
+  const double zero0 = Value(around_values, 11) + kPatm * a0;
+
+  Draws draws(seed);
+  DrawRecord record;
+  record.seed = seed;
+  record.base = spec.base;
+  record.around = around.source;
+  std::string last_reason;
+  for (int attempt = 1; attempt <= spec.max_attempts; ++attempt) {
+    ident::ParameterSet p = base;
+    const auto has = [&](int index) { return p.position_of_index(index) >= 0; };
+    const auto set = [&](int index, double v) { p.values()[p.position_of_index(index)] = v; };
+    double area = a0, ratio = ratio0, fraction = k0, zero = zero0;
+    std::vector<EffectSize> sizes;
+    // Every spread takes its random numbers on every attempt, whether it applies or not: the
+    // quantities a base shares with another are then the same for the same seed.
+    for (const DrawSpread& s : DrawSpreads()) {
+      const int index = std::stoi(s.sets.substr(5));
+      const double x0 = s.quantity == "compression_ratio" ? ratio0
+                        : s.quantity == "preload_fraction" ? k0
+                        : s.quantity == "load_cell_zero"   ? zero0
+                        : has(index) ? Value(base, index) : 0.0;
+      const double x = draws.Draw(s, x0);
+      if (s.quantity == "gas_area") {
+        area = x;
+      } else if (s.quantity == "compression_ratio") {
+        ratio = x;
+      } else if (s.quantity == "preload_fraction") {
+        fraction = x;
+      } else if (s.quantity == "load_cell_zero") {
+        zero = x;
+      } else if (s.quantity == "polytropic_exponent" || s.quantity == "gas_solubility") {
+        if (has(index) && p.spec(p.position_of_index(index)).name == s.quantity) set(index, x);
+      } else if (s.applies != "all" && s.applies != "heat-exchange" && Contains(kExtraEffects, s.applies)) {
+        const auto request = std::find_if(spec.effects.begin(), spec.effects.end(),
+                                          [&](const EffectRequest& r) { return r.name == s.applies; });
+        if (request == spec.effects.end()) continue;
+        const double size = request->size.value_or(x);
+        set(index, size);
+        sizes.push_back({s.applies, s.sets, size, request->size.has_value()});
+      } else if (has(index)) {
+        set(index, x);
+      }
+    }
+    set(4, area);
+    set(6, -(1.0 - 1.0 / ratio) / kFullStroke);
+    set(11, -kPatm * area + zero);
+    // The charge: (p0 - p_atm) A = k (m g - (theta8 + theta9 p0) pi / 2), solved for p0.
+    double p0 = 0.0;
+    if (drop_rule) {
+      p0 = (kPatm * area + fraction * (spec.drop_mass * gravity - Value(p, 8) * kHalfPi)) /
+           (area + fraction * Value(p, 9) * kHalfPi);
+    } else {
+      p0 = kPatm + (base_charge - kPatm) * (a0 / area) * fraction;
+    }
+    try {
+      SetCharge(model, p.values(), p0);
+    } catch (const ident::ModelError& e) {
+      last_reason = fmt::format("no static state at full extension: {}", e.what());
+      continue;
+    }
+    std::sort(sizes.begin(), sizes.end(), [](const EffectSize& a, const EffectSize& b) {
+      const auto& n = Truth::EffectNames();
+      return std::find(n.begin(), n.end(), a.effect) < std::find(n.begin(), n.end(), b.effect);
+    });
+    unit.parameters.clear();
+    for (int i = 0; i < p.size(); ++i) unit.parameters.emplace_back(p.spec(i).name, p.value(i));
+    record.effects = sizes;
+    record.attempts = attempt;
+    unit.drawn = record;
+    unit.source = fmt::format("drawn unit (seed {}, {}, around {})", seed, model.composition(), around.source);
+    unit.damper_serial = fmt::format("{}-D{}", around.damper_serial, seed);
+    if (!spec.feasible_only) return unit;
+    const Feasibility f = CheckFeasibility(unit, spec.matrix, drop_rule ? spec.drop_mass : 0.0);
+    if (f.feasible) return unit;
+    last_reason = f.reason;
+    spdlog::debug("draw seed {} attempt {}: infeasible: {}", seed, attempt, f.reason);
+  }
+  throw TruthError(fmt::format("draw: no feasible {} unit in {} attempts from seed {} (last: {})", model.composition(),
+                               spec.max_attempts, seed, last_reason));
+}
+
+}  // namespace strut::sim

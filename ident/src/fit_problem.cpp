@@ -223,6 +223,9 @@ struct FitProblem::Experiment {
   Eigen::VectorXd Residual(const std::string& channel, int row) const {
     return data->channels.at(channel).mean - AtPhases(solution.outputs.row(row));
   }
+  //! Grid points of this experiment's periodic solution (at least EstimatorOptions::n; a slow
+  //! experiment's grid holds a point per recorded sample: PrepareExperiments).
+  int n() const { return static_cast<int>(data->input.values.size()); }
 };
 
 double ResidualSums::LogLikelihood() const {
@@ -264,10 +267,10 @@ FitProblem::FitProblem(const Model& model, const EstimatorOptions& options, cons
     s.data = &d;
     s.solver = options.predictor ? options.predictor(model) : std::make_unique<PeriodicSolver>(model, solver_options);
     s.channel_fitted.assign(nc, true);
-    if (static_cast<int>(d.input.values.size()) != options.n)
-      throw std::invalid_argument(fmt::format("estimator: experiment '{}' has {} grid points, the fit uses n = {}",
-                                              d.label, d.input.values.size(), options.n));
-    s.MapPhases(options.n);
+    if (static_cast<int>(d.input.values.size()) < 8)
+      throw std::invalid_argument(fmt::format("estimator: experiment '{}' has {} grid points; at least 8 are needed",
+                                              d.label, d.input.values.size()));
+    s.MapPhases(s.n());
     for (int b = 0; b < nc; ++b) {
       if (!d.channels.count(channels_[b])) {
         s.channel_fitted[b] = false;
@@ -301,7 +304,6 @@ const std::string& FitProblem::error(int experiment) const { return experiments_
 
 bool FitProblem::Solve(const std::vector<double>& theta, bool allow_drop, int iteration,
                        const std::function<void(const FitProgress&)>& progress) {
-  const int n = options_.n;
   // Experiments are independent: solved on `threads` threads (progress is reported as they start).
   std::vector<std::optional<std::string>> failure(experiments_.size());
   std::mutex progress_mutex;
@@ -313,7 +315,7 @@ bool FitProblem::Solve(const std::vector<double>& theta, bool allow_drop, int it
       progress({iteration, a + 1, experiment_count(), NAN});
     }
     try {
-      s.solution = s.solution.n == n ? s.solver->Solve(s.data->input, theta, &s.solution) : FirstSolve(s, theta);
+      s.solution = s.solution.n == s.n() ? s.solver->Solve(s.data->input, theta, &s.solution) : FirstSolve(s, theta);
     } catch (const PeriodicSolverError& e) {
       failure[a] = e.what();
     }
@@ -351,7 +353,7 @@ bool FitProblem::Readmit(const std::vector<double>& theta) {
 
 PeriodicSolution FitProblem::FirstSolve(Experiment& s, const std::vector<double>& theta) const {
   // From the measured stroke when that fits, else cold.
-  const auto measured = stroke_driven_ ? MeasuredStrokeStart(model_, *stroke_driven_, *s.data, theta, options_.n,
+  const auto measured = stroke_driven_ ? MeasuredStrokeStart(model_, *stroke_driven_, *s.data, theta, s.n(),
                                                              SolverOptions(options_))
                                        : std::nullopt;
   if (measured) {
@@ -396,7 +398,6 @@ NormalEquations FitProblem::Linearise(const std::vector<double>& theta, const st
                                       LinearisationMode mode) {
   const int l = static_cast<int>(estimated_.size());
   const int nc = static_cast<int>(channels_.size());
-  const int n = options_.n;
   NormalEquations eq;
   eq.information.setZero(l, l);
   eq.gradient.setZero(l);
@@ -421,6 +422,7 @@ NormalEquations FitProblem::Linearise(const std::vector<double>& theta, const st
     // interpolation to the phases), so the output weights P^T W J give it by one adjoint solve.
     const bool with_input = mode.input_noise && s.data->input_harmonic_variance > 0;
     std::vector<Eigen::MatrixXd> weights;
+    const int n = s.n();
     if (with_input) weights.assign(s.solution.channels.size(), Eigen::MatrixXd::Zero(n, l));
     for (int b = 0; b < nc; ++b) {
       if (!s.channel_fitted[b]) continue;

@@ -50,7 +50,10 @@ struct ExperimentData {
   std::string group;
   double frequency = 0.0, amplitude = 0.0, static_position = 0.0;
   long periods = 0;
-  PeriodicInput input;                          //!< the model input (force or stroke), averaged onto the n-point grid
+  //! The model input (force or stroke) on the experiment's solver grid: n points, or, when a period
+  //! holds a whole number of samples, the smallest whole multiple of them that is at least n (a slow
+  //! experiment's grid then holds every recorded sample phase).
+  PeriodicInput input;
   //! The harmonics the input series keeps (0: its mean) and the noise variance of each of their
   //! real coefficients (in u = c0 + sum a_h cos + b_h sin): the measured input's noise that
   //! reaches the model (errors in variables). NaN variance: one period, unknown.

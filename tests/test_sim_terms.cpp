@@ -67,9 +67,11 @@ TEST(SimTerms, JetDerivativesMatchFiniteDifferencesWhereEachTermIsActive) {
                   ud2 = MakeVariable(s.ud2, nd, 3 * m + 2);
         for (int i = 0; i < np; ++i) th[i] = MakeVariable(theta[i], nd, 3 * m + 3 + i);
         model.Residual<Jet>(x, xd, xdd, u, ud, ud2, th, r);
-        // Central differences with a step of 1e-6 relative to each variable (at least 1e-9).
-        const auto check = [&](int direction, auto&& perturb, double base_value, const std::string& what) {
-          const double h = 1e-6 * std::max(std::abs(base_value), 1e-3);
+        // Central differences with a step of 1e-6 relative to each variable (at least 1e-6 of `floor`:
+        // 1e-9, or a parameter's typical size, so an oil compliance of 8e-10 1/Pa gets a step below it).
+        const auto check = [&](int direction, auto&& perturb, double base_value, const std::string& what,
+                               double floor = 1e-3) {
+          const double h = 1e-6 * std::max(std::abs(base_value), floor);
           Instant plus = s, minus = s;
           std::vector<double> tp = theta, tm = theta;
           perturb(plus, tp, h);
@@ -92,7 +94,7 @@ TEST(SimTerms, JetDerivativesMatchFiniteDifferencesWhereEachTermIsActive) {
         check(3 * m + 1, [&](Instant& t, std::vector<double>&, double h) { t.ud += h; }, s.ud, "u'");
         for (int i = 0; i < np; ++i)
           check(3 * m + 3 + i, [&](Instant&, std::vector<double>& t, double h) { t[i] += h; }, theta[i],
-                model.defaults().spec(i).key());
+                model.defaults().spec(i).key(), model.defaults().spec(i).typical_size());
       }
     }
   }

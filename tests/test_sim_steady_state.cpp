@@ -64,9 +64,10 @@ TEST(SimSteadyState, StrokeDrivenRigAgreesWithThePeriodicSolverToItsDiscretisati
     errors.push_back(error);
     std::printf("  stroke-driven, central4, n = %4d: max error %.2e of the range\n", n, error);
   }
-  // Measured: 1.2e-6, 7.1e-8, 6.2e-9, 3.5e-9: fourth order down to the rig's own error (settling
-  // and IDA, a few 1e-9). At rtol 1e-10 that floor moved between 4e-9 and 9e-9 with rounding-level
-  // changes of the truth (a 4e-6 change of theta26 alone did it), so the ideal rig runs at 1e-11.
+  // Measured: 1.2e-6, 7.1e-8, 6.9e-9, 4.8e-9: fourth order down to the rig's own error (settling
+  // and IDA, a few 1e-9). That floor moves between 3.5e-9 and 9e-9 with rounding-level changes of
+  // the truth (a 4e-6 change of theta26 alone moves it); at rtol 1e-10 it reached 9e-9 (order 2.6
+  // from 100 to 200 points), so the ideal rig runs at 1e-11.
   EXPECT_GT(Order(errors[0], errors[1]), 3.5);
   EXPECT_GT(Order(errors[1], errors[2]), 3.0);
   EXPECT_LT(errors[3], 1e-8);

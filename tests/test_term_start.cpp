@@ -78,7 +78,7 @@ TEST(CandidateStartingValues, EndStopPositionAndStiffnessFromTheExtensionEnd) {
 
 TEST(CandidateStartingValues, OilComplianceFromThePressureResidual) {
   const double compliance = 1.0 / 1.2e9;
-  const FitSummary baseline = Baseline("2dof+oil-compressibility", "theta26=8.3333e-10", "bcfgjkln");
+  const FitSummary baseline = Baseline("2dof+oil-compressibility", "theta26=8.333333333e-10", "bcfgjkln");
   const auto start = Start("oil-compressibility", baseline);
   ASSERT_TRUE(start.count("theta26"));
   EXPECT_NEAR(start.at("theta26"), compliance, 0.5 * compliance);

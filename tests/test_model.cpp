@@ -13,6 +13,7 @@ namespace {
 struct Case {
   std::string composition;
   Causality causality;
+  std::string changes = "";  // applied to the defaults (--set syntax)
 };
 
 std::vector<Case> AllCases() {
@@ -22,6 +23,9 @@ std::vector<Case> AllCases() {
                         "2dof+stribeck-friction+oil-compressibility+real-gas",
                         "2dof+viscous-damping+stribeck-friction+end-stop+oil-compressibility+real-gas"})
     for (Causality k : {Causality::kForceInput, Causality::kStrokeInput}) cases.push_back({c, k});
+  // The instant's stroke 0.131 m 4 mm inside the stop: its position and stiffness act.
+  for (Causality k : {Causality::kForceInput, Causality::kStrokeInput})
+    cases.push_back({"2dof+end-stop+stribeck-friction+real-gas", k, "theta23=0.135"});
   return cases;
 }
 
@@ -127,6 +131,127 @@ TEST(Model, ParameterFileErrorsNameTheLine) {
   EXPECT_THROW(ReadParameterFile(path), ParameterError);
 }
 
+TEST(ParameterRanges, EveryDefaultLiesInItsPhysicalRange) {
+  for (const Case& c : AllCases()) {
+    const ParameterSet d = Model::Build(c.composition, c.causality).defaults();
+    EXPECT_EQ(d.RangeViolation(), std::nullopt) << c.composition;
+  }
+  for (const char* oscillator : {"linear-oscillator+quadratic-stiffness+cubic-stiffness+cubic-damping+input-offset",
+                                 "linear-oscillator+output-offset"}) {
+    const ParameterSet d = Model::Build(oscillator, Causality::kForceInput).defaults();
+    EXPECT_EQ(d.RangeViolation(), std::nullopt) << oscillator;
+  }
+}
+
+TEST(ParameterRanges, DeclareTheirBounds) {
+  const ParameterSet d =
+      Model::Build("2dof+viscous-damping+stribeck-friction+end-stop+oil-compressibility+real-gas",
+                   Causality::kStrokeInput)
+          .defaults();
+  const auto range = [&](const char* key) { return d.spec(d.position(key)).range; };
+  EXPECT_EQ(range("moving_mass").ToString(), "(0, inf)");
+  EXPECT_EQ(range("theta4").ToString(), "(0, inf)");
+  EXPECT_EQ(range("theta6").ToString(), "(-inf, 0)");
+  EXPECT_EQ(range("theta21").ToString(), "[0, inf)");
+  EXPECT_EQ(range("theta26").ToString(), "[0, inf)");
+  EXPECT_EQ(range("theta11").ToString(), "(-inf, inf)");
+  EXPECT_FALSE(range("theta11").bounded());
+  EXPECT_TRUE(range("theta4").contains(1e-3));
+  EXPECT_FALSE(range("theta4").contains(0.0));
+  EXPECT_TRUE(range("theta21").contains(0.0));
+  EXPECT_FALSE(range("theta6").contains(0.0));
+  EXPECT_FALSE(range("theta21").contains(NAN));
+  EXPECT_FALSE(range("theta17").contains(1.0));  // minus a temperature in kelvin
+}
+
+TEST(ParameterRanges, SetAndFilesRefuseAValueOutsideTheRange) {
+  ParameterSet p = Model::Build("2dof", Causality::kStrokeInput).defaults();
+  try {
+    p.apply_assignments("theta16=3,theta4=-1");
+    FAIL();
+  } catch (const ParameterError& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("theta4 gas_area = -1 m^2 is outside its physical range (0, inf)"), std::string::npos)
+        << what;
+  }
+  EXPECT_DOUBLE_EQ(p.get("theta16"), 2.24);  // all or nothing
+  test::TempDir dir;
+  const std::string path = dir.file("p.txt");
+  std::ofstream(path) << "theta16 = 3\ntheta6 = 0.5\n";
+  try {
+    p.apply_file(path);
+    FAIL();
+  } catch (const ParameterError& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find(path + ":2: theta6 volume_per_stroke = 0.5 1/m is outside its physical range (-inf, 0)"),
+              std::string::npos)
+        << what;
+  }
+  EXPECT_DOUBLE_EQ(p.get("theta16"), 2.24);
+  p.values()[p.position("theta1")] = 0.0;  // set() bypasses the check; Validate() finds it
+  EXPECT_THROW(p.Validate(), ParameterError);
+  EXPECT_NE(p.RangeViolation()->find("theta1 moving_mass = 0 kg"), std::string::npos);
+}
+
+TEST(ParameterRanges, CommandRefusesAValueOutsideTheRange) {
+  const auto r = test::RunStrut("periodic --model 2dof --input stroke --frequency 1 --amplitude 0.02 --static 0.1 "
+                                "--n 100 --set theta4=-1");
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.output.find("theta4 gas_area = -1 m^2 is outside its physical range (0, inf)"), std::string::npos)
+      << r.output;
+  EXPECT_EQ(r.output.find("static equilibrium"), std::string::npos) << r.output;
+}
+
+TEST(SizeParameters, ZeroSwitchesTheEffectOffAndTheResidualIsLinearThere) {
+  // Every size parameter of a candidate term: at 0 the residual is that of the model without the
+  // term, and the residual at 0, s/2 and s lie on a line (to a few percent of the change).
+  const std::string base = "2dof";
+  for (const char* term : {"viscous-damping", "stribeck-friction", "end-stop", "oil-compressibility", "real-gas"}) {
+    SCOPED_TRACE(term);
+    const Model with = Model::Build(base + "+" + term, Causality::kStrokeInput);
+    const Model without = Model::Build(base, Causality::kStrokeInput);
+    Instant p = MakeInstant(with);
+    p.x[1] = 2.5e6;           // deep compression: the gas terms matter
+    p.u = 0.004, p.ud = 0.02;  // and the stroke inside a stop at 6 mm
+    std::vector<double> theta = with.defaults().values();
+    if (with.defaults().find("theta23")) theta[with.defaults().position("theta23")] = 0.006;
+    int sizes = 0;
+    for (int i = 0; i < with.parameter_count(); ++i) {
+      const ParameterSpec& spec = with.defaults().spec(i);
+      if (!spec.sizes_term || without.defaults().find(spec.key())) continue;  // the term's own size
+      ++sizes;
+      EXPECT_TRUE(spec.range.contains(0.0)) << spec.key();
+      std::vector<double> zero = theta, half = theta;
+      zero[i] = 0.0;
+      half[i] = 0.5 * theta[i];
+      std::vector<double> base_theta;
+      for (const ParameterSpec& b : without.defaults().specs())
+        base_theta.push_back(zero[with.defaults().position(b.key())]);
+      const auto r0 = ResidualAt(with, p, zero), rh = ResidualAt(with, p, half), r1 = ResidualAt(with, p, theta);
+      const auto rb = ResidualAt(without, p, base_theta);
+      for (std::size_t e = 0; e < r0.size(); ++e) {
+        EXPECT_NEAR(r0[e], rb[e], 1e-9 * std::max(1.0, std::abs(rb[e]))) << spec.key() << " equation " << e;
+        const double change = std::abs(r1[e] - r0[e]);
+        EXPECT_NEAR(rh[e] - r0[e], 0.5 * (r1[e] - r0[e]), 0.05 * change + 1e-9) << spec.key() << " equation " << e;
+      }
+    }
+    EXPECT_EQ(sizes, 1);
+  }
+}
+
+TEST(SizeParameters, ShapeParametersAreMarkedAndScaled) {
+  const ParameterSet d =
+      Model::Build("2dof+stribeck-friction+end-stop", Causality::kStrokeInput).defaults();
+  for (const char* key : {"theta20", "theta23"}) {
+    const ParameterSpec& s = d.spec(d.position(key));
+    EXPECT_TRUE(s.shapes_term) << key;
+    EXPECT_TRUE(s.estimated_with_term()) << key;
+    EXPECT_GT(s.typical_size(), 1e-3) << key;
+    EXPECT_LT(s.typical_size(), 1e-2) << key;
+  }
+  for (const char* key : {"theta22", "theta24"}) EXPECT_FALSE(d.spec(d.position(key)).estimated_with_term()) << key;
+}
+
 TEST(Model, ResidualMatchesTheEquationsOfTheMethod) {
   // 2 dof, force input: g1, the gas law and g2 written out by hand (method.md eqs. 23, 24).
   const Model model = Model::Build("2dof", Causality::kForceInput);
@@ -153,11 +278,13 @@ TEST(Model, ResidualMatchesTheEquationsOfTheMethod) {
 
 TEST(Model, JetDerivativesMatchCentralFiniteDifferences) {
   for (const Case& c : AllCases()) {
-    SCOPED_TRACE(c.composition + " " + std::string(ToString(c.causality)));
+    SCOPED_TRACE(c.composition + " " + std::string(ToString(c.causality)) + " " + c.changes);
     const Model model = Model::Build(c.composition, c.causality);
     const int m = model.unknown_count();
     const int np = model.parameter_count();
-    const std::vector<double> theta = model.defaults().values();
+    ParameterSet values = model.defaults();
+    values.apply_assignments(c.changes);
+    const std::vector<double> theta = values.values();
     const Instant p = MakeInstant(model);
     // Directions: x, xd, xdd of every unknown, the input and its rates, every parameter.
     const int nd = 3 * m + 3 + np;
@@ -173,8 +300,10 @@ TEST(Model, JetDerivativesMatchCentralFiniteDifferences) {
     for (int i = 0; i < np; ++i) th[i] = MakeVariable(theta[i], nd, 3 * m + 3 + i);
     model.Residual<Jet>(x, xd, xdd, u, ud, udd, th, r);
 
-    const auto fd = [&](auto&& perturb, double base) {
-      const double h = 1e-6 * std::max(std::abs(base), 1e-3);
+    // Step 1e-6 of the value, at least of `floor` (a parameter's typical size: an oil compliance
+    // of 8e-10 1/Pa needs a step far below 1e-9).
+    const auto fd = [&](auto&& perturb, double base, double floor = 1e-3) {
+      const double h = 1e-6 * std::max(std::abs(base), floor);
       Instant plus = p, minus = p;
       std::vector<double> tp = theta, tm = theta;
       perturb(plus, tp, +h);
@@ -202,7 +331,9 @@ TEST(Model, JetDerivativesMatchCentralFiniteDifferences) {
     check(3 * m + 1, fd([&](Instant& q, std::vector<double>&, double h) { q.ud += h; }, p.ud), "ud");
     check(3 * m + 2, fd([&](Instant& q, std::vector<double>&, double h) { q.udd += h; }, p.udd), "udd");
     for (int i = 0; i < np; ++i)
-      check(3 * m + 3 + i, fd([&](Instant&, std::vector<double>& t, double h) { t[i] += h; }, theta[i]),
+      check(3 * m + 3 + i,
+            fd([&](Instant&, std::vector<double>& t, double h) { t[i] += h; }, theta[i],
+               model.defaults().spec(i).typical_size()),
             model.defaults().spec(i).key());
   }
 }

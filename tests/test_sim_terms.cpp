@@ -67,9 +67,13 @@ TEST(SimTerms, JetDerivativesMatchFiniteDifferencesWhereEachTermIsActive) {
                   ud2 = MakeVariable(s.ud2, nd, 3 * m + 2);
         for (int i = 0; i < np; ++i) th[i] = MakeVariable(theta[i], nd, 3 * m + 3 + i);
         model.Residual<Jet>(x, xd, xdd, u, ud, ud2, th, r);
-        // Central differences with a step of 1e-6 relative to each variable (at least 1e-9).
-        const auto check = [&](int direction, auto&& perturb, double base_value, const std::string& what) {
-          const double h = 1e-6 * std::max(std::abs(base_value), 1e-3);
+        // Central differences with a step of 1e-6 relative to each variable (at least 1e-9); for a
+        // parameter 1e-4 relative to its value or typical size: an oil compliance of 8e-10 1/Pa needs
+        // a step far below 1e-9 (the truncation error at 10 MPa) but above 1e-15 (the rounding error
+        // at the charge pressure, where its effect is a few Pa in 0.7 MPa).
+        const auto check = [&](int direction, auto&& perturb, double base_value, const std::string& what,
+                               double floor = 1e-3, double relative = 1e-6) {
+          const double h = relative * std::max(std::abs(base_value), floor);
           Instant plus = s, minus = s;
           std::vector<double> tp = theta, tm = theta;
           perturb(plus, tp, h);
@@ -92,7 +96,7 @@ TEST(SimTerms, JetDerivativesMatchFiniteDifferencesWhereEachTermIsActive) {
         check(3 * m + 1, [&](Instant& t, std::vector<double>&, double h) { t.ud += h; }, s.ud, "u'");
         for (int i = 0; i < np; ++i)
           check(3 * m + 3 + i, [&](Instant&, std::vector<double>& t, double h) { t[i] += h; }, theta[i],
-                model.defaults().spec(i).key());
+                model.defaults().spec(i).key(), model.defaults().spec(i).typical_size(), 1e-4);
       }
     }
   }
@@ -118,7 +122,7 @@ TEST(SimTerms, ForceTermsFollowTheirDocumentedEquations) {
       const double coulomb = (t(8) + t(9) * p) * std::atan(t(10) * v);
       const double stribeck = t(19) * coulomb * std::exp(-(v / t(20)) * (v / t(20)));
       const double w = t(24), depth = w * std::log1p(std::exp((t(23) - q) / w));
-      const double stop = -depth * (t(21) - t(22) * v);
+      const double stop = -t(21) * depth * (1.0 - t(22) * v);  // damping theta22 times the stiffness
       EXPECT_NEAR(extra, t(18) * v + stribeck + stop, 1e-9 * (1.0 + std::abs(extra))) << "q " << q << " v " << v;
     }
   }
@@ -140,15 +144,15 @@ TEST(SimTerms, OilComplianceAndRealGasChangeThePressureAsDocumented) {
   const double ideal = pressure("2dof", 0.25, 0.0);
   const double oil = pressure("2dof+oil-compressibility", 0.25, 0.0);
   EXPECT_LT(oil, ideal);
-  // V_g / V0 = 1 + theta6 q + (V_oil / V0)(p - p_ref) / K: solve the ideal-gas law with it.
+  // V_g / V0 = 1 + theta6 q + (V_oil / V0)(p - p_ref) C, C = 1/K: solve the ideal-gas law with it.
   const Model m = Model::Build("2dof+oil-compressibility", Causality::kStrokeInput);
   const ParameterSet& d = m.defaults();
   const auto t = [&](int i) { return d.value(d.position_of_index(i)); };
-  const double T = -t(17), V = 1 + t(6) * 0.25 + t(25) * (oil - t(27)) / t(26);
+  const double T = -t(17), V = 1 + t(6) * 0.25 + t(25) * t(26) * (oil - t(27));
   EXPECT_NEAR(oil, t(5) * T * (1 - t(7) * oil / t(5)) / V, 1e-6 * oil);
   EXPECT_NEAR(ideal / oil - 1, (V - (1 + t(6) * 0.25)) / (1 + t(6) * 0.25), 2e-3);
 
-  // Real gas: Z = 1 + (b0 - a / T) rho + c rho^2; below 1 at the charge (B < 0 at 293 K), above 1
+  // Real gas: Z = 1 + g ((b0 - a / T) rho + c rho^2), g = theta31 = 1; below 1 at the charge (B < 0 at 293 K), above 1
   // deep in the stroke at 400 K.
   EXPECT_LT(pressure("2dof+real-gas", 0.0, 0.0), pressure("2dof", 0.0, 0.0));
   const double hot_ideal = pressure("2dof", 0.25, 107.0), hot_real = pressure("2dof+real-gas", 0.25, 107.0);
@@ -158,7 +162,7 @@ TEST(SimTerms, OilComplianceAndRealGasChangeThePressureAsDocumented) {
   const auto rt = [&](int i) { return rd.value(rd.position_of_index(i)); };
   const double T400 = 293.15 + 107.0, N = 1 - rt(7) * hot_real / rt(5), V400 = 1 + rt(6) * 0.25;
   const double rho = rt(5) * N / (8.314462618 * V400);
-  const double Z = 1 + (rt(28) - rt(29) / T400) * rho + rt(30) * rho * rho;
+  const double Z = 1 + rt(31) * ((rt(28) - rt(29) / T400) * rho + rt(30) * rho * rho);
   EXPECT_NEAR(hot_real, rt(5) * T400 * N * Z / V400, 1e-6 * hot_real);
   EXPECT_GT(Z, 1.01);
   EXPECT_LT(Z, 1.06);  // damper-physics.md §2.10: Z of about 1.03 at 10 MPa and 400 K
@@ -177,7 +181,7 @@ TEST(SimTerms, TermsComposeWithBothBasesAndNameTheirRequirements) {
       }
     }
   const Model all = Model::Build(std::string("2dof+") + kAll, Causality::kStrokeInput);
-  for (int index = 18; index <= 30; ++index) EXPECT_GE(all.defaults().position_of_index(index), 0) << index;
+  for (int index = 18; index <= 31; ++index) EXPECT_GE(all.defaults().position_of_index(index), 0) << index;
   // Real gas under the polytropic law multiplies the pressure by Z (not Z^n).
   const Model poly = Model::Build("1dof+real-gas", Causality::kStrokeInput);
   const Model ideal = Model::Build("1dof", Causality::kStrokeInput);

@@ -8,6 +8,7 @@
 #include <spdlog/spdlog.h>
 
 #include "strut/ident/initial_values.h"
+#include "strut/ident/term_start.h"
 #include "terms.h"
 
 namespace strut::ident {
@@ -213,8 +214,8 @@ DiscoveryResult Discover(const FitData& data, const SessionFitOptions& fit_optio
     if (progress) progress(text);
   };
   // A candidate: the current fit's values and estimated set, plus the new term's own parameters
-  // (sizes and shapes estimated, from their defaults).
-  const auto candidate_fit = [&](const std::string& composition, const FitSummary& previous) {
+  // (sizes and shapes estimated, from where the located mismatch puts them: CandidateStartingValues).
+  const auto candidate_fit = [&](const std::string& term, const std::string& composition, const FitSummary& previous) {
     const Model model = Model::Build(composition, causality);
     ParameterSet start = model.defaults();
     std::vector<ParameterChoice> choices = DefaultChoices(model);
@@ -225,6 +226,11 @@ DiscoveryResult Discover(const FitData& data, const SessionFitOptions& fit_optio
         start.values()[i] = previous.parameters.value(*p);
         if (!previous.estimated[*p]) choices[i] = ParameterChoice{};
       }
+    }
+    if (causality == Causality::kStrokeInput) {
+      std::vector<std::string> log;
+      for (const auto& [key, value] : CandidateStartingValues(term, previous, &log)) start.set(key, value);
+      for (const std::string& line : log) spdlog::debug("candidate {}: {}", term, line);
     }
     return Estimator(model, estimator).Fit(data.experiments, start, choices, data.issues);
   };
@@ -276,7 +282,7 @@ DiscoveryResult Discover(const FitData& data, const SessionFitOptions& fit_optio
         running.push_back(std::async(std::launch::async, [&, c] {
           results[c].term = candidates[c].first;
           try {
-            fits[c] = candidate_fit(candidates[c].second, current);
+            fits[c] = candidate_fit(candidates[c].first, candidates[c].second, current);
             results[c].ok = fits[c].IsSolutionUsable() && fits[c].converged;
             if (!results[c].ok) results[c].error = fits[c].VerdictText();
             results[c].delta_bic = fits[c].bic - current.bic;

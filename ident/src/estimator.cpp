@@ -43,7 +43,7 @@ std::vector<ParameterChoice> DefaultChoices(const ParameterSet& parameters) {
   std::vector<ParameterChoice> choices(parameters.size());
   for (int i = 0; i < parameters.size(); ++i) {
     const ParameterSpec& spec = parameters.spec(i);
-    if (spec.estimate_by_default || spec.sizes_term) choices[i] = Estimated(spec);
+    if (spec.estimate_by_default || spec.estimated_with_term()) choices[i] = Estimated(spec);
   }
   return choices;
 }
@@ -122,12 +122,17 @@ FitSummary Estimator::Fit(const std::vector<ExperimentData>& data, const Paramet
     for (int k = 0; k < l; ++k) values[est[k]] = x[k] * scale[est[k]];
     return values;
   };
-  // The user's priors (mean: the starting value) and the parameters' physical ranges, scaled.
+  // The user's priors (mean: the starting value) and the parameters' physical ranges (the
+  // iterates stay inside them: the line search's trials are projected), scaled.
   ScaledPriors priors{Eigen::VectorXd::Zero(l), scaled(initial.values())};
   ScaledBounds bounds{Eigen::VectorXd::Constant(l, -INFINITY), Eigen::VectorXd::Constant(l, INFINITY)};
   for (int k = 0; k < l; ++k) {
     const int i = est[k];
     if (choices[i].prior_sd) priors.precision[k] = std::pow(scale[i] / *choices[i].prior_sd, 2);
+    // Open ends (a mass > 0) keep a millionth of the parameter's scale inside them.
+    const PhysicalRange& range = initial.spec(i).range;
+    bounds.lower[k] = (range.lower + (range.lower_open ? 1e-6 * scale[i] : 0.0)) / scale[i];
+    bounds.upper[k] = (range.upper - (range.upper_open ? 1e-6 * scale[i] : 0.0)) / scale[i];
   }
 
   FitProblem problem(model_, options_, data, issues, est, scale);

@@ -29,7 +29,24 @@ std::optional<double> ParseNumber(std::string_view text) {
   return v;
 }
 
+// "theta4 gas_area = -1 m^2 is outside its physical range (0, inf)".
+std::string OutOfRange(const ParameterSpec& spec, double value) {
+  return fmt::format("{} {} = {:g}{}{} is outside its physical range {}", spec.key(), spec.name, value,
+                     spec.unit.empty() || spec.unit == "-" ? "" : " ", spec.unit == "-" ? "" : spec.unit,
+                     spec.range.ToString());
+}
+
+std::string Bound(double v) {
+  if (std::isinf(v)) return v > 0 ? "inf" : "-inf";
+  return fmt::format("{:g}", v);
+}
+
 }  // namespace
+
+std::string PhysicalRange::ToString() const {
+  return fmt::format("{}{}, {}{}", lower_open || std::isinf(lower) ? "(" : "[", Bound(lower), Bound(upper),
+                     upper_open || std::isinf(upper) ? ")" : "]");
+}
 
 ParameterSet::ParameterSet(std::vector<ParameterSpec> specs) : specs_(std::move(specs)) {
   values_.reserve(specs_.size());
@@ -62,7 +79,18 @@ int ParameterSet::position_of_index(int index) const {
   return -1;
 }
 
+std::optional<std::string> ParameterSet::RangeViolation() const {
+  for (int i = 0; i < size(); ++i)
+    if (!specs_[i].range.contains(values_[i])) return OutOfRange(specs_[i], values_[i]);
+  return std::nullopt;
+}
+
+void ParameterSet::Validate() const {
+  if (auto violation = RangeViolation()) throw ParameterError(*violation);
+}
+
 void ParameterSet::apply_assignments(std::string_view assignments) {
+  std::vector<double> updated = values_;
   std::size_t start = 0;
   while (start <= assignments.size()) {
     const std::size_t comma = assignments.find(',', start);
@@ -75,11 +103,15 @@ void ParameterSet::apply_assignments(std::string_view assignments) {
       const auto value = ParseNumber(item.substr(eq + 1));
       if (!value)
         throw ParameterError(fmt::format("--set: '{}': '{}' is not a finite number", item, Trim(item.substr(eq + 1))));
-      values_[position(Trim(item.substr(0, eq)))] = *value;
+      const int p = position(Trim(item.substr(0, eq)));
+      if (!specs_[p].range.contains(*value))
+        throw ParameterError(fmt::format("--set: '{}': {}", item, OutOfRange(specs_[p], *value)));
+      updated[p] = *value;
     }
     if (comma == std::string_view::npos) break;
     start = comma + 1;
   }
+  values_ = std::move(updated);
 }
 
 std::vector<ParameterFileEntry> ReadParameterFile(const std::string& path) {
@@ -133,12 +165,16 @@ std::vector<ParameterFileEntry> ReadParameterFile(const std::string& path) {
 }
 
 void ParameterSet::apply_file(const std::string& path) {
+  std::vector<double> updated = values_;  // all or nothing
   for (const auto& e : ReadParameterFile(path)) {
     const auto p = find(e.name);
     if (!p)
       throw ParameterError(fmt::format("{}:{}: this model has no parameter '{}'", path, e.line, e.name));
-    values_[*p] = e.value;
+    if (!specs_[*p].range.contains(e.value))
+      throw ParameterError(fmt::format("{}:{}: {}", path, e.line, OutOfRange(specs_[*p], e.value)));
+    updated[*p] = e.value;
   }
+  values_ = std::move(updated);
 }
 
 std::string ParameterSet::table() const {

@@ -16,14 +16,21 @@ const StateSpec kTemperatureState{"temperature", "K", 1, 293.15, 1e-6, 1e-6};
 
 constexpr double kAmbientK = 293.15;
 
+// Physical ranges of the parameters (ParameterSpec::range).
+constexpr PhysicalRange kPositive = PhysicalRange::Positive();
+constexpr PhysicalRange kNonNegative = PhysicalRange::NonNegative();
+constexpr PhysicalRange kNegative = PhysicalRange::Negative();
+
 //! theta1 (q'' + theta2): moving mass under gravity.
 class Inertia final : public Term {
  public:
   unsigned phases() const override { return kBalancePhase; }
   std::string_view name() const override { return "inertia"; }
   void Declare(ModelBuilder& b) override {
-    b.add_parameter({1, "moving_mass", "kg", 40.0, "mass moving with the stroke (piston, axle, fixture)", true});
-    b.add_parameter({2, "gravity", "m/s^2", 9.81, "gravitational acceleration"});
+    b.add_parameter({.index = 1, .name = "moving_mass", .unit = "kg", .default_value = 40.0,
+                     .description = "mass moving with the stroke (piston, axle, fixture)", .estimate_by_default = true, .range = kPositive});
+    b.add_parameter({.index = 2, .name = "gravity", .unit = "m/s^2", .default_value = 9.81,
+                     .description = "gravitational acceleration (0: a horizontal rig)", .range = kNonNegative});
   }
   void Bind(const ModelBuilder& b) override {
     mass_ = b.parameter_position(1);
@@ -46,7 +53,8 @@ class GasForce final : public Term {
   unsigned phases() const override { return kBalancePhase; }
   std::string_view name() const override { return "gas-force"; }
   void Declare(ModelBuilder& b) override {
-    b.add_parameter({4, "gas_area", "m^2", 5.0e-3, "pneumatic piston area", true});
+    b.add_parameter({.index = 4, .name = "gas_area", .unit = "m^2", .default_value = 5.0e-3,
+                     .description = "pneumatic piston area", .estimate_by_default = true, .range = kPositive});
   }
   void Bind(const ModelBuilder& b) override {
     area_ = b.parameter_position(4);
@@ -69,7 +77,8 @@ class QuadraticDamping final : public Term {
   unsigned phases() const override { return kBalancePhase; }
   std::string_view name() const override { return "quadratic-damping"; }
   void Declare(ModelBuilder& b) override {
-    b.add_parameter({3, "orifice_damping", "N s^2/m^2", 8.0e3, "quadratic (orifice) damping coefficient", true});
+    b.add_parameter({.index = 3, .name = "orifice_damping", .unit = "N s^2/m^2", .default_value = 8.0e3,
+                     .description = "quadratic (orifice) damping coefficient", .estimate_by_default = true, .range = kNonNegative});
   }
   void Bind(const ModelBuilder& b) override { damping_ = b.parameter_position(3); }
   template <class S>
@@ -90,9 +99,14 @@ class PressureFriction final : public Term {
   unsigned phases() const override { return kBalancePhase; }
   std::string_view name() const override { return "pressure-friction"; }
   void Declare(ModelBuilder& b) override {
-    b.add_parameter({8, "friction_base", "N", 190.0, "pressure-independent friction amplitude", true});
-    b.add_parameter({9, "friction_pressure", "m^2", 4.8e-5, "friction amplitude per unit gas pressure", true});
-    b.add_parameter({10, "friction_sharpness", "s/m", 2000.0, "arctan sharpness of friction in stroke rate", true});
+    // theta8 has no sign of its own: the amplitude theta8 + theta9 p is what must not be negative,
+    // and p is an absolute pressure, never near 0.
+    b.add_parameter({.index = 8, .name = "friction_base", .unit = "N", .default_value = 190.0,
+                     .description = "pressure-independent friction amplitude", .estimate_by_default = true});
+    b.add_parameter({.index = 9, .name = "friction_pressure", .unit = "m^2", .default_value = 4.8e-5,
+                     .description = "friction amplitude per unit gas pressure", .estimate_by_default = true, .range = kNonNegative});
+    b.add_parameter({.index = 10, .name = "friction_sharpness", .unit = "s/m", .default_value = 2000.0,
+                     .description = "arctan sharpness of friction in stroke rate", .estimate_by_default = true, .range = kNonNegative});
   }
   void Bind(const ModelBuilder& b) override {
     base_ = b.parameter_position(8);
@@ -118,7 +132,8 @@ class ForceOffset final : public Term {
   unsigned phases() const override { return kBalancePhase; }
   std::string_view name() const override { return "force-offset"; }
   void Declare(ModelBuilder& b) override {
-    b.add_parameter({11, "force_offset", "N", -507.0, "constant force offset (-p_atm A plus load-cell zero)", true});
+    b.add_parameter({.index = 11, .name = "force_offset", .unit = "N", .default_value = -507.0,
+                     .description = "constant force offset (-p_atm A plus load-cell zero)", .estimate_by_default = true});
   }
   void Bind(const ModelBuilder& b) override { offset_ = b.parameter_position(11); }
   template <class S>
@@ -137,8 +152,9 @@ class StrokeOffset final : public Term {
   unsigned phases() const override { return 0; }
   std::string_view name() const override { return "stroke-offset"; }
   void Declare(ModelBuilder& b) override {
-    b.add_parameter({12, "stroke_offset", "m", 0.0, "stroke sensor offset: measured = true + offset", true, 1e-3, false,
-                     kStrokeZeroPriorSd});
+    b.add_parameter({.index = 12, .name = "stroke_offset", .unit = "m", .default_value = 0.0,
+                     .description = "stroke sensor offset: measured = true + offset", .estimate_by_default = true,
+                     .typical = 1e-3, .prior_sd = kStrokeZeroPriorSd});
     b.set_output_offset(12);
   }
   void Bind(const ModelBuilder&) override {}
@@ -153,7 +169,9 @@ class GasVolume final : public Term {
   unsigned phases() const override { return kGasStatePhase; }
   std::string_view name() const override { return "gas-volume"; }
   void Declare(ModelBuilder& b) override {
-    b.add_parameter({6, "volume_per_stroke", "1/m", -1.0 / 0.3, "relative gas-volume change per stroke, -A/V0", true});
+    b.add_parameter({.index = 6, .name = "volume_per_stroke", .unit = "1/m", .default_value = -1.0 / 0.3,
+                     .description = "relative gas-volume change per stroke, -A/V0", .estimate_by_default = true,
+                     .range = kNegative});
   }
   void Bind(const ModelBuilder& b) override { per_stroke_ = b.parameter_position(6); }
   template <class S>
@@ -172,8 +190,12 @@ class PolytropicGas final : public Term {
   unsigned phases() const override { return kGasStatePhase | kGasLawPhase; }
   std::string_view name() const override { return "polytropic-gas"; }
   void Declare(ModelBuilder& b) override {
-    b.add_parameter({5, "extended_pressure", "Pa", 7.0e5, "absolute gas pressure at full extension", true});
-    b.add_parameter({7, "polytropic_exponent", "-", 1.2, "polytropic exponent of the gas", true});
+    b.add_parameter({.index = 5, .name = "extended_pressure", .unit = "Pa", .default_value = 7.0e5,
+                     .description = "absolute gas pressure at full extension", .estimate_by_default = true, .range = kPositive});
+    // Between 1 (isothermal) and 1.4 (adiabatic) for a perfect gas; a fit of a gas that dissolves
+    // or exchanges heat may leave that band, so only the sign is physical.
+    b.add_parameter({.index = 7, .name = "polytropic_exponent", .unit = "-", .default_value = 1.2,
+                     .description = "polytropic exponent of the gas", .estimate_by_default = true, .range = kPositive});
     b.add_state(kPressureState);
   }
   void Bind(const ModelBuilder& b) override {
@@ -205,11 +227,16 @@ class HeatExchange final : public Term {
   unsigned phases() const override { return kGasStatePhase | kGasLawPhase | kBalancePhase; }
   std::string_view name() const override { return "heat-exchange"; }
   void Declare(ModelBuilder& b) override {
-    b.add_parameter({5, "pressure_per_temperature", "Pa/K", 7.0e5 * (1.0 + 2.0e-5 * kAmbientK) / kAmbientK,
-                     "gas pressure per temperature at full extension (m R / V0)", true});
-    b.add_parameter({15, "gas_heat_capacity", "J/K", 17.9, "effective heat capacity of the gas", true});
-    b.add_parameter({16, "wall_heat_conductance", "W/K", 2.24, "heat conductance through the wall at full extension", true, 0.0, true});
-    b.add_parameter({17, "minus_ambient_temperature", "K", -kAmbientK, "minus the ambient (wall) temperature"});
+    b.add_parameter({.index = 5, .name = "pressure_per_temperature", .unit = "Pa/K",
+                     .default_value = 7.0e5 * (1.0 + 2.0e-5 * kAmbientK) / kAmbientK,
+                     .description = "gas pressure per temperature at full extension (m R / V0)", .estimate_by_default = true, .range = kPositive});
+    b.add_parameter({.index = 15, .name = "gas_heat_capacity", .unit = "J/K", .default_value = 17.9,
+                     .description = "effective heat capacity of the gas", .estimate_by_default = true, .range = kPositive});
+    b.add_parameter({.index = 16, .name = "wall_heat_conductance", .unit = "W/K", .default_value = 2.24,
+                     .description = "heat conductance through the wall at full extension (0: adiabatic)",
+                     .estimate_by_default = true, .sizes_term = true, .range = kNonNegative});
+    b.add_parameter({.index = 17, .name = "minus_ambient_temperature", .unit = "K", .default_value = -kAmbientK,
+                     .description = "minus the ambient (wall) temperature", .range = kNegative});
     b.add_state(kPressureState);
     b.add_state(kTemperatureState);
   }
@@ -257,7 +284,9 @@ class GasSolubility final : public Term {
   unsigned phases() const override { return kGasStatePhase; }
   std::string_view name() const override { return "gas-solubility"; }
   void Declare(ModelBuilder& b) override {
-    b.add_parameter({7, "gas_solubility", "1/K", 2.0e-5, "linear gas solubility coefficient", true, 0.0, true});
+    b.add_parameter({.index = 7, .name = "gas_solubility", .unit = "1/K", .default_value = 2.0e-5,
+                     .description = "linear gas solubility coefficient (0: none)", .sizes_term = true,
+                     .range = kNonNegative});
   }
   void Bind(const ModelBuilder& b) override {
     if (!b.has_term("heat-exchange"))
@@ -297,7 +326,9 @@ class ViscousDamping final : public Term {
   unsigned phases() const override { return kBalancePhase; }
   std::string_view name() const override { return "viscous-damping"; }
   void Declare(ModelBuilder& b) override {
-    b.add_parameter({18, "viscous_damping", "N s/m", 300.0, "linear (viscous) damping of seals and laminar flow", false, 0.0, true});
+    b.add_parameter({.index = 18, .name = "viscous_damping", .unit = "N s/m", .default_value = 300.0,
+                     .description = "linear (viscous) damping of seals and laminar flow (0: none)", .sizes_term = true,
+                     .range = kNonNegative});
   }
   void Bind(const ModelBuilder& b) override { damping_ = b.parameter_position(18); }
   template <class S>
@@ -319,8 +350,12 @@ class StribeckFriction final : public Term {
   unsigned phases() const override { return kBalancePhase; }
   std::string_view name() const override { return "stribeck-friction"; }
   void Declare(ModelBuilder& b) override {
-    b.add_parameter({19, "stribeck_excess", "-", 0.25, "static over kinetic friction minus one, F_S / F_C - 1", false, 0.0, true});
-    b.add_parameter({20, "stribeck_velocity", "m/s", 3.0e-3, "Stribeck velocity: width of the static-friction rise"});
+    b.add_parameter({.index = 19, .name = "stribeck_excess", .unit = "-", .default_value = 0.25,
+                     .description = "static over kinetic friction minus one, F_S / F_C - 1 (0: none)", .typical = 0.1,
+                     .sizes_term = true, .range = kNonNegative});
+    b.add_parameter({.index = 20, .name = "stribeck_velocity", .unit = "m/s", .default_value = 3.0e-3,
+                     .description = "Stribeck velocity: width of the static-friction rise", .typical = 3.0e-3,
+                     .shapes_term = true, .range = kPositive});
   }
   void Bind(const ModelBuilder& b) override {
     if (!b.has_term("pressure-friction"))
@@ -348,22 +383,31 @@ class StribeckFriction final : public Term {
 };
 
 //! Top-out end stop near full extension (Hunt-Crossley contact, smoothed): penetration
-//! d = theta24 softplus((theta23 - q) / theta24), contact force k d + c d (-q') pushing towards
-//! compression, so the balance gets -(theta21 d - theta22 d q'). A distance s inside the stop
-//! position leaves k theta24 exp(-s / theta24): 0.02 N at 10 theta24 (damper-physics.md §2.9).
+//! d = theta24 softplus((theta23 - q) / theta24), contact force k d (1 + alpha (-q')) pushing
+//! towards compression, so the balance gets -theta21 d (1 - theta22 q'). The Hunt-Crossley damping
+//! is theta22 times the stiffness, so theta21 = 0 is no stop at all and the force is linear in it.
+//! A distance s inside the stop position leaves k theta24 exp(-s / theta24): 0.02 N at 10 theta24
+//! (damper-physics.md §2.9).
 class EndStop final : public Term {
  public:
   unsigned phases() const override { return kBalancePhase; }
   std::string_view name() const override { return "end-stop"; }
   void Declare(ModelBuilder& b) override {
-    b.add_parameter({21, "end_stop_stiffness", "N/m", 5.0e6, "top-out stop contact stiffness (elastomer snubber)", false, 0.0, true});
-    b.add_parameter({22, "end_stop_damping", "N s/m^2", 1.0e7, "top-out stop Hunt-Crossley damping per penetration"});
-    b.add_parameter({23, "end_stop_position", "m", 0.0, "stroke below which the top-out stop is in contact"});
-    b.add_parameter({24, "end_stop_smoothing", "m", 1.0e-4, "length over which the contact onset is smoothed"});
+    b.add_parameter({.index = 21, .name = "end_stop_stiffness", .unit = "N/m", .default_value = 5.0e6,
+                     .description = "top-out stop contact stiffness, elastomer snubber (0: no stop)", .typical = 1.0e6,
+                     .sizes_term = true, .range = kNonNegative});
+    b.add_parameter({.index = 22, .name = "end_stop_dissipation", .unit = "s/m", .default_value = 2.0,
+                     .description = "top-out stop Hunt-Crossley damping over stiffness (restitution)",
+                     .range = kNonNegative});
+    b.add_parameter({.index = 23, .name = "end_stop_position", .unit = "m", .default_value = 0.0,
+                     .description = "stroke below which the top-out stop is in contact", .typical = 5.0e-3,
+                     .shapes_term = true});
+    b.add_parameter({.index = 24, .name = "end_stop_smoothing", .unit = "m", .default_value = 1.0e-4,
+                     .description = "length over which the contact onset is smoothed", .range = kPositive});
   }
   void Bind(const ModelBuilder& b) override {
     stiffness_ = b.parameter_position(21);
-    damping_ = b.parameter_position(22);
+    dissipation_ = b.parameter_position(22);
     position_ = b.parameter_position(23);
     smoothing_ = b.parameter_position(24);
   }
@@ -372,64 +416,79 @@ class EndStop final : public Term {
     if (c.phase != TermContext<S>::Phase::kBalance) return;
     const S& w = c.theta[smoothing_];
     const S penetration = w * Softplus(S((c.theta[position_] - c.v->stroke) / w));
-    c.force -= penetration * (c.theta[stiffness_] - c.theta[damping_] * c.v->stroke_rate);
+    c.force -= c.theta[stiffness_] * penetration * (1.0 - c.theta[dissipation_] * c.v->stroke_rate);
   }
   STRUT_TERM_EVALUATE
 
  private:
-  int stiffness_ = -1, damping_ = -1, position_ = -1, smoothing_ = -1;
+  int stiffness_ = -1, dissipation_ = -1, position_ = -1, smoothing_ = -1;
 };
 
 //! Oil and cylinder compliance: the oil shrinks and the cylinder swells with pressure, giving the
-//! gas more room: V_g / V0 += theta25 (p - theta27) / theta26, with theta25 = V_oil / V0 and
-//! theta26 the effective bulk modulus of oil and cylinder, 1/K_eff = 1/K_oil + D/(E t)
-//! (damper-physics.md §2.3). Softens the gas spring at deep compression.
+//! gas more room: V_g / V0 += theta25 theta26 (p - theta27), with theta25 = V_oil / V0 and
+//! theta26 the effective compliance of oil and cylinder, 1/K_eff = 1/K_oil + D/(E t)
+//! (damper-physics.md §2.3). Softens the gas spring at deep compression. Sized by the compliance,
+//! not the bulk modulus: 0 is rigid oil and the volume is linear in it.
 class OilCompressibility final : public Term {
  public:
   unsigned phases() const override { return kGasStatePhase; }
   std::string_view name() const override { return "oil-compressibility"; }
   void Declare(ModelBuilder& b) override {
-    b.add_parameter({25, "oil_volume_ratio", "-", 1.0, "oil volume over the gas volume at full extension, V_oil / V0"});
-    b.add_parameter({26, "oil_bulk_modulus", "Pa", 1.2e9, "effective bulk modulus of oil and cylinder, K_eff", false, 0.0, true});
-    b.add_parameter({27, "compliance_reference_pressure", "Pa", 7.0e5,
-                     "pressure at which the compliance adds no volume (the charge pressure)"});
+    b.add_parameter({.index = 25, .name = "oil_volume_ratio", .unit = "-", .default_value = 1.0,
+                     .description = "oil volume over the gas volume at full extension, V_oil / V0",
+                     .range = kNonNegative});
+    b.add_parameter({.index = 26, .name = "oil_compliance", .unit = "1/Pa", .default_value = 1.0 / 1.2e9,
+                     .description = "effective compliance of oil and cylinder, 1/K_eff (0: rigid)", .typical = 1.0e-9,
+                     .sizes_term = true, .range = kNonNegative});
+    b.add_parameter({.index = 27, .name = "compliance_reference_pressure", .unit = "Pa", .default_value = 7.0e5,
+                     .description = "pressure at which the compliance adds no volume (the charge pressure)",
+                     .range = kPositive});
   }
   void Bind(const ModelBuilder& b) override {
     ratio_ = b.parameter_position(25);
-    modulus_ = b.parameter_position(26);
+    compliance_ = b.parameter_position(26);
     reference_ = b.parameter_position(27);
     pressure_ = b.state_position("pressure", name());
   }
   template <class S>
   void Eval(TermContext<S>& c) const {
     if (c.phase == TermContext<S>::Phase::kGasState)
-      c.gas_volume += c.theta[ratio_] * (c.v->states[pressure_] - c.theta[reference_]) / c.theta[modulus_];
+      c.gas_volume += c.theta[ratio_] * c.theta[compliance_] * (c.v->states[pressure_] - c.theta[reference_]);
   }
   STRUT_TERM_EVALUATE
 
  private:
-  int ratio_ = -1, modulus_ = -1, reference_ = -1, pressure_ = -1;
+  int ratio_ = -1, compliance_ = -1, reference_ = -1, pressure_ = -1;
 };
 
 //! Real-gas nitrogen: the ideal-gas pressure times the compressibility factor
-//! Z = 1 + B(T) rho + theta30 rho^2, B(T) = theta28 - theta29 / T (a two-constant fit of the N2
+//! Z = 1 + theta31 (B(T) rho + theta30 rho^2), B(T) = theta28 - theta29 / T (a two-constant fit of the N2
 //! second virial coefficient, damper-physics.md §2.10), rho the molar density of the free gas:
 //! theta5 N / (R V) in 2 dof (theta5 = n R / V0), theta5 N / (R T_amb V) in 1 dof (theta5 the
 //! charge pressure; the 1 dof model has no gas temperature, B is taken at ambient). It multiplies
 //! the free gas amount by Z (by Z^(1/theta7) under the polytropic law), so every gas law gets p Z.
+//! The gain theta31 sizes the correction: 0 is the ideal gas, 1 nitrogen.
 class RealGas final : public Term {
  public:
   unsigned phases() const override { return kGasStatePhase; }
   std::string_view name() const override { return "real-gas"; }
   void Declare(ModelBuilder& b) override {
-    b.add_parameter({28, "virial_b0", "m^3/mol", 4.88e-5, "N2 second virial coefficient B(T) = b0 - a / T: b0", false, 0.0, true});
-    b.add_parameter({29, "virial_a", "m^3 K/mol", 1.59e-2, "N2 second virial coefficient B(T) = b0 - a / T: a"});
-    b.add_parameter({30, "virial_c", "m^6/mol^2", 1.4e-9, "N2 third virial coefficient C"});
+    // The coefficients shape Z - 1 (they are N2's, any sign a gas may have); theta31 sizes it.
+    b.add_parameter({.index = 28, .name = "virial_b0", .unit = "m^3/mol", .default_value = 4.88e-5,
+                     .description = "N2 second virial coefficient B(T) = b0 - a / T: b0"});
+    b.add_parameter({.index = 29, .name = "virial_a", .unit = "m^3 K/mol", .default_value = 1.59e-2,
+                     .description = "N2 second virial coefficient B(T) = b0 - a / T: a"});
+    b.add_parameter({.index = 30, .name = "virial_c", .unit = "m^6/mol^2", .default_value = 1.4e-9,
+                     .description = "N2 third virial coefficient C"});
+    b.add_parameter({.index = 31, .name = "virial_gain", .unit = "-", .default_value = 1.0,
+                     .description = "gain on the virial correction Z - 1 (0: ideal gas, 1: nitrogen)", .typical = 1.0,
+                     .sizes_term = true, .range = kNonNegative});
   }
   void Bind(const ModelBuilder& b) override {
     b0_ = b.parameter_position(28);
     a_ = b.parameter_position(29);
     c_ = b.parameter_position(30);
+    gain_ = b.parameter_position(31);
     scale_ = b.parameter_position(5);
     thermal_ = b.has_term("heat-exchange");
     exponent_ = thermal_ ? -1 : b.parameter_position(7);
@@ -452,7 +511,7 @@ class RealGas final : public Term {
       rho = c.theta[scale_] * c.gas_amount / (kGasConstant * kAmbientK * c.gas_volume);
       b = c.theta[b0_] - c.theta[a_] / kAmbientK;
     }
-    const S z = 1.0 + b * rho + c.theta[c_] * rho * rho;
+    const S z = 1.0 + c.theta[gain_] * (b * rho + c.theta[c_] * rho * rho);
     if (thermal_)
       c.gas_amount *= z;
     else
@@ -461,7 +520,7 @@ class RealGas final : public Term {
   STRUT_TERM_EVALUATE
 
  private:
-  int b0_ = -1, a_ = -1, c_ = -1, scale_ = -1, exponent_ = -1, temperature_ = -1;
+  int b0_ = -1, a_ = -1, c_ = -1, gain_ = -1, scale_ = -1, exponent_ = -1, temperature_ = -1;
   bool thermal_ = false;
 };
 
@@ -484,9 +543,17 @@ class LinearOscillator final : public Term {
   void Declare(ModelBuilder& b) override {
     // Tiny typical sizes: the estimator scales these by their (data-derived) starting values, whatever
     // the units of the record.
-    b.add_parameter({50, "mass", "[u] s^2/[y]", 1.0, "oscillator mass (input per output acceleration)", true, 1e-12});
-    b.add_parameter({51, "damping", "[u] s/[y]", 0.1, "linear damping (input per output rate)", true, 1e-12});
-    b.add_parameter({52, "stiffness", "[u]/[y]", 1.0, "linear stiffness (input per output)", true, 1e-12});
+    // Mass and damping of a passive oscillator are positive; the linear stiffness is negative in a
+    // bistable (double-well) Duffing oscillator, so it has no sign.
+    b.add_parameter({.index = 50, .name = "mass", .unit = "[u] s^2/[y]", .default_value = 1.0,
+                     .description = "oscillator mass (input per output acceleration)", .estimate_by_default = true,
+                     .typical = 1e-12, .range = kPositive});
+    b.add_parameter({.index = 51, .name = "damping", .unit = "[u] s/[y]", .default_value = 0.1,
+                     .description = "linear damping (input per output rate)", .estimate_by_default = true,
+                     .typical = 1e-12, .range = kNonNegative});
+    b.add_parameter({.index = 52, .name = "stiffness", .unit = "[u]/[y]", .default_value = 1.0,
+                     .description = "linear stiffness (input per output)", .estimate_by_default = true,
+                     .typical = 1e-12});
     b.declare_channels(kOutputY, kInputU, name());
   }
   void Bind(const ModelBuilder& b) override {
@@ -512,8 +579,9 @@ class QuadraticStiffness final : public Term {
   unsigned phases() const override { return kBalancePhase; }
   std::string_view name() const override { return "quadratic-stiffness"; }
   void Declare(ModelBuilder& b) override {
-    b.add_parameter({53, "quadratic_stiffness", "[u]/[y]^2", 0.0, "quadratic stiffness: input per output squared",
-                     true, 1e-12, true});
+    b.add_parameter({.index = 53, .name = "quadratic_stiffness", .unit = "[u]/[y]^2", .default_value = 0.0,
+                     .description = "quadratic stiffness: input per output squared", .estimate_by_default = true,
+                     .typical = 1e-12, .sizes_term = true});
   }
   void Bind(const ModelBuilder& b) override { k2_ = b.parameter_position(53); }
   template <class S>
@@ -532,8 +600,9 @@ class CubicStiffness final : public Term {
   unsigned phases() const override { return kBalancePhase; }
   std::string_view name() const override { return "cubic-stiffness"; }
   void Declare(ModelBuilder& b) override {
-    b.add_parameter({54, "cubic_stiffness", "[u]/[y]^3", 0.0, "cubic stiffness: input per output cubed",
-                     true, 1e-12, true});
+    b.add_parameter({.index = 54, .name = "cubic_stiffness", .unit = "[u]/[y]^3", .default_value = 0.0,
+                     .description = "cubic stiffness: input per output cubed", .estimate_by_default = true,
+                     .typical = 1e-12, .sizes_term = true});
   }
   void Bind(const ModelBuilder& b) override { k3_ = b.parameter_position(54); }
   template <class S>
@@ -554,8 +623,9 @@ class CubicDamping final : public Term {
   unsigned phases() const override { return kBalancePhase; }
   std::string_view name() const override { return "cubic-damping"; }
   void Declare(ModelBuilder& b) override {
-    b.add_parameter({58, "cubic_damping", "[u] s^3/[y]^3", 0.0, "cubic damping: input per output rate cubed", true,
-                     1e-12, true});
+    b.add_parameter({.index = 58, .name = "cubic_damping", .unit = "[u] s^3/[y]^3", .default_value = 0.0,
+                     .description = "cubic damping: input per output rate cubed", .estimate_by_default = true,
+                     .typical = 1e-12, .sizes_term = true});
   }
   void Bind(const ModelBuilder& b) override { d3_ = b.parameter_position(58); }
   template <class S>
@@ -576,7 +646,9 @@ class InputOffset final : public Term {
   unsigned phases() const override { return kBalancePhase; }
   std::string_view name() const override { return "input-offset"; }
   void Declare(ModelBuilder& b) override {
-    b.add_parameter({55, "input_offset", "[u]", 0.0, "input sensor offset: measured = true + offset", true, 1e-3});
+    b.add_parameter({.index = 55, .name = "input_offset", .unit = "[u]", .default_value = 0.0,
+                     .description = "input sensor offset: measured = true + offset", .estimate_by_default = true,
+                     .typical = 1e-3, .prior_sd = kStrokeZeroPriorSd});
   }
   void Bind(const ModelBuilder& b) override { offset_ = b.parameter_position(55); }
   template <class S>
@@ -595,7 +667,9 @@ class OutputOffset final : public Term {
   unsigned phases() const override { return 0; }
   std::string_view name() const override { return "output-offset"; }
   void Declare(ModelBuilder& b) override {
-    b.add_parameter({56, "output_offset", "[y]", 0.0, "output sensor offset: measured = true + offset", true, 1e-3});
+    b.add_parameter({.index = 56, .name = "output_offset", .unit = "[y]", .default_value = 0.0,
+                     .description = "output sensor offset: measured = true + offset", .estimate_by_default = true,
+                     .typical = 1e-3, .prior_sd = kStrokeZeroPriorSd});
     b.set_output_offset(56);
   }
   void Bind(const ModelBuilder&) override {}
@@ -631,9 +705,9 @@ const std::vector<TermEntry>& Catalogue() {
        "force spikes at the velocity reversals: static friction above kinetic"},
       {"end-stop", &Make<EndStop>, "", "top-out contact near full extension, theta21..theta24", "extension",
        "residual only near full extension: contact with the top-out stop"},
-      {"oil-compressibility", &Make<OilCompressibility>, "", "oil and cylinder compliance theta25..theta27", "pressure-softening",
+      {"oil-compressibility", &Make<OilCompressibility>, "", "oil and cylinder compliance theta25..theta27 (theta26 = 1/K_eff)", "pressure-softening",
        "softening that grows with pressure: oil and cylinder compliance"},
-      {"real-gas", &Make<RealGas>, "", "virial nitrogen Z(rho, T), theta28..theta30", "pressure-stiffening",
+      {"real-gas", &Make<RealGas>, "", "virial nitrogen Z(rho, T), theta28..theta31", "pressure-stiffening",
        "stiffening that grows with pressure: real-gas (virial) nitrogen"},
       // Generic oscillators (docs/silverbox.md); no locus yet: discovery does not propose them.
       {"linear-oscillator", &Make<LinearOscillator>, "", "forced oscillator theta50 y'' + theta51 y' + theta52 y = u", "", ""},

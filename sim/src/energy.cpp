@@ -17,9 +17,11 @@ EnergyBudget Budget(const ident::Model& model, std::span<const double> theta, co
     const int p = d.position_of_index(index);
     return p >= 0 ? theta[p] : 0.0;
   };
-  // The dissipative forces: the model's force sum with the conservative terms switched off.
+  // The dissipative forces: the model's force sum with inertia, gas force and offset switched off,
+  // less the same at rest (which leaves the end stop's elastic force out and its Hunt-Crossley
+  // damping, theta21 theta22 d q', in).
   std::vector<double> dissipative(theta.begin(), theta.end());
-  for (int index : {1, 4, 11, 21}) {
+  for (int index : {1, 4, 11}) {
     const int p = d.position_of_index(index);
     if (p >= 0) dissipative[p] = 0.0;
   }
@@ -36,7 +38,10 @@ EnergyBudget Budget(const ident::Model& model, std::span<const double> theta, co
     x[2] = t.temperature[i], xd[2] = t.temperature_rate[i];
     const double u = by_force ? 0.0 : t.measured[i], ud = by_force ? 0.0 : t.rate[i];
     model.Residual<double>(x, xd, xdd, u, ud, 0.0, dissipative, r);
-    power_dissipated[i] = r[0] * t.rate[i];
+    const double moving = r[0];
+    xd[0] = 0.0;
+    model.Residual<double>(x, xd, xdd, u, 0.0, 0.0, dissipative, r);
+    power_dissipated[i] = (moving - r[0]) * t.rate[i];
     power_in[i] = t.force[i] * t.rate[i];
     power_wall[i] = conductance * (1.0 + per_stroke * t.stroke[i]) * (t.temperature[i] + minus_ambient);
   }

@@ -13,14 +13,6 @@
 namespace strut::sim {
 namespace {
 
-// Parameters that only make sense when positive, or at least not negative.
-const std::set<std::string> kPositive = {"moving_mass", "gas_area", "pressure_per_temperature", "extended_pressure",
-                                         "polytropic_exponent", "gas_heat_capacity", "oil_bulk_modulus",
-                                         "stribeck_velocity", "end_stop_smoothing"};
-const std::set<std::string> kNonNegative = {"orifice_damping", "friction_sharpness", "wall_heat_conductance",
-                                            "viscous_damping", "stribeck_excess", "end_stop_stiffness",
-                                            "end_stop_damping", "oil_volume_ratio", "gas_solubility"};
-
 //! Reads one truth file; every message starts with "FILE:LINE:".
 class Reader {
  public:
@@ -324,10 +316,10 @@ class Reader {
                      model.composition());
         continue;
       }
-      const std::string& name = model.defaults().spec(*position).name;
-      if ((kPositive.count(name) && !(value > 0)) || (kNonNegative.count(name) && value < 0))
-        throw TruthError(fmt::format("{}:{}: [parameters] {} must be {}, got {}", source_, line, key,
-                                     kPositive.count(name) ? "positive" : "zero or positive", value));
+      const ident::ParameterSpec& spec = model.defaults().spec(*position);
+      if (!spec.range.contains(value))
+        throw TruthError(fmt::format("{}:{}: [parameters] {} = {} is outside its physical range {}", source_, line,
+                                     key, value, spec.range.ToString()));
     }
   }
 

@@ -151,7 +151,7 @@ struct FitProgress {
 };
 
 //! What a fit of a unit nobody has characterised estimates: every parameter the shaker data can
-//! determine (ParameterSpec::estimate_by_default) and the sizes of the composition's optional terms,
+//! determine (ParameterSpec::estimate_by_default) and the sizes and shapes of the composition's optional terms,
 //! with the specs' default priors (the stroke zero: kStrokeZeroPriorSd). Known constants (gravity,
 //! the ambient temperature, the fixed shapes of optional terms) stay at their values.
 std::vector<ParameterChoice> DefaultChoices(const ParameterSet& parameters);

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cmath>
+#include <limits>
 #include <map>
 #include <optional>
 #include <stdexcept>
@@ -22,6 +23,36 @@ class ParameterError : public std::invalid_argument {
   using std::invalid_argument::invalid_argument;
 };
 
+//! The physically admissible values of a parameter: an interval whose ends are each open or
+//! closed, infinite where physics sets no bound. `--set` and `--params` refuse values outside
+//! it; the estimator keeps its iterates inside it.
+struct PhysicalRange {
+  static constexpr double kInfinity = std::numeric_limits<double>::infinity();
+  double lower = -kInfinity;
+  double upper = kInfinity;
+  bool lower_open = false;  //!< true: `lower` itself is excluded (a mass is > 0)
+  bool upper_open = false;
+
+  //! Any value (offsets, positions, fitted coefficients without a sign).
+  static constexpr PhysicalRange Any() { return {}; }
+  //! (0, inf): masses, areas, pressures, widths.
+  static constexpr PhysicalRange Positive() { return {0.0, kInfinity, true, false}; }
+  //! [0, inf): dampings, stiffnesses, compliances, effect sizes whose 0 means "absent".
+  static constexpr PhysicalRange NonNegative() { return {0.0, kInfinity, false, false}; }
+  //! (-inf, 0): theta6 = -A/V0, minus a temperature.
+  static constexpr PhysicalRange Negative() { return {-kInfinity, 0.0, false, true}; }
+
+  bool contains(double v) const {
+    if (std::isnan(v)) return false;
+    const bool above = lower_open ? v > lower : v >= lower;
+    const bool below = upper_open ? v < upper : v <= upper;
+    return above && below;
+  }
+  bool bounded() const { return std::isfinite(lower) || std::isfinite(upper); }
+  //! "(0, inf)", "[0, inf)", "(-inf, 0)", "(-inf, inf)".
+  std::string ToString() const;
+};
+
 //! Description of one model parameter.
 struct ParameterSpec {
   int index = 0;              //!< paper numbering: 4 means theta4
@@ -33,13 +64,22 @@ struct ParameterSpec {
   //! known constants: gravity, the ambient temperature, fixed shapes of optional terms).
   bool estimate_by_default = false;
   double typical = 0.0;              //!< size of a meaningful value (0: |default_value|); scales the estimator
-  bool sizes_term = false;           //!< sizes its term's effect: estimated when discovery adds the term
+  //! Sizes its term's effect: estimated when discovery adds the term. 0 (or the physical
+  //! neutral) means the effect is absent, and the residual is smooth and nearly linear in it
+  //! there (a compliance, not a bulk modulus; a gain, not a ratio), so a fit may start at 0.
+  bool sizes_term = false;
+  //! Shapes its term's effect (where or how wide: an end stop's position, the Stribeck velocity):
+  //! estimated with the size when discovery adds the term; meaningless while the size is 0.
+  bool shapes_term = false;
+  PhysicalRange range;  //!< the physically admissible values (default: any)
   //! sd of the prior the estimator puts on it by default (0: none; mean: the starting value): for
   //! what the data can barely tell apart from other parameters and a lab knows roughly (the
   //! stroke zero).
   double prior_sd = 0.0;
 
   double typical_size() const { return typical > 0 ? typical : std::abs(default_value); }
+  //! Estimated when discovery adds the term: its size and shape parameters.
+  bool estimated_with_term() const { return sizes_term || shapes_term; }
 
   std::string key() const { return "theta" + std::to_string(index); }
 };
@@ -67,13 +107,21 @@ class ParameterSet {
   double get(std::string_view key_or_name) const { return values_[position(key_or_name)]; }
   void set(std::string_view key_or_name, double value) { values_[position(key_or_name)] = value; }
 
-  //! Applies "NAME=VALUE[,NAME=VALUE...]" (the --set option). Throws ParameterError naming the item.
+  //! Applies "NAME=VALUE[,NAME=VALUE...]" (the --set option). Throws ParameterError naming the item,
+  //! also for a value outside the parameter's physical range (nothing is changed then).
   void apply_assignments(std::string_view assignments);
 
   //! Applies a parameter file (format in docs/parameters.md): lines "NAME = VALUE [# comment]";
   //! further keys on the line ("sd=...", "estimate", "fixed") are read by the estimator.
-  //! Throws ParameterError naming the file and line.
+  //! Throws ParameterError naming the file and line, also for a value outside the physical range.
   void apply_file(const std::string& path);
+
+  //! The first value outside its physical range as a message naming the parameter, the value and
+  //! the range ("theta4 gas_area = -1 m^2 is outside its physical range (0, inf)"); nullopt when
+  //! every value is admissible.
+  std::optional<std::string> RangeViolation() const;
+  //! Throws ParameterError with RangeViolation() when a value is outside its physical range.
+  void Validate() const;
 
   //! A table "theta4  gas_area  5.000e-03 m^2" for logs.
   std::string table() const;

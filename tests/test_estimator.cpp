@@ -62,7 +62,7 @@ TEST(Estimator, RecoversThePaperParametersFromTwentyPercentOff) {
     const auto data = PrepareExperiments(session, model.causality(), 800, &issues);
     EXPECT_TRUE(issues.empty());
     // The paper's set (1 dof: theta4, theta6, theta7; 2 dof: theta4, theta6, theta16) plus offsets.
-    const auto choices = DefaultChoices(model);
+    const auto choices = PaperChoices(model.defaults());
     ParameterSet initial = model.defaults();
     for (int i = 0; i < initial.size(); ++i) {
       const int index = initial.spec(i).index;
@@ -331,12 +331,12 @@ TEST(IdentifyCommand, WritesTheFitAsJson) {
   daq::WriteSession(dir.file("s.h5"),
                     sim::SimulatePeriodicSession("2dof", truth.values(), Pick("bhl"), sim::PeriodicSessionOptions{}));
   const auto r = test::RunStrut("identify " + dir.file("s.h5") + " --model 2dof --input stroke --n 400 --json " +
-                                dir.file("fit.json") + " --no-progress");
+                                dir.file("fit.json") + " --no-progress --estimate paper");
   ASSERT_EQ(r.exit_code, 0) << r.output;
   std::ifstream in(dir.file("fit.json"));
   const nlohmann::json j = nlohmann::json::parse(in);
-  for (const char* key : {"model", "converged", "iterations", "parameters", "channels", "experiments", "loglik", "aic",
-                          "bic", "warnings"})
+  for (const char* key : {"model", "converged", "verdict", "verdict_text", "iterations", "parameters", "channels",
+                          "experiments", "loglik", "aic", "bic", "warnings"})
     EXPECT_TRUE(j.contains(key)) << key;
   EXPECT_EQ(j["model"], "2dof");
   EXPECT_TRUE(j["converged"].get<bool>());
@@ -349,7 +349,7 @@ TEST(IdentifyCommand, WritesTheFitAsJson) {
   ASSERT_EQ(j["experiments"].size(), 3u);
   for (const char* key : {"mean", "sd", "rms", "noise_ratio"}) EXPECT_TRUE(j["experiments"][0]["force"].contains(key));
   for (const auto& c : j["channels"])
-    for (const char* key : {"name", "variance", "noise_floor_variance", "rms"}) EXPECT_TRUE(c.contains(key)) << key;
+    for (const char* key : {"name", "variance", "noise_floor_variance", "rms", "noise_ratio"}) EXPECT_TRUE(c.contains(key)) << key;
   const auto bad = test::RunStrut("identify " + dir.file("s.h5") + " --model 2dof --estimate theta99 --no-progress");
   EXPECT_NE(bad.exit_code, 0);
   EXPECT_NE(bad.output.find("theta99"), std::string::npos) << bad.output;

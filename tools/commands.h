@@ -14,6 +14,8 @@ void RegisterIdentifyCommand(CLI::App& app);
 void RegisterDiscoverCommand(CLI::App& app);
 //! Adds `discover` under the `bench` subcommand.
 void RegisterBenchDiscover(CLI::App& bench);
+//! Adds `units` (identification of drawn units) under the `bench` subcommand.
+void RegisterBenchUnits(CLI::App& bench);
 void RegisterSimCommand(CLI::App& app);
 void RegisterImportCommand(CLI::App& app);
 

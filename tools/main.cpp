@@ -38,6 +38,7 @@ int main(int argc, char** argv) {
   strut::tools::RegisterDiscoverCommand(app);
   strut::tools::RegisterBenchCommand(app);
   strut::tools::RegisterBenchDiscover(*app.get_subcommand("bench"));
+  strut::tools::RegisterBenchUnits(*app.get_subcommand("bench"));
   strut::tools::RegisterSimCommand(app);
   strut::tools::RegisterImportCommand(app);
 

@@ -231,7 +231,7 @@ FitSummary Estimator::Fit(const std::vector<ExperimentData>& data, const Paramet
     // then far too narrow. Each parameter's sd is widened to what the experiments' disagreement
     // implies (the sandwich over experiments) where that is larger.
     const std::vector<double> ratios = problem.NoiseRatios();
-    const bool above_floor = std::any_of(ratios.begin(), ratios.end(), [](double r) { return !(r < kNoiseFloorRatio); });
+    const bool above_floor = std::any_of(ratios.begin(), ratios.end(), [](double r) { return r >= kNoiseFloorRatio; });
     if (above_floor) {
       const Eigen::MatrixXd robust = ExperimentSandwich(posterior.covariance, eq.experiment_gradient);
       summary.misfit_sd_factor.assign(np, NAN);
@@ -314,8 +314,9 @@ const char* ToString(FitVerdict verdict) {
 
 FitVerdict FitSummary::Verdict() const {
   if (!converged || !IsSolutionUsable()) return FitVerdict::kNotConverged;
+  // A channel whose noise is unknown (one recorded period) cannot say it is above the floor.
   for (const FitChannel& c : channels)
-    if (!(c.noise_ratio < kNoiseFloorRatio)) return FitVerdict::kAboveNoiseFloor;
+    if (c.noise_ratio >= kNoiseFloorRatio) return FitVerdict::kAboveNoiseFloor;
   return FitVerdict::kAtNoiseFloor;
 }
 
@@ -324,6 +325,10 @@ std::string FitSummary::VerdictText() const {
   for (const FitChannel& c : channels) ratios += fmt::format("{}{} {:.2f}", ratios.empty() ? "" : ", ", c.name, c.noise_ratio);
   switch (Verdict()) {
     case FitVerdict::kAtNoiseFloor:
+      if (std::none_of(channels.begin(), channels.end(), [](const FitChannel& c) { return std::isfinite(c.noise_ratio); }))
+        return fmt::format("Converged. The noise floor is unknown (fewer than 2 recorded periods), so whether the "
+                           "model {} explains all the data can show cannot be judged.",
+                           model);
       return fmt::format("Converged at the noise floor (residual over noise variance: {}): the model {} explains all "
                          "the data can show.",
                          ratios, model);

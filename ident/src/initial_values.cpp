@@ -189,13 +189,14 @@ ParameterSet InitialValuesFromData(const Model& model, const std::vector<Experim
   const auto note = [&](const std::string& line) {
     if (log) log->push_back(line);
   };
+  // Where each value came from; one log line per parameter at the end (a later rule may refine
+  // what an earlier one set).
+  std::vector<std::string> source_of(values.size(), "physical default");
   const auto set = [&](int index, double value, const std::string& source) {
     const int position = values.position_of_index(index);
     if (position < 0 || !std::isfinite(value)) return;
     values.values()[position] = value;
-    if (sources) (*sources)[position] = source;
-    note(fmt::format("{} {} = {:.6g} {} ({})", values.spec(position).key(), values.spec(position).name, value,
-                     values.spec(position).unit, source));
+    source_of[position] = source;
   };
   // The slowest experiment (largest amplitude among equals) is the closest to static.
   const ExperimentData* slow = nullptr;
@@ -298,13 +299,10 @@ ParameterSet InitialValuesFromData(const Model& model, const std::vector<Experim
   } else {
     note("no experiment with stroke, force and pressure: all starting values are the model defaults");
   }
-  for (int i = 0; i < values.size(); ++i) {
-    const int index = values.spec(i).index;
-    if (index == 4 || index == 5 || index == 6 || index == 11) continue;
-    if ((index >= 7 && index <= 10) && slow && !(index == 7 && model.has_term("gas-solubility"))) continue;
-    note(fmt::format("{} {} = {:.6g} {} (physical default)", values.spec(i).key(), values.spec(i).name, values.value(i),
-                     values.spec(i).unit));
-  }
+  for (int i = 0; i < values.size(); ++i)
+    note(fmt::format("{} {} = {:.6g} {} ({})", values.spec(i).key(), values.spec(i).name, values.value(i),
+                     values.spec(i).unit, source_of[i]));
+  if (sources) *sources = source_of;
   return values;
 }
 

@@ -183,7 +183,12 @@ FitPlan PlanFit(const Model& model, const FitData& data, const SessionFitOptions
       const auto& prior = plan.choices[est[kept[a]]].prior_sd;
       if (prior) h(a, a) += std::pow(scale[est[kept[a]]] / *prior, 2);
     }
-    const Eigen::VectorXd sd = h.completeOrthogonalDecomposition().pseudoInverse().diagonal().cwiseMax(0.0).cwiseSqrt();
+    // A ridge far below any determined parameter's information: a direction the data do not see at
+    // all (a term whose effect no experiment reaches has exactly zero sensitivity) gets a huge sd
+    // instead of the pseudo-inverse's zero.
+    const double ridge = 1e-12 * std::max(h.diagonal().maxCoeff(), 1e-300);
+    h.diagonal().array() += ridge;
+    const Eigen::VectorXd sd = h.ldlt().solve(Eigen::MatrixXd::Identity(m, m)).diagonal().cwiseMax(0.0).cwiseSqrt();
     // In scaled units the typical size is 1 (or the start's size when that is larger).
     Eigen::Index worst = -1;
     double worst_ratio = 1.0;

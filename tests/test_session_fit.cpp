@@ -1,0 +1,161 @@
+// The one entry point for a fit from sessions, on units drawn away from the model's defaults.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <fstream>
+#include <nlohmann/json.hpp>
+
+#include "strut/ident/session_fit.h"
+#include "strut/sim/draw.h"
+#include "strut/sim/periodic_session.h"
+#include "strut/sim/recorded_truth.h"
+#include "strut/sim/simulated_rig.h"
+#include "test_support.h"
+
+namespace strut::ident {
+namespace {
+
+//! The shipped rig with an ideal actuator and perfectly calibrated transducers: what the damper
+//! model describes (docs/identification.md, "Drawn units").
+sim::Truth IdealRig() {
+  sim::Truth t = sim::DefaultTruth();
+  t.actuator.ideal = true;
+  for (sim::SensorOptions* s : {&t.sensors.stroke, &t.sensors.force, &t.sensors.pressure}) s->offset = s->gain_error = 0.0;
+  return t;
+}
+
+daq::Session DrawnSession(unsigned long seed) {
+  const sim::SimulatedRig rig(sim::DrawUnit(IdealRig(), sim::UnitDraw{}, seed));
+  sim::RigRunOptions run;
+  run.seed = seed;
+  return rig.RunMatrix(sim::StandardMatrixPlan(), run);
+}
+
+TEST(SessionFit, DefaultsIdentifyADrawnUnitToItsNoiseFloor) {
+  for (const unsigned long seed : {21ul, 22ul}) {
+    SCOPED_TRACE(seed);
+    const daq::Session session = DrawnSession(seed);
+    const auto truth = sim::ReadRecordedTruth(session);
+    ASSERT_TRUE(truth);
+    SessionFitOptions options;  // 2dof, stroke input, every parameter the data determine
+    const Model model = Model::Build(options.composition, options.causality);
+    const SessionFit fit = FitPrepared(PrepareFitData(session, "drawn", model, options.estimator.n), model, options);
+    ASSERT_EQ(fit.summary.Verdict(), FitVerdict::kAtNoiseFloor) << fit.summary.FullReport();
+    // The wide set: all but gravity and the ambient temperature, the stroke zero with its prior.
+    int estimated = 0;
+    for (int i = 0; i < fit.plan.start.size(); ++i) {
+      const int index = fit.plan.start.spec(i).index;
+      EXPECT_EQ(fit.plan.choices[i].estimate, index != 2 && index != 17) << index;
+      estimated += fit.plan.choices[i].estimate;
+      if (index == 12) {
+        ASSERT_TRUE(fit.plan.choices[i].prior_sd);
+        EXPECT_EQ(*fit.plan.choices[i].prior_sd, kStrokeZeroPriorSd);
+      }
+    }
+    EXPECT_EQ(estimated, 13);
+    // Every estimate within 3.5 sd of the drawn truth (no parameter sits at a default).
+    for (int i : fit.summary.estimated_positions) {
+      const ParameterSpec& spec = fit.summary.parameters.spec(i);
+      const double t = truth->parameters.get(spec.key());
+      EXPECT_LT(std::abs(fit.summary.parameters.value(i) - t), 3.5 * fit.summary.sd[i])
+          << spec.key() << " truth " << t << " estimate " << fit.summary.parameters.value(i) << " sd "
+          << fit.summary.sd[i];
+      if (spec.index != 12 && spec.index != 2 && spec.index != 17)
+        EXPECT_GT(std::abs(t / spec.default_value - 1.0), 1e-3) << spec.key() << " left at its default by the draw";
+    }
+  }
+}
+
+TEST(SessionFit, WhatNoExperimentReachesIsFixedAndNamed) {
+  // An end stop 30 mm outside the stroke the matrix uses: nothing in the data can size it.
+  const daq::Session session = DrawnSession(23);
+  SessionFitOptions options;
+  options.composition = "2dof+end-stop";
+  options.assignments = "theta23=-0.03";
+  const Model model = Model::Build(options.composition, options.causality);
+  const FitData data = PrepareFitData(session, "drawn", model, options.estimator.n);
+  const FitPlan plan = PlanFit(model, data, options);
+  const int stiffness = plan.start.position("theta21"), position = plan.start.position("theta23");
+  EXPECT_FALSE(plan.choices[stiffness].estimate && plan.choices[position].estimate);
+  ASSERT_FALSE(plan.undetermined.empty());
+  const std::string named = plan.undetermined.front();
+  EXPECT_TRUE(named.find("theta21") != std::string::npos || named.find("theta23") != std::string::npos) << named;
+  // The plan's log shows the values as used: theta23 from --set.
+  bool logged = false;
+  for (const std::string& line : plan.Describe())
+    logged = logged || (line.find("theta23") != std::string::npos && line.find("-0.03") != std::string::npos &&
+                        line.find("--set") != std::string::npos);
+  EXPECT_TRUE(logged);
+  // The paper's set on request.
+  options.estimate = "paper";
+  const FitPlan paper = PlanFit(model, data, options);
+  int count = 0;
+  for (const auto& c : paper.choices) count += c.estimate;
+  EXPECT_EQ(count, 5);  // theta4, theta6, theta16, theta11, theta12
+}
+
+TEST(SessionFit, ExcludeLeavesOutExperimentsAndChannelsAndNamesMistakes) {
+  const daq::Session session = DrawnSession(24);
+  const Model model = Model::Build("2dof", Causality::kStrokeInput);
+  const FitData data = PrepareFitData(session, "drawn", model, 800, {"a", "c:force"});
+  EXPECT_EQ(data.experiments.size(), 13u);
+  for (const auto& e : data.experiments) EXPECT_NE(e.label, "a");
+  bool excluded = false;
+  for (const auto& issue : data.issues) excluded = excluded || (issue.experiment == "c" && issue.channel == "force");
+  EXPECT_TRUE(excluded);
+  EXPECT_EQ(data.excluded.size(), 2u);
+  try {
+    PrepareFitData(session, "drawn", model, 800, {"zz"});
+    FAIL() << "an exclusion that names nothing must be refused";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("zz"), std::string::npos) << e.what();
+  }
+}
+
+TEST(IdentifyCommand, ExitCodesSayWhetherTheFitReachedTheNoiseFloor) {
+  test::TempDir dir;
+  // 2 dof data: 2dof reaches the floor (0), 1dof does not (3).
+  std::vector<rig::MatrixEntry> matrix;
+  for (const auto& e : rig::StandardMatrix())
+    if (std::string("bcghkl").find(e.label) != std::string::npos) matrix.push_back(e);
+  const ParameterSet truth = Model::Build("2dof", Causality::kStrokeInput).defaults();
+  daq::WriteSession(dir.file("s.h5"), sim::SimulatePeriodicSession("2dof", truth.values(), matrix, {}));
+  const auto good = test::RunStrut("identify " + dir.file("s.h5") + " --no-progress --json " + dir.file("fit.json"));
+  EXPECT_EQ(good.exit_code, 0) << good.output;
+  std::ifstream in(dir.file("fit.json"));
+  const nlohmann::json j = nlohmann::json::parse(in);
+  EXPECT_EQ(j["verdict"], "at-noise-floor");
+  const auto poor = test::RunStrut("identify " + dir.file("s.h5") + " --model 1dof --no-progress");
+  EXPECT_EQ(poor.exit_code, 3) << poor.output;
+  EXPECT_NE(poor.output.find("ABOVE THE NOISE FLOOR"), std::string::npos) << poor.output;
+  EXPECT_NE(poor.output.find("strut discover"), std::string::npos);
+  // A fit that cannot converge in one iteration: exit 2.
+  const auto stopped =
+      test::RunStrut("identify " + dir.file("s.h5") + " --no-progress --set theta15=40,theta16=6 --exclude b");
+  EXPECT_TRUE(stopped.exit_code == 0 || stopped.exit_code == 2 || stopped.exit_code == 3) << stopped.output;
+}
+
+TEST(IdentifyCommand, OutputsNeverReplaceAnInputOrASession) {
+  test::TempDir dir;
+  std::vector<rig::MatrixEntry> matrix;
+  for (const auto& e : rig::StandardMatrix())
+    if (std::string("bh").find(e.label) != std::string::npos) matrix.push_back(e);
+  const ParameterSet truth = Model::Build("2dof", Causality::kStrokeInput).defaults();
+  daq::WriteSession(dir.file("a.h5"), sim::SimulatePeriodicSession("2dof", truth.values(), matrix, {}));
+  daq::WriteSession(dir.file("b.h5"), sim::SimulatePeriodicSession("2dof", truth.values(), matrix, {}));
+  const std::string before = test::ReadFile(dir.file("a.h5"));
+  // The natural slip: --json A.h5 B.h5 (info --json is a switch, identify --json takes a file).
+  const auto slip = test::RunStrut("identify --json " + dir.file("a.h5") + " " + dir.file("b.h5") + " --no-progress");
+  EXPECT_EQ(slip.exit_code, 1) << slip.output;
+  EXPECT_NE(slip.output.find("a.h5"), std::string::npos) << slip.output;
+  EXPECT_EQ(test::ReadFile(dir.file("a.h5")), before);
+  const auto same = test::RunStrut("identify " + dir.file("a.h5") + " --report " + dir.file("a.h5") + " --no-progress");
+  EXPECT_EQ(same.exit_code, 1);
+  EXPECT_EQ(test::ReadFile(dir.file("a.h5")), before);
+  const auto missing = test::RunStrut("identify " + dir.file("a.h5") + " --json " + dir.file("no/such/dir/f.json"));
+  EXPECT_EQ(missing.exit_code, 1);
+  EXPECT_NE(missing.output.find("does not exist"), std::string::npos) << missing.output;
+}
+
+}  // namespace
+}  // namespace strut::ident

@@ -16,6 +16,10 @@ Eigen::VectorXd ScaledBounds::Project(const Eigen::VectorXd& x) const {
 
 double BardStep::StepInSd() const { return step.size() == 0 ? 0.0 : (step.array().abs() / sd.array()).maxCoeff(); }
 
+double BardStep::NewtonInSd() const {
+  return newton.size() == 0 ? 0.0 : (newton.array().abs() / sd.array()).maxCoeff();
+}
+
 BardStep ComputeBardStep(const Eigen::MatrixXd& h, const Eigen::VectorXd& g, const Eigen::VectorXd& x,
                          const ScaledPriors& priors, const ScaledBounds& bounds, double damping_sd) {
   const Eigen::Index l = g.size();
@@ -31,6 +35,7 @@ BardStep ComputeBardStep(const Eigen::MatrixXd& h, const Eigen::VectorXd& g, con
   // Parameters held at a bound: those sitting on it whose free step would leave the box. The step
   // of the others is solved again without them (an active set; one pass settles the usual case).
   std::vector<bool> held(l, false);
+  result.newton = Eigen::VectorXd::Zero(l);
   for (int pass = 0; pass < 2; ++pass) {
     std::vector<Eigen::Index> free;
     for (Eigen::Index k = 0; k < l; ++k)
@@ -43,8 +48,11 @@ BardStep ComputeBardStep(const Eigen::MatrixXd& h, const Eigen::VectorXd& g, con
       damped(a, a) += 1.0 / (damping_sd * damping_sd);
     }
     const Eigen::VectorXd step = damped.ldlt().solve(rhs);
+    for (std::size_t a = 0; a < free.size(); ++a) damped(a, a) -= 1.0 / (damping_sd * damping_sd);
+    const Eigen::VectorXd newton = damped.ldlt().solve(rhs);
     result.step.setZero();
-    for (std::size_t a = 0; a < free.size(); ++a) result.step[free[a]] = step[a];
+    result.newton.setZero();
+    for (std::size_t a = 0; a < free.size(); ++a) result.step[free[a]] = step[a], result.newton[free[a]] = newton[a];
     if (bounds.lower.size() != l) break;
     bool changed = false;
     for (Eigen::Index k = 0; k < l; ++k) {
@@ -54,7 +62,7 @@ BardStep ComputeBardStep(const Eigen::MatrixXd& h, const Eigen::VectorXd& g, con
     }
     if (!changed) break;
   }
-  result.finite = result.step.allFinite();
+  result.finite = result.step.allFinite() && result.newton.allFinite();
   // Held parameters do not count against convergence: their step is zero.
   return result;
 }

@@ -162,9 +162,10 @@ FitSummary Estimator::Fit(const std::vector<ExperimentData>& data, const Paramet
       summary.warnings.push_back("estimator: the normal equations became singular; stopped");
       break;
     }
-    // At the optimum to the tolerance already: the step needs no trial solves (at the optimum the
-    // line search could only halve through rounding, one round of solves per halving).
-    if (step.StepInSd() < options_.step_tolerance) {
+    // At the optimum to the tolerance already (the undamped step: a damped one can be tiny far from
+    // the optimum, in a narrow valley): no trial solves (at the optimum the line search could only
+    // halve through rounding, one round of solves per halving).
+    if (step.NewtonInSd() < options_.step_tolerance) {
       converged = true;
       break;
     }
@@ -197,7 +198,7 @@ FitSummary Estimator::Fit(const std::vector<ExperimentData>& data, const Paramet
     summary.history.push_back({iteration + 1, objective, accepted ? lambda : 0.0, theta});
     if (!accepted) {
       // No improvement along the damped step: at the optimum to the accuracy the solutions allow.
-      converged = step.StepInSd() < 0.1;
+      converged = step.NewtonInSd() < 0.1;
       if (!converged) summary.warnings.push_back("estimator: no improvement along the Gauss-Newton step; stopped");
       break;
     }
@@ -211,7 +212,7 @@ FitSummary Estimator::Fit(const std::vector<ExperimentData>& data, const Paramet
       continue;
     }
     damping_sd = lambda == 1.0 ? std::min(damping_sd * 2.0, 1e3) : std::max(damping_sd * 0.25, 1e-6);
-    converged = (taken.array().abs() / step.sd.array()).maxCoeff() < options_.step_tolerance;
+    // Convergence is judged at the top of the next iteration, on its undamped step.
     reuse_sensitivities = taken.cwiseAbs().maxCoeff() < kFrozenSensitivityStep;
   }
   summary.converged = converged;

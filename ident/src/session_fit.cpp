@@ -123,6 +123,7 @@ std::vector<std::string> FitPlan::Describe() const {
 FitPlan PlanFit(const Model& model, const FitData& data, const SessionFitOptions& options) {
   FitPlan plan;
   plan.start = InitialValuesFromData(model, data.experiments, nullptr, &plan.sources);
+  plan.data_start = plan.start;
   // The user's values win over the data's: the file, then the assignments.
   std::vector<ParameterFileEntry> file;
   if (!options.params_file.empty()) {
@@ -216,8 +217,29 @@ SessionFit FitPrepared(FitData data, const Model& model, const SessionFitOptions
                        const std::function<void(const FitProgress&)>& progress) {
   SessionFit fit{model, std::move(data), {}, {}};
   fit.plan = PlanFit(fit.model, fit.data, options);
-  fit.summary = Estimator(fit.model, options.estimator)
-                    .Fit(fit.data.experiments, fit.plan.start, fit.plan.choices, fit.data.issues, progress);
+  const Estimator estimator(fit.model, options.estimator);
+  fit.summary = estimator.Fit(fit.data.experiments, fit.plan.start, fit.plan.choices, fit.data.issues, progress);
+  if (fit.summary.Verdict() != FitVerdict::kAtNoiseFloor && fit.plan.data_start.values() != fit.plan.start.values()) {
+    // A second start: the data's own values (what a fit of an unknown unit starts from).
+    ParameterSet second = fit.plan.data_start;
+    for (int i = 0; i < second.size(); ++i)
+      if (fit.plan.choices[i].prior_sd || !fit.plan.choices[i].estimate) second.values()[i] = fit.plan.start.value(i);
+    FitSummary other = estimator.Fit(fit.data.experiments, second, fit.plan.choices, fit.data.issues, progress);
+    const auto objective = [](const FitSummary& s) {
+      return s.IsSolutionUsable() && !s.history.empty() ? s.history.back().objective : -INFINITY;
+    };
+    const bool better = (other.converged && !fit.summary.converged) ||
+                        (other.converged == fit.summary.converged && objective(other) > objective(fit.summary));
+    spdlog::info("the fit from the given starting values {}; from the data's own: {}{}",
+                 ToString(fit.summary.Verdict()), ToString(other.Verdict()), better ? " (kept)" : "");
+    if (better) {
+      other.warnings.push_back(fmt::format(
+          "the fit from the given starting values ended {} (log-posterior {:.6g}); this one, from the data's own "
+          "starting values, reached {:.6g}",
+          ToString(fit.summary.Verdict()), objective(fit.summary), objective(other)));
+      fit.summary = std::move(other);
+    }
+  }
   for (const std::string& u : fit.plan.undetermined)
     fit.summary.warnings.push_back("fixed at its starting value, the data do not determine it: " + u);
   return fit;

@@ -27,9 +27,14 @@ struct ScaledBounds {
 struct BardStep {
   Eigen::VectorXd step;  //!< scaled
   Eigen::VectorXd sd;    //!< posterior sd of each parameter (information plus priors, no damping), scaled
+  //! The undamped Gauss-Newton step (the same system without the damping prior), scaled: how far
+  //! the optimum still is. A damped step can be tiny far from it, in a narrow valley.
+  Eigen::VectorXd newton;
   bool finite = false;
-  //! Largest |step| / sd: the step in units of the posterior uncertainty (the convergence measure).
+  //! Largest |step| / sd: the damped step in units of the posterior uncertainty.
   double StepInSd() const;
+  //! Largest |newton| / sd: the distance to the optimum in posterior sd (the convergence measure).
+  double NewtonInSd() const;
 };
 
 //! Eq. 19: the Gauss-Newton step for the information `h` and gradient `g` (J^T W J, J^T W e) with

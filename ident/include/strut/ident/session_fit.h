@@ -51,6 +51,7 @@ FitData PrepareFitData(const daq::Session& session, const std::string& name, con
 //! What a fit starts from and what it estimates.
 struct FitPlan {
   ParameterSet start;
+  ParameterSet data_start;  //!< the starting values from the data alone (a second start: FitPrepared)
   std::vector<ParameterChoice> choices;
   std::vector<std::string> sources;       //!< per parameter: where its starting value came from
   std::vector<std::string> undetermined;  //!< parameters fixed because the data do not determine them, with why
@@ -74,7 +75,10 @@ struct SessionFit {
 //! Reads, plans and fits.
 SessionFit FitSessions(const std::vector<std::string>& sessions, const SessionFitOptions& options,
                        const std::function<void(const FitProgress&)>& progress = {});
-//! Plans and fits already prepared data.
+//! Plans and fits already prepared data. When the fit from the plan's start (the user's values
+//! over the data's) is not converged or not at the noise floor and the user's values differ from
+//! the data's, it is repeated from the data's own starting values (the parameters with a prior keep
+//! the user's value, the prior's mean) and the better posterior is kept; the summary says so.
 SessionFit FitPrepared(FitData data, const Model& model, const SessionFitOptions& options,
                    const std::function<void(const FitProgress&)>& progress = {});
 

@@ -373,6 +373,14 @@ class TallyingPredictor : public ident::PeriodicPredictor {
     tally_->sensitivity_ms += std::chrono::duration<double, std::milli>(Clock::now() - start).count();
     return s;
   }
+  std::vector<Eigen::MatrixXd> InputSensitivities(const ident::PeriodicSolution& solution,
+                                                  std::span<const double> theta, const Eigen::MatrixXd& directions,
+                                                  bool exact) override {
+    const auto start = Clock::now();
+    auto s = inner_->InputSensitivities(solution, theta, directions, exact);
+    tally_->sensitivity_ms += std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+    return s;
+  }
 
  private:
   std::unique_ptr<ident::PeriodicPredictor> inner_;

@@ -15,10 +15,7 @@ Eigen::VectorXd ScaledBounds::Project(const Eigen::VectorXd& x) const {
   return x.cwiseMax(lower).cwiseMin(upper);
 }
 
-double BardStep::StepInSd() const {
-  const double parameters = step.size() == 0 ? 0.0 : (step.array().abs() / sd.array()).maxCoeff();
-  return std::max(parameters, nuisance_step_in_sd);
-}
+double BardStep::StepInSd() const { return step.size() == 0 ? 0.0 : (step.array().abs() / sd.array()).maxCoeff(); }
 
 void EliminateNuisance(const std::vector<NuisanceBlock>& nuisance, Eigen::MatrixXd& h, Eigen::VectorXd& g) {
   for (const NuisanceBlock& b : nuisance) {

@@ -520,15 +520,22 @@ NormalEquations FitProblem::Linearise(const std::vector<double>& theta, const st
   ParallelFor(experiment_count(), threads_, [&](int a) {
     Experiment& s = experiments_[a];
     if (!s.active) return;
-    const bool with_estimate = mode.inputs && s.estimate;
-    if (with_estimate && (!mode.reuse || static_cast<int>(s.estimate->sensitivities_at_phases.size()) != nc)) {
+    if (mode.inputs && s.estimate &&
+        (!mode.reuse || static_cast<int>(s.estimate->sensitivities_at_phases.size()) != nc)) {
       // d(outputs)/d xi: a forward solve per coefficient with eq. 14's factorisation.
       const auto sens = s.solver->InputSensitivities(s.solution, theta, s.estimate->directions, mode.exact);
-      if (sens.empty()) throw std::invalid_argument("estimator: this predictor cannot estimate the input");
-      s.estimate->sensitivities_at_phases.assign(nc, Eigen::MatrixXd());
-      for (int b = 0; b < nc; ++b)
-        if (s.channel_fitted[b]) s.estimate->sensitivities_at_phases[b] = s.AtPhasesColumns(sens[output_row_[b]]);
+      if (sens.empty()) {
+        // A predictor without input sensitivities (transient integration): the input stays as it is.
+        spdlog::warn("experiment '{}': the predictor has no input sensitivities; its input is not estimated",
+                     s.data->label);
+        s.estimate.reset();
+      } else {
+        s.estimate->sensitivities_at_phases.assign(nc, Eigen::MatrixXd());
+        for (int b = 0; b < nc; ++b)
+          if (s.channel_fitted[b]) s.estimate->sensitivities_at_phases[b] = s.AtPhasesColumns(sens[output_row_[b]]);
+      }
     }
+    const bool with_estimate = mode.inputs && s.estimate;
     if (!mode.reuse || static_cast<int>(s.sensitivities_at_phases.size()) != nc) {
       const auto sens = s.solver->OutputSensitivities(s.solution, theta, estimated_, mode.exact);
       s.sensitivities_at_phases.assign(nc, Eigen::MatrixXd());

@@ -47,8 +47,8 @@ struct BardStep {
   std::vector<Eigen::VectorXd> nuisance_step;
   //! Largest |nuisance step| over its sd given the parameters (sqrt of diag A^-1); 0 without.
   double nuisance_step_in_sd = 0.0;
-  //! Largest |step| / sd over the parameters and the nuisance: the step in units of the posterior
-  //! uncertainty (the convergence measure).
+  //! Largest |step| / sd: the step in units of the posterior uncertainty (the convergence measure;
+  //! with nuisance blocks the parameters' step already allows for the nuisance's pending one).
   double StepInSd() const;
 };
 

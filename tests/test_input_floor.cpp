@@ -68,16 +68,21 @@ TEST(InputFloor, IdealActuatorHighStaticExperimentsReachTheForceFloor) {
   for (const auto& [label, ratio] : ratios) EXPECT_LT(ratio, 1.3) << "experiment " << label;
 }
 
-// The open defect (fails today: 11 and 27 on the full matrix, seed 1). Behind the servo actuator the
-// damper's stroke carries the loop's reaction to the valve-flow switch at each velocity reversal:
-// a few mm/s of velocity over 10-30 ms, spread over harmonics 5-30 at 1e-7..4e-6 m, below the
-// stroke coefficients' noise (1.2-1.8e-6 m). The friction (atan(theta10 q'), 0.33 mm/s wide)
-// turns the reversal's timing into up to 1.1 kN of force. No threshold of the input series recovers
-// it; enable when the input is estimated together with the parameters (errors in variables).
-TEST(InputFloor, DISABLED_ServoActuatorHighStaticExperimentsReachTheForceFloor) {
+// Behind the servo actuator the damper's stroke carries the loop's reaction to the valve-flow switch
+// at each velocity reversal: a few mm/s of velocity over 10-30 ms, spread over harmonics 5-30 at
+// 1e-7..4e-6 m, below the stroke coefficients' noise (1.2-1.8e-6 m). The friction (atan(theta10 q'),
+// 0.33 mm/s wide) turns the reversal's timing into up to 1.1 kN of force. No threshold of the input
+// series recovers it (12.7 and 52.8 here with the thresholded series); the input estimated with the
+// parameters (errors in variables, EstimatorOptions::estimate_input) does: 0.98 and 0.73.
+TEST(InputFloor, ServoActuatorHighStaticExperimentsReachTheForceFloor) {
   const auto ratios = ForceRatios(false);
   ASSERT_EQ(ratios.size(), 2u);
-  for (const auto& [label, ratio] : ratios) EXPECT_LT(ratio, 1.3) << "experiment " << label;
+  for (const auto& [label, ratio] : ratios) {
+    EXPECT_LT(ratio, 1.3) << "experiment " << label;
+    // The ratio is over the residual's degrees of freedom less those the estimated input takes; far
+    // below 1 would be the input fitting the force's noise beyond them.
+    EXPECT_GT(ratio, 0.5) << "experiment " << label;
+  }
 }
 
 }  // namespace

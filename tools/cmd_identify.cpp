@@ -23,6 +23,8 @@ struct IdentifyCommand {
   std::string json_path, report_path;
   int n = 800;
   std::string scheme = "backward2";
+  std::string estimate_input = "auto";
+  int input_harmonics = 20;
   bool no_progress = false;
 
   void Run() const {
@@ -40,6 +42,8 @@ struct IdentifyCommand {
     options.exclude = exclude;
     options.estimator.n = n;
     options.estimator.scheme = ident::ParseScheme(scheme);
+    if (estimate_input != "auto") options.estimator.estimate_input = estimate_input == "on";
+    options.estimator.input_harmonics = input_harmonics;
     const ident::Model m = model.BuildModel();
     ident::FitData data = ident::ReadFitData(sessions, m, n, exclude);
     for (const auto& issue : data.issues)
@@ -106,6 +110,15 @@ void RegisterIdentifyCommand(CLI::App& app) {
   sub->add_option("--n", command->n, "Grid points per period.")->check(CLI::Range(16, 100000))->capture_default_str();
   sub->add_option("--scheme", command->scheme, "Difference scheme: backward2, central2, central4 or spectral.")
       ->check(CLI::IsMember({"backward2", "central2", "central4", "spectral"}))
+      ->capture_default_str();
+  sub->add_option("--estimate-input", command->estimate_input,
+                  "Errors in variables: estimate the measured input's Fourier coefficients with the parameters "
+                  "(auto: on for stroke input, off for force input).")
+      ->check(CLI::IsMember({"auto", "on", "off"}))
+      ->capture_default_str();
+  sub->add_option("--input-harmonics", command->input_harmonics,
+                  "Highest harmonic of the input estimated (capped below the record's Nyquist).")
+      ->check(CLI::Range(0, 100000))
       ->capture_default_str();
   sub->add_flag("--no-progress", command->no_progress, "Do not show the progress line.");
   sub->callback([command] { command->Run(); });

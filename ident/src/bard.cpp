@@ -1,5 +1,6 @@
 #include "strut/ident/bard.h"
 
+#include <algorithm>
 #include <cmath>
 
 namespace strut::ident {
@@ -20,8 +21,20 @@ double BardStep::NewtonInSd() const {
   return newton.size() == 0 ? 0.0 : (newton.array().abs() / sd.array()).maxCoeff();
 }
 
-BardStep ComputeBardStep(const Eigen::MatrixXd& h, const Eigen::VectorXd& g, const Eigen::VectorXd& x,
-                         const ScaledPriors& priors, const ScaledBounds& bounds, double damping_sd) {
+void EliminateNuisance(const std::vector<NuisanceBlock>& nuisance, Eigen::MatrixXd& h, Eigen::VectorXd& g) {
+  for (const NuisanceBlock& b : nuisance) {
+    if (b.empty()) continue;
+    const Eigen::LLT<Eigen::MatrixXd> a(b.information);  // positive definite: the prior's I is in it
+    const Eigen::MatrixXd ct = a.solve(b.coupling.transpose());  // A^-1 C^T
+    h.noalias() -= b.coupling * ct;
+    g.noalias() -= ct.transpose() * b.gradient;
+  }
+}
+
+namespace {
+
+BardStep ParameterStep(const Eigen::MatrixXd& h, const Eigen::VectorXd& g, const Eigen::VectorXd& x,
+                       const ScaledPriors& priors, const ScaledBounds& bounds, double damping_sd) {
   const Eigen::Index l = g.size();
   Eigen::MatrixXd posterior = h;
   Eigen::VectorXd gradient = g;
@@ -67,12 +80,56 @@ BardStep ComputeBardStep(const Eigen::MatrixXd& h, const Eigen::VectorXd& g, con
   return result;
 }
 
+}  // namespace
+
+BardStep ComputeBardStep(const Eigen::MatrixXd& h, const Eigen::VectorXd& g, const Eigen::VectorXd& x,
+                         const ScaledPriors& priors, const ScaledBounds& bounds, double damping_sd,
+                         const std::vector<NuisanceBlock>& nuisance) {
+  if (nuisance.empty()) return ParameterStep(h, g, x, priors, bounds, damping_sd);
+  // The nuisance damped like the parameters: a prior of sd `damping_sd` (in their prior sd) reset to
+  // the current iterate. Near a velocity reversal the friction makes the outputs far from linear in
+  // the input's high harmonics (one prior sd of harmonic 49 at 2 Hz moves the velocity by three
+  // widths of the friction's arctan), and undamped steps can land in a wrong reversal.
+  std::vector<NuisanceBlock> blocks = nuisance;
+  for (NuisanceBlock& b : blocks)
+    if (!b.empty()) b.information.diagonal().array() += 1.0 / (damping_sd * damping_sd);
+  Eigen::MatrixXd reduced = h;
+  Eigen::VectorXd gradient = g;
+  EliminateNuisance(blocks, reduced, gradient);
+  BardStep result = ParameterStep(reduced, gradient, x, priors, bounds, damping_sd);
+  // Back-substitution per block: A d_c = g_c - C^T d (d the parameter step as taken).
+  result.nuisance_step.assign(nuisance.size(), Eigen::VectorXd());
+  for (std::size_t a = 0; a < nuisance.size(); ++a) {
+    const NuisanceBlock& b = blocks[a];
+    if (b.empty()) continue;
+    const Eigen::LLT<Eigen::MatrixXd> llt(b.information);
+    Eigen::VectorXd& d = result.nuisance_step[a];
+    d = llt.solve(b.gradient - b.coupling.transpose() * result.step);
+    // Its sd given the parameters, without the damping (the convergence measure).
+    const Eigen::VectorXd sd = Eigen::LLT<Eigen::MatrixXd>(nuisance[a].information)
+                                   .solve(Eigen::MatrixXd::Identity(d.size(), d.size()))
+                                   .diagonal()
+                                   .cwiseMax(1e-300)
+                                   .cwiseSqrt();
+    result.nuisance_step_in_sd = std::max(result.nuisance_step_in_sd, (d.array().abs() / sd.array()).maxCoeff());
+    result.finite = result.finite && d.allFinite();
+  }
+  return result;
+}
+
 Posterior PosteriorCovariance(const Eigen::MatrixXd& information, const Eigen::MatrixXd& input_noise,
-                              const ScaledPriors& priors) {
+                              const ScaledPriors& priors, const std::vector<NuisanceBlock>& nuisance) {
   const Eigen::Index l = information.rows();
   Posterior p;
   Eigen::MatrixXd h = information;
   if (priors.precision.size() == l) h.diagonal() += priors.precision;
+  // The output noise alone (no input estimated, no sandwich): what input_noise_factor compares with.
+  const Eigen::VectorXd output_only = h.completeOrthogonalDecomposition().pseudoInverse().diagonal();
+  if (!nuisance.empty()) {
+    Eigen::VectorXd unused = Eigen::VectorXd::Zero(l);
+    EliminateNuisance(nuisance, h, unused);
+    h = 0.5 * (h + h.transpose());
+  }
   // Near-null directions of the information normalised to a unit diagonal: collinearity among the
   // parameters, whatever their scales (a prior's small precision on its own is not one).
   const Eigen::VectorXd norm = h.diagonal().cwiseMax(1e-300).cwiseSqrt().cwiseInverse();
@@ -85,15 +142,15 @@ Posterior PosteriorCovariance(const Eigen::MatrixXd& information, const Eigen::M
     p.undetermined.push_back(members);
   }
   p.covariance = h.completeOrthogonalDecomposition().pseudoInverse();
-  p.input_noise_factor = Eigen::VectorXd::Ones(l);
   if (input_noise.rows() == l && l > 0 && input_noise.allFinite()) {
     // Errors in variables: the measured input's noise moves the estimate by H^-1 J^T W dy; its
     // covariance (the sandwich H^-1 N H^-1) adds to the output-noise part H^-1.
     const Eigen::MatrixXd extra = p.covariance * input_noise * p.covariance;
-    for (Eigen::Index a = 0; a < l; ++a)
-      p.input_noise_factor[a] = std::sqrt(1.0 + extra(a, a) / std::max(p.covariance(a, a), 1e-300));
     p.covariance += extra;
   }
+  p.input_noise_factor = Eigen::VectorXd::Ones(l);
+  for (Eigen::Index a = 0; a < l; ++a)
+    if (output_only[a] > 0) p.input_noise_factor[a] = std::sqrt(std::max(p.covariance(a, a), 0.0) / output_only[a]);
   return p;
 }
 

@@ -24,6 +24,7 @@ bool EstimatorOptions::IsValid(std::string* error) const {
   if (start_up_periods < 0) return fail("start_up_periods must not be negative");
   if (coarse_points < 0) return fail("coarse_points must not be negative");
   if (threads < 0) return fail("threads must not be negative");
+  if (input_harmonics < 0) return fail("input_harmonics must not be negative");
   return true;
 }
 
@@ -142,7 +143,8 @@ FitSummary Estimator::Fit(const std::vector<ExperimentData>& data, const Paramet
     throw std::runtime_error("estimator: no experiment has a periodic solution at the starting values");
   Eigen::VectorXd x = scaled(theta);
   ResidualSums current = problem.Evaluate();
-  double objective = current.LogLikelihood() + priors.LogDensity(x);
+  // With estimated inputs (errors in variables) the objective also has their prior.
+  double objective = current.LogLikelihood() + priors.LogDensity(x) + problem.InputLogPrior();
   summary.history.push_back({0, objective, 0.0, theta});
 
   // The staged Gauss-Newton iteration of eqs. 18, 19.
@@ -153,11 +155,35 @@ FitSummary Estimator::Fit(const std::vector<ExperimentData>& data, const Paramet
   // size, so after a step below this fraction of every parameter (scaled units) they are within
   // about that fraction, inside the few percent the steps tolerate.
   constexpr double kFrozenSensitivityStep = 0.01;
+  constexpr double kFrozenInputStep = 0.1;
+  // Estimated inputs converge when their steps are below this fraction of their sd (given the
+  // parameters): the parameters' step allows for the inputs' pending one (Schur complement), so the
+  // inputs' tolerance only sets how close the residuals are to their optimum.
+  constexpr double kInputStepTolerance = 0.1;
   bool reuse_sensitivities = false;
+  // Errors in variables (estimated inputs) in two rounds: the parameters first with every input at its
+  // thresholded series, then parameters and inputs together from there. Far from the optimum the
+  // inputs would take up the model's misfit (from 20 % off the friction's sign flipped through
+  // sharpness 0 on the standard matrix), near it they take up what the series truncates.
+  bool estimating_inputs = false;
+  // At a converged iterate: true when the fit goes on with the inputs estimated.
+  const auto estimate_inputs_now = [&] {
+    if (estimating_inputs || !problem.estimates_inputs()) return false;
+    spdlog::debug("fit iteration {}: converged with the measured inputs; now estimating them too", iteration + 1);
+    estimating_inputs = true;
+    reuse_sensitivities = false;
+    // From the optimum with the measured inputs the joint problem starts within its Gauss-Newton range:
+    // almost undamped (sd 30 in scaled units and in the inputs' prior sd; the line search still halves).
+    // Reset to 0.3, the damping held the inputs' first steps to a tenth and took 7 iterations from
+    // the truth on the standard matrix where this takes 4.
+    damping_sd = std::max(damping_sd, 100.0 * options_.damping_relative_sd);
+    return true;
+  };
   for (; iteration < options_.max_iterations && !converged; ++iteration) {
     // Stage 1 (eq. 18): channel variances with bias correction; stage 2 (eq. 19): the step.
-    const NormalEquations eq = problem.Linearise(theta, current.Variances(l), {false, reuse_sensitivities, false});
-    const BardStep step = ComputeBardStep(eq.information, eq.gradient, x, priors, bounds, damping_sd);
+    const NormalEquations eq =
+        problem.Linearise(theta, current.Variances(l), {false, reuse_sensitivities, false, estimating_inputs});
+    const BardStep step = ComputeBardStep(eq.information, eq.gradient, x, priors, bounds, damping_sd, eq.inputs);
     if (!step.finite) {
       summary.warnings.push_back("estimator: the normal equations became singular; stopped");
       break;
@@ -165,7 +191,8 @@ FitSummary Estimator::Fit(const std::vector<ExperimentData>& data, const Paramet
     // At the optimum to the tolerance already (the undamped step: a damped one can be tiny far from
     // the optimum, in a narrow valley): no trial solves (at the optimum the line search could only
     // halve through rounding, one round of solves per halving).
-    if (step.NewtonInSd() < options_.step_tolerance) {
+    if (step.NewtonInSd() < options_.step_tolerance && step.nuisance_step_in_sd < kInputStepTolerance) {
+      if (estimate_inputs_now()) continue;
       converged = true;
       break;
     }
@@ -176,10 +203,11 @@ FitSummary Estimator::Fit(const std::vector<ExperimentData>& data, const Paramet
     for (int halving = 0; halving <= options_.max_halvings; ++halving, lambda *= 0.5) {
       const Eigen::VectorXd trial_x = bounds.Project(x + lambda * step.step);
       const std::vector<double> trial = unscaled(trial_x);
-      std::vector<PeriodicSolution> saved = problem.Snapshot();
+      FitProblem::Saved saved = problem.Snapshot();
+      problem.StepInputs(step.nuisance_step, lambda);
       if (problem.Solve(trial, false, iteration + 1, progress)) {
         const ResidualSums e = problem.Evaluate();
-        const double value = e.LogLikelihood() + priors.LogDensity(trial_x);
+        const double value = e.LogLikelihood() + priors.LogDensity(trial_x) + problem.InputLogPrior();
         if (e.finite && value >= objective - 1e-12 * std::abs(objective)) {
           taken = trial_x - x;
           spdlog::debug("fit iteration {}: loglik {:.6g} (+{:.3g}), step {}, damping sd {:.3g}", iteration + 1, value,
@@ -199,21 +227,28 @@ FitSummary Estimator::Fit(const std::vector<ExperimentData>& data, const Paramet
     if (!accepted) {
       // No improvement along the damped step: at the optimum to the accuracy the solutions allow.
       converged = step.NewtonInSd() < 0.1;
+      if (converged && estimate_inputs_now()) {
+        converged = false;
+        continue;
+      }
       if (!converged) summary.warnings.push_back("estimator: no improvement along the Gauss-Newton step; stopped");
       break;
     }
     // Experiments without a solution at the start may have one now: bring them back in.
     if (problem.Readmit(theta)) {
       current = problem.Evaluate();
-      objective = current.LogLikelihood() + priors.LogDensity(x);
+      objective = current.LogLikelihood() + priors.LogDensity(x) + problem.InputLogPrior();
       summary.history.back().objective = objective;
       reuse_sensitivities = false;
       damping_sd = std::max(damping_sd * 0.25, 1e-6);
       continue;
     }
     damping_sd = lambda == 1.0 ? std::min(damping_sd * 2.0, 1e3) : std::max(damping_sd * 0.25, 1e-6);
-    // Convergence is judged at the top of the next iteration, on its undamped step.
-    reuse_sensitivities = taken.cwiseAbs().maxCoeff() < kFrozenSensitivityStep;
+    // Convergence is judged at the top of the next iteration, on its undamped step. An estimated
+    // input moves the reversals, where the friction makes the sensitivities change fastest: frozen
+    // only after input steps below a tenth of their sd too.
+    reuse_sensitivities = taken.cwiseAbs().maxCoeff() < kFrozenSensitivityStep &&
+                          lambda * step.nuisance_step_in_sd < kFrozenInputStep;
   }
   summary.converged = converged;
   summary.iterations = iteration;
@@ -224,8 +259,8 @@ FitSummary Estimator::Fit(const std::vector<ExperimentData>& data, const Paramet
   const std::vector<double> variance = current.Variances(l);
   summary.sd.assign(np, NAN);
   if (l > 0) {
-    const NormalEquations eq = problem.Linearise(theta, variance, {true, false, options_.input_noise});
-    const Posterior posterior = PosteriorCovariance(eq.information, eq.input_noise, priors);
+    const NormalEquations eq = problem.Linearise(theta, variance, {true, false, options_.input_noise, estimating_inputs});
+    const Posterior posterior = PosteriorCovariance(eq.information, eq.input_noise, priors, eq.inputs);
     Eigen::MatrixXd covariance = posterior.covariance;
     // Honest intervals above the noise floor: residuals of a model that lacks physics are
     // systematic, not white, and the covariance above (white noise at the residual variance) is
@@ -254,7 +289,7 @@ FitSummary Estimator::Fit(const std::vector<ExperimentData>& data, const Paramet
           "beyond any interval",
           channels, widest));
     }
-    if (options_.input_noise && eq.input_noise.size() > 0) {
+    if ((options_.input_noise && eq.input_noise.size() > 0) || !eq.inputs.empty()) {
       summary.input_noise_sd_factor.assign(np, NAN);
       for (int a = 0; a < l; ++a) summary.input_noise_sd_factor[est[a]] = posterior.input_noise_factor[a];
     }

@@ -46,6 +46,8 @@ PeriodicSeries PeriodicSeries::Fit(const Eigen::VectorXd& period, double frequen
   series.frequency = frequency;
   series.coefficients.assign(harmonics + 1, 0.0);
   series.coefficients[0] = spectrum[0] / static_cast<double>(count);
+  series.measured.resize(harmonics + 1);
+  for (int h = 0; h <= harmonics; ++h) series.measured[h] = spectrum[h] / static_cast<double>(count);
   for (int h = 1; h <= harmonics; ++h) {
     if (std::abs(spectrum[h]) <= threshold) continue;
     series.coefficients[h] = spectrum[h] / static_cast<double>(count);
@@ -219,6 +221,7 @@ std::vector<ExperimentData> Prepare(const daq::Session& session, const std::stri
         // b_h = -2 Im c_h has 2 s^2 / count.
         for (std::size_t h = 0; h < series.coefficients.size(); ++h)
           if (h == 0 || series.coefficients[h] != 0.0) d.input_harmonics.push_back(static_cast<int>(h));
+        d.input_measured = series.measured;
         d.input_mean_variance = g.mean_noise_variance / points;
         d.input_harmonic_variance = 2.0 * g.mean_noise_variance / points;
         spdlog::debug("{}: experiment '{}': {} input from {} harmonics", file, e.label, input_channel, series.kept);

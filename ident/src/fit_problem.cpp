@@ -31,7 +31,9 @@ std::vector<std::string> DefaultChannels(const Model& model) {
 //! n-point input grid (one column per function F), sum over the input's noisy Fourier coefficients
 //! c of var(c) (dF/dc)(dF/dc)^T, where dF/dc is g projected on that coefficient's grid function
 //! (the mean: 1; harmonic h: cos and sin of 2 pi h mu / n). The projections are one FFT per column.
-Eigen::MatrixXd InputNoiseCovariance(const ExperimentData& d, const Eigen::MatrixXd& gradient) {
+//! Harmonics up to `estimated` (-1: none) are left out: the fit estimates them (errors in variables)
+//! and their noise is in the posterior through their elimination.
+Eigen::MatrixXd InputNoiseCovariance(const ExperimentData& d, const Eigen::MatrixXd& gradient, int estimated) {
   const Eigen::Index k = gradient.cols();
   const int n = static_cast<int>(gradient.rows());
   Eigen::MatrixXd covariance = Eigen::MatrixXd::Zero(k, k);
@@ -44,7 +46,7 @@ Eigen::MatrixXd InputNoiseCovariance(const ExperimentData& d, const Eigen::Matri
     spectra.col(b) = column;
   }
   for (const int h : d.input_harmonics) {
-    if (h >= n) continue;
+    if (h >= n || h <= estimated) continue;
     if (h == 0) {
       const Eigen::VectorXd q = spectra.row(0).real().transpose();
       covariance.noalias() += d.input_mean_variance * q * q.transpose();
@@ -80,14 +82,15 @@ constexpr double kStaticStartMismatch = 1.0;    // largest over the force's rang
 //! the measured stroke misses the measured force (parameters far from the record's).
 //! `stroke_driven`: the same composition under stroke input (StrokeDrivenTwin).
 std::optional<PeriodicSolution> MeasuredStrokeStart(const Model& model, const Model& stroke_driven,
-                                                    const ExperimentData& d, std::span<const double> theta, int n,
+                                                    const ExperimentData& d, const PeriodicInput& input,
+                                                    std::span<const double> theta, int n,
                                                     const PeriodicSolverOptions& options) {
   const auto stroke = d.channels.find("stroke");
   if (stroke == d.channels.end() || stroke->second.mean.size() < 8) return std::nullopt;
   try {
     const PeriodicSeries series = PeriodicSeries::Fit(stroke->second.mean, d.frequency);
     const PeriodicInput measured = series.OnGrid(n);
-    const Eigen::Map<const Eigen::VectorXd> force(d.input.values.data(), n);
+    const Eigen::Map<const Eigen::VectorXd> force(input.values.data(), n);
     const double range = force.maxCoeff() - force.minCoeff();
     // A cheap first test (8 static solves): far from the parameters that explain the record the
     // stroke-driven solve below can take as long as a failed cold solve. On the standard matrix the
@@ -162,6 +165,14 @@ void ParallelFor(int count, int threads, const std::function<void(int)>& f) {
 }
 
 
+//! The highest harmonic of an experiment's input the fit estimates (errors in variables; -1: none).
+int EstimatedInputHarmonics(const Model& model, const EstimatorOptions& options, const ExperimentData& d) {
+  const bool on = options.estimate_input.value_or(model.causality() == Causality::kStrokeInput);
+  if (!on || d.input_measured.empty() || !(d.input_harmonic_variance > 0) || !(d.input_mean_variance > 0)) return -1;
+  return std::min({options.input_harmonics, static_cast<int>(d.input_measured.size()) - 1,
+                   (static_cast<int>(d.input.values.size()) - 1) / 2});
+}
+
 PeriodicSolverOptions SolverOptions(const EstimatorOptions& options) {
   PeriodicSolverOptions o;
   o.scheme = options.scheme;
@@ -181,6 +192,25 @@ struct FitProblem::Experiment {
   std::vector<bool> channel_fitted;  // per fitted channel: false when the channel has a data defect
   std::string error;
   bool dropped_at_start = false;  // no solution at the starting values; retried as the fit moves
+  PeriodicInput input;            // what drives the solver: the data's input, or its estimate
+  //! Errors in variables: the input's Fourier coefficients c (the mean; cosine and sine of harmonics
+  //! 1 .. `harmonics`) estimated with the parameters, as xi = (c - measured) / sd with the prior
+  //! N(0, I). The input on the grid is base + directions xi.
+  struct InputEstimate {
+    int harmonics = 0;
+    Eigen::MatrixXd directions;  // n x (2 harmonics + 1): the coefficients' grid functions times their sd
+    Eigen::VectorXd base;        // the input at the measured coefficients (kept harmonics above: the series')
+    Eigen::VectorXd xi;
+    //! Per fitted channel, d(prediction at the phases)/d xi, reused as the parameters' are.
+    std::vector<Eigen::MatrixXd> sensitivities_at_phases;
+    //! Per fitted channel, the residual degrees of freedom the estimate takes (of the last Linearise).
+    std::vector<double> dof;
+  };
+  std::optional<InputEstimate> estimate;
+  void UpdateInput() {
+    Eigen::Map<Eigen::VectorXd>(input.values.data(), static_cast<Eigen::Index>(input.values.size())) =
+        estimate->base + estimate->directions * estimate->xi;
+  }
   //! Per fitted channel, d(prediction at the phases)/d(scaled parameters) of the last call that
   //! computed them: reused while the fit's steps are below a percent of the parameters.
   std::vector<Eigen::MatrixXd> sensitivities_at_phases;
@@ -213,12 +243,26 @@ struct FitProblem::Experiment {
     }
     return out;
   }
+  //! Every column of an n-row matrix at the data phases.
+  Eigen::MatrixXd AtPhasesColumns(const Eigen::MatrixXd& grid) const {
+    const int n = static_cast<int>(grid.rows());
+    Eigen::MatrixXd out(static_cast<Eigen::Index>(j0.size()), grid.cols());
+    for (std::size_t i = 0; i < j0.size(); ++i) {
+      auto row = out.row(static_cast<Eigen::Index>(i));
+      row = weights[i][0] * grid.row((j0[i] - 1 + n) % n);
+      for (int k = 1; k < 4; ++k) row += weights[i][k] * grid.row((j0[i] + k - 1) % n);
+    }
+    return out;
+  }
   //! The transpose of AtPhases: values at the data phases spread back onto the n grid points.
   Eigen::VectorXd ToGrid(const Eigen::VectorXd& at_phases, int n) const {
     Eigen::VectorXd grid = Eigen::VectorXd::Zero(n);
     for (std::size_t i = 0; i < j0.size(); ++i)
       for (int k = 0; k < 4; ++k) grid[(j0[i] + k - 1 + n) % n] += weights[i][k] * at_phases[static_cast<int>(i)];
     return grid;
+  }
+  double InputDof(int b) const {
+    return estimate && b < static_cast<int>(estimate->dof.size()) ? estimate->dof[b] : 0.0;
   }
   Eigen::VectorXd Residual(const std::string& channel, int row) const {
     return data->channels.at(channel).mean - AtPhases(solution.outputs.row(row));
@@ -239,7 +283,8 @@ double ResidualSums::LogLikelihood() const {
 std::vector<double> ResidualSums::Variances(int estimated) const {
   std::vector<double> v(counts.size());
   for (std::size_t b = 0; b < counts.size(); ++b)
-    v[b] = std::max(sum_squares[b] / std::max(1.0, double(counts[b] - estimated)), 1e-300);
+    v[b] = std::max(sum_squares[b] / std::max(1.0, counts[b] - estimated - (b < input_dof.size() ? input_dof[b] : 0.0)),
+                    1e-300);
   return v;
 }
 
@@ -271,6 +316,42 @@ FitProblem::FitProblem(const Model& model, const EstimatorOptions& options, cons
       throw std::invalid_argument(fmt::format("estimator: experiment '{}' has {} grid points; at least 8 are needed",
                                               d.label, d.input.values.size()));
     s.MapPhases(s.n());
+    s.input = d.input;
+    if (const int harmonics = EstimatedInputHarmonics(model, options, d); harmonics >= 0) {
+      // Start at the thresholded series (the input the fit used before it estimated the input); the
+      // prior ties every coefficient to its measured value by the coefficient's noise.
+      const int n = s.n(), count = 2 * harmonics + 1;
+      Experiment::InputEstimate e;
+      e.harmonics = harmonics;
+      e.directions.resize(n, count);
+      Eigen::VectorXd measured(count), start(count), sd(count);
+      const auto kept = [&](int h) {
+        return std::find(d.input_harmonics.begin(), d.input_harmonics.end(), h) != d.input_harmonics.end();
+      };
+      e.directions.col(0).setConstant(1.0);
+      measured[0] = d.input_measured[0].real();
+      sd[0] = std::sqrt(d.input_mean_variance);
+      for (int h = 1; h <= harmonics; ++h) {
+        for (int mu = 0; mu < n; ++mu) {
+          const double phase = 2.0 * std::numbers::pi * h * mu / n;
+          e.directions(mu, 2 * h - 1) = std::cos(phase);
+          e.directions(mu, 2 * h) = std::sin(phase);
+        }
+        // u = c_0 + sum 2 Re(c_h exp(i phase)) = c_0 + sum a_h cos + b_h sin
+        measured[2 * h - 1] = 2.0 * d.input_measured[h].real();
+        measured[2 * h] = -2.0 * d.input_measured[h].imag();
+        sd[2 * h - 1] = sd[2 * h] = std::sqrt(d.input_harmonic_variance);
+      }
+      for (int k = 0; k < count; ++k) {
+        const int h = (k + 1) / 2;
+        start[k] = h == 0 || kept(h) ? measured[k] : 0.0;
+      }
+      const Eigen::Map<const Eigen::VectorXd> series(d.input.values.data(), n);
+      e.base = series + e.directions * (measured - start);
+      e.xi = (start - measured).cwiseQuotient(sd);
+      e.directions = e.directions * sd.asDiagonal();
+      s.estimate = std::move(e);
+    }
     for (int b = 0; b < nc; ++b) {
       if (!d.channels.count(channels_[b])) {
         s.channel_fitted[b] = false;
@@ -315,7 +396,7 @@ bool FitProblem::Solve(const std::vector<double>& theta, bool allow_drop, int it
       progress({iteration, a + 1, experiment_count(), NAN});
     }
     try {
-      s.solution = s.solution.n == s.n() ? s.solver->Solve(s.data->input, theta, &s.solution) : FirstSolve(s, theta);
+      s.solution = s.solution.n == s.n() ? s.solver->Solve(s.input, theta, &s.solution) : FirstSolve(s, theta);
     } catch (const PeriodicSolverError& e) {
       failure[a] = e.what();
     }
@@ -353,27 +434,57 @@ bool FitProblem::Readmit(const std::vector<double>& theta) {
 
 PeriodicSolution FitProblem::FirstSolve(Experiment& s, const std::vector<double>& theta) const {
   // From the measured stroke when that fits, else cold.
-  const auto measured = stroke_driven_ ? MeasuredStrokeStart(model_, *stroke_driven_, *s.data, theta, s.n(),
-                                                             SolverOptions(options_))
+  const auto measured = stroke_driven_ ? MeasuredStrokeStart(model_, *stroke_driven_, *s.data, s.input, theta,
+                                                             s.n(), SolverOptions(options_))
                                        : std::nullopt;
   if (measured) {
     try {
-      return s.solver->Solve(s.data->input, theta, &*measured);
+      return s.solver->Solve(s.input, theta, &*measured);
     } catch (const PeriodicSolverError& e) {
       spdlog::debug("experiment '{}': no solution from the measured stroke ({}); cold start", s.data->label, e.what());
     }
   }
-  return s.solver->Solve(s.data->input, theta);
+  return s.solver->Solve(s.input, theta);
 }
 
-std::vector<PeriodicSolution> FitProblem::Snapshot() const {
-  std::vector<PeriodicSolution> v;
-  for (const Experiment& s : experiments_) v.push_back(s.solution);
-  return v;
+FitProblem::Saved FitProblem::Snapshot() const {
+  Saved saved;
+  for (const Experiment& s : experiments_) {
+    saved.solutions.push_back(s.solution);
+    saved.inputs.push_back(s.estimate ? s.estimate->xi : Eigen::VectorXd());
+  }
+  return saved;
 }
 
-void FitProblem::Restore(std::vector<PeriodicSolution> solutions) {
-  for (std::size_t a = 0; a < experiments_.size(); ++a) experiments_[a].solution = std::move(solutions[a]);
+void FitProblem::Restore(Saved saved) {
+  for (std::size_t a = 0; a < experiments_.size(); ++a) {
+    Experiment& s = experiments_[a];
+    s.solution = std::move(saved.solutions[a]);
+    if (s.estimate && s.estimate->xi != saved.inputs[a]) {
+      s.estimate->xi = std::move(saved.inputs[a]);
+      s.UpdateInput();
+    }
+  }
+}
+
+bool FitProblem::estimates_inputs() const {
+  return std::any_of(experiments_.begin(), experiments_.end(), [](const Experiment& s) { return s.estimate.has_value(); });
+}
+
+void FitProblem::StepInputs(const std::vector<Eigen::VectorXd>& steps, double fraction) {
+  for (std::size_t a = 0; a < experiments_.size() && a < steps.size(); ++a) {
+    Experiment& s = experiments_[a];
+    if (!s.estimate || steps[a].size() != s.estimate->xi.size()) continue;
+    s.estimate->xi += fraction * steps[a];
+    s.UpdateInput();
+  }
+}
+
+double FitProblem::InputLogPrior() const {
+  double value = 0.0;
+  for (const Experiment& s : experiments_)
+    if (s.estimate && s.active) value -= 0.5 * s.estimate->xi.squaredNorm();
+  return value;
 }
 
 ResidualSums FitProblem::Evaluate() const {
@@ -381,6 +492,7 @@ ResidualSums FitProblem::Evaluate() const {
   ResidualSums e;
   e.sum_squares.assign(nc, 0.0);
   e.counts.assign(nc, 0);
+  e.input_dof.assign(nc, 0.0);
   for (const Experiment& s : experiments_) {
     if (!s.active) continue;
     for (int b = 0; b < nc; ++b) {
@@ -388,6 +500,7 @@ ResidualSums FitProblem::Evaluate() const {
       const Eigen::VectorXd r = s.Residual(channels_[b], output_row_[b]);
       e.sum_squares[b] += r.squaredNorm();
       e.counts[b] += r.size();
+      e.input_dof[b] += s.InputDof(b);
     }
   }
   for (double v : e.sum_squares) e.finite = e.finite && std::isfinite(v);
@@ -405,9 +518,26 @@ NormalEquations FitProblem::Linearise(const std::vector<double>& theta, const st
   std::vector<Eigen::MatrixXd> hs(experiments_.size(), Eigen::MatrixXd::Zero(l, l));
   eq.experiment_gradient.assign(experiments_.size(), Eigen::VectorXd::Zero(l));
   std::vector<Eigen::MatrixXd> ns(experiments_.size(), Eigen::MatrixXd::Zero(l, l));
+  if (mode.inputs && estimates_inputs()) eq.inputs.assign(experiments_.size(), NuisanceBlock());
   ParallelFor(experiment_count(), threads_, [&](int a) {
     Experiment& s = experiments_[a];
     if (!s.active) return;
+    if (mode.inputs && s.estimate &&
+        (!mode.reuse || static_cast<int>(s.estimate->sensitivities_at_phases.size()) != nc)) {
+      // d(outputs)/d xi: a forward solve per coefficient with eq. 14's factorisation.
+      const auto sens = s.solver->InputSensitivities(s.solution, theta, s.estimate->directions, mode.exact);
+      if (sens.empty()) {
+        // A predictor without input sensitivities (transient integration): the input stays as it is.
+        spdlog::warn("experiment '{}': the predictor has no input sensitivities; its input is not estimated",
+                     s.data->label);
+        s.estimate.reset();
+      } else {
+        s.estimate->sensitivities_at_phases.assign(nc, Eigen::MatrixXd());
+        for (int b = 0; b < nc; ++b)
+          if (s.channel_fitted[b]) s.estimate->sensitivities_at_phases[b] = s.AtPhasesColumns(sens[output_row_[b]]);
+      }
+    }
+    const bool with_estimate = mode.inputs && s.estimate;
     if (!mode.reuse || static_cast<int>(s.sensitivities_at_phases.size()) != nc) {
       const auto sens = s.solver->OutputSensitivities(s.solution, theta, estimated_, mode.exact);
       s.sensitivities_at_phases.assign(nc, Eigen::MatrixXd());
@@ -420,10 +550,21 @@ NormalEquations FitProblem::Linearise(const std::vector<double>& theta, const st
     }
     // The gradient's noise from the input's: J^T W P dy = (P^T W J)^T dy on the grid (P the
     // interpolation to the phases), so the output weights P^T W J give it by one adjoint solve.
-    const bool with_input = mode.input_noise && s.data->input_harmonic_variance > 0;
-    std::vector<Eigen::MatrixXd> weights;
+    // (Harmonics the fit estimates carry their noise through their elimination instead.)
     const int n = s.n();
+    const int estimated_harmonics = with_estimate ? s.estimate->harmonics : -1;
+    const bool with_input = mode.input_noise && s.data->input_harmonic_variance > 0 &&
+                            std::any_of(s.data->input_harmonics.begin(), s.data->input_harmonics.end(),
+                                        [&](int h) { return h > estimated_harmonics && h < n; });
+    std::vector<Eigen::MatrixXd> weights;
     if (with_input) weights.assign(s.solution.channels.size(), Eigen::MatrixXd::Zero(n, l));
+    NuisanceBlock block;
+    if (with_estimate) {
+      const Eigen::Index k = s.estimate->xi.size();
+      block.information = Eigen::MatrixXd::Identity(k, k);
+      block.coupling = Eigen::MatrixXd::Zero(l, k);
+      block.gradient = -s.estimate->xi;
+    }
     for (int b = 0; b < nc; ++b) {
       if (!s.channel_fitted[b]) continue;
       const Eigen::MatrixXd& j = s.sensitivities_at_phases[b];
@@ -432,10 +573,32 @@ NormalEquations FitProblem::Linearise(const std::vector<double>& theta, const st
       eq.experiment_gradient[a].noalias() += j.transpose() * r / variance[b];
       if (with_input)
         for (int k = 0; k < l; ++k) weights[output_row_[b]].col(k) += s.ToGrid(j.col(k), n) / variance[b];
+      if (with_estimate) {
+        const Eigen::MatrixXd& jc = s.estimate->sensitivities_at_phases[b];
+        block.information.selfadjointView<Eigen::Lower>().rankUpdate(jc.transpose(), 1.0 / variance[b]);
+        block.coupling.noalias() += j.transpose() * jc / variance[b];
+        block.gradient.noalias() += jc.transpose() * r / variance[b];
+      }
+    }
+    if (with_estimate) {
+      Eigen::MatrixXd full = block.information.selfadjointView<Eigen::Lower>();
+      block.information = std::move(full);
+      // The residual degrees of freedom the estimate takes per channel: E[r^T W r] at the truth is
+      // count - tr(A^-1 J_c^T W J_c) (linearised; A includes the prior).
+      const Eigen::LLT<Eigen::MatrixXd> llt(block.information);
+      s.estimate->dof.assign(nc, 0.0);
+      for (int b = 0; b < nc; ++b) {
+        if (!s.channel_fitted[b]) continue;
+        const Eigen::MatrixXd& jc = s.estimate->sensitivities_at_phases[b];
+        const Eigen::MatrixXd l_inv_jt = llt.matrixL().solve(jc.transpose());  // L^-1 J_c^T
+        s.estimate->dof[b] = l_inv_jt.squaredNorm() / variance[b];
+      }
+      eq.inputs[a] = std::move(block);
     }
     if (with_input) {
       const Eigen::MatrixXd gradient = s.solver->InputGradients(s.solution, theta, weights);
-      if (gradient.size() > 0) ns[a] = InputNoiseCovariance(*s.data, gradient);
+      if (gradient.size() > 0)
+        ns[a] = InputNoiseCovariance(*s.data, gradient, estimated_harmonics);
     }
   });
   for (std::size_t a = 0; a < experiments_.size(); ++a) {
@@ -451,15 +614,14 @@ NormalEquations FitProblem::Linearise(const std::vector<double>& theta, const st
 
 std::vector<double> FitProblem::NoiseRatios() const {
   const int nc = static_cast<int>(channels_.size());
-  std::vector<double> sum(nc, 0.0);
-  std::vector<long> count(nc, 0);
+  std::vector<double> sum(nc, 0.0), count(nc, 0.0);
   for (const Experiment& s : experiments_) {
     if (!s.active) continue;
     for (int b = 0; b < nc; ++b) {
       const auto it = s.data->channels.find(channels_[b]);
       if (!s.channel_fitted[b] || it == s.data->channels.end() || !(it->second.mean_noise_variance > 0)) continue;
       sum[b] += s.Residual(channels_[b], output_row_[b]).squaredNorm() / it->second.mean_noise_variance;
-      count[b] += static_cast<long>(s.j0.size());
+      count[b] += static_cast<double>(s.j0.size()) - s.InputDof(b);
     }
   }
   std::vector<double> ratio(nc);
@@ -515,7 +677,8 @@ void FitProblem::Summarise(const ResidualSums& sums, const std::vector<double>& 
         st.mean = r.mean();
         st.sd = std::sqrt((r.array() - st.mean).square().sum() / std::max<Eigen::Index>(1, r.size() - 1));
         st.rms = std::sqrt(r.squaredNorm() / r.size());
-        st.noise_ratio = st.rms * st.rms / it->second.mean_noise_variance;
+        st.input_dof = s.InputDof(b);
+        st.noise_ratio = r.squaredNorm() / (std::max(1.0, r.size() - st.input_dof) * it->second.mean_noise_variance);
       }
       f.channels.push_back(st);
     }

@@ -936,6 +936,64 @@ Eigen::MatrixXd PeriodicSolver::InputGradients(const PeriodicSolution& solution,
   return gradient;
 }
 
+std::vector<Eigen::MatrixXd> PeriodicSolver::InputSensitivities(const PeriodicSolution& solution,
+                                                                std::span<const double> theta,
+                                                                const Eigen::MatrixXd& directions, bool exact) {
+  const int m = model_.unknown_count(), n = solution.n;
+  const int channels = static_cast<int>(solution.channels.size());
+  if (solution.unknowns.rows() != m || solution.unknowns.cols() != n ||
+      static_cast<int>(theta.size()) != model_.parameter_count())
+    throw std::invalid_argument("periodic solver: input sensitivities need a solution of this model");
+  if (directions.rows() != n) throw std::invalid_argument("periodic solver: input directions must be n x k");
+  if (m + 1 > kStateDirections) throw std::invalid_argument("periodic solver: too many unknowns for input sensitivities");
+  const Eigen::Index columns = directions.cols();
+  Prepare(n);
+  const PeriodicInput& input = solution.input;
+  const InputRates rates(stencil_, input);
+  const bool close_enough = !exact && solution.jacobian && solution.jacobian->rows() == solution.unknowns.size() &&
+                            solution.jacobian_contraction <= 0.05;
+  if (!close_enough) MakeJacobianCurrent(solution, rates, theta);
+  using J = StateJet;
+  static_assert(kStateDirections >= 3);
+  const ParameterJets<J> jets(theta, {});  // parameters constant here
+  const auto& z = solution.unknowns;
+  Eigen::MatrixXd zd, zdd;
+  GridRates(stencil_, z, input.frequency, zd, zdd);
+  // The directions' rates as the solver takes the input's (k x n, a row per direction).
+  Eigen::MatrixXd d1, d2;
+  GridRates(stencil_, directions.transpose(), input.frequency, d1, d2);
+  // G_z dz = -(G_u0 phi + G_u1 D1 phi + G_u2 D2 phi), per point and equation.
+  Eigen::MatrixXd dz(static_cast<Eigen::Index>(m) * n, columns);
+  ResidualJetBatches(model_, z, zd, zdd, input, rates.first, rates.second, jets, true,
+                     [&](int start, int size, const std::vector<J>& r) {
+                       for (int k = 0; k < size; ++k) {
+                         const int mu = start + k;
+                         for (int i = 0; i < m; ++i) {
+                           const auto& d = r[k * m + i].derivatives();
+                           const double w = equation_weight_[i];
+                           dz.row(mu * m + i) = -w * (d[0] * directions.row(mu) + d[1] * d1.col(mu).transpose() +
+                                                      d[2] * d2.col(mu).transpose());
+                         }
+                       }
+                     });
+  solution.jacobian->Solve(dz);
+  // dy = Y_z dz + Y_u phi at every point.
+  std::vector<Eigen::MatrixXd> sens(channels, Eigen::MatrixXd(n, columns));
+  std::vector<J> x(m), y(channels);
+  for (int mu = 0; mu < n; ++mu) {
+    for (int j = 0; j < m; ++j) x[j] = J(z(j, mu), J::DerType::Unit(j));
+    model_.Outputs<J>(x, J(input.values[mu], J::DerType::Unit(m)), jets.theta_jet, y);
+    for (int c = 0; c < channels; ++c) {
+      const auto& d = y[c].derivatives();
+      Eigen::RowVectorXd row = d[m] * directions.row(mu);
+      for (int j = 0; j < m; ++j)
+        if (d[j] != 0.0) row += d[j] * dz.row(mu * m + j);
+      sens[c].row(mu) = row;
+    }
+  }
+  return sens;
+}
+
 std::vector<Eigen::MatrixXd> PeriodicSolver::OutputSensitivities(const PeriodicSolution& solution,
                                                                  std::span<const double> theta,
                                                                  std::span<const int> parameters, bool exact) {

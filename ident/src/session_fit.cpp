@@ -173,7 +173,7 @@ FitPlan PlanFit(const Model& model, const FitData& data, const SessionFitOptions
     }
     variance.push_back(count > 0 ? sum / count : 1.0);
   }
-  const NormalEquations eq = problem.Linearise(plan.start.values(), variance, {true, false, false});
+  const NormalEquations eq = problem.Linearise(plan.start.values(), variance, {true, false, false, false});
   std::vector<int> kept(est.size());
   for (std::size_t k = 0; k < est.size(); ++k) kept[k] = static_cast<int>(k);
   while (!kept.empty()) {

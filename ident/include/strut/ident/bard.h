@@ -24,6 +24,21 @@ struct ScaledBounds {
   Eigen::VectorXd Project(const Eigen::VectorXd& x) const;
 };
 
+//! One experiment's nuisance parameters in eq. 19 (errors in variables: the measured input's
+//! Fourier coefficients), in units of their prior sd around the measured values, so their prior is
+//! N(0, I). With J_c = d yhat / d(nuisance) and J = d yhat / d(scaled parameters):
+struct NuisanceBlock {
+  Eigen::MatrixXd information;  //!< sum J_c^T W J_c + I (the prior's precision included)
+  Eigen::MatrixXd coupling;     //!< sum J^T W J_c: a row per estimated parameter, a column per nuisance
+  Eigen::VectorXd gradient;     //!< sum J_c^T W e - xi (the prior's pull included)
+  bool empty() const { return information.size() == 0; }
+};
+
+//! The parameters' information and gradient with the nuisance parameters eliminated (Schur
+//! complement per block): h - sum C A^-1 C^T and g - sum C A^-1 g_c. The inverse of the reduced
+//! information is the parameters' marginal posterior covariance (the nuisance's uncertainty in it).
+void EliminateNuisance(const std::vector<NuisanceBlock>& nuisance, Eigen::MatrixXd& h, Eigen::VectorXd& g);
+
 struct BardStep {
   Eigen::VectorXd step;  //!< scaled
   Eigen::VectorXd sd;    //!< posterior sd of each parameter (information plus priors, no damping), scaled
@@ -31,6 +46,10 @@ struct BardStep {
   //! the optimum still is. A damped step can be tiny far from it, in a narrow valley.
   Eigen::VectorXd newton;
   bool finite = false;
+  //! Per nuisance block, its step (back-substituted: A^-1 (g_c - C^T step)); empty blocks get none.
+  std::vector<Eigen::VectorXd> nuisance_step;
+  //! Largest |nuisance step| over its sd given the parameters (sqrt of diag A^-1); 0 without.
+  double nuisance_step_in_sd = 0.0;
   //! Largest |step| / sd: the damped step in units of the posterior uncertainty.
   double StepInSd() const;
   //! Largest |newton| / sd: the distance to the optimum in posterior sd (the convergence measure).
@@ -41,8 +60,11 @@ struct BardStep {
 //! the user's `priors` at `x` and the paper's prior reset to the current iterate, of sd
 //! `damping_sd` in every scaled parameter (a Levenberg-Marquardt-like damping; it never enters the
 //! reported uncertainty). Parameters at a bound whose step points out of the box are held there.
+//! With `nuisance` blocks: the step of the reduced equations (EliminateNuisance), the nuisance steps
+//! back-substituted; the damping acts on the parameters only (the nuisance's prior bounds them).
 BardStep ComputeBardStep(const Eigen::MatrixXd& h, const Eigen::VectorXd& g, const Eigen::VectorXd& x,
-                         const ScaledPriors& priors, const ScaledBounds& bounds, double damping_sd);
+                         const ScaledPriors& priors, const ScaledBounds& bounds, double damping_sd,
+                         const std::vector<NuisanceBlock>& nuisance = {});
 
 //! The uncertainty at the final iterate.
 struct Posterior {
@@ -55,9 +77,11 @@ struct Posterior {
 };
 
 //! H^-1 + H^-1 N H^-1 (the measured inputs' noise N as a sandwich) with H the information plus
-//! the priors' precision. Pseudo-inverse where H is singular.
+//! the priors' precision, the `nuisance` blocks (estimated inputs) eliminated from it. Pseudo-inverse
+//! where H is singular. `input_noise_factor` compares with the output noise alone (H without the
+//! elimination, no sandwich).
 Posterior PosteriorCovariance(const Eigen::MatrixXd& information, const Eigen::MatrixXd& input_noise,
-                              const ScaledPriors& priors);
+                              const ScaledPriors& priors, const std::vector<NuisanceBlock>& nuisance = {});
 
 //! The covariance the experiments' disagreement implies (a cluster-robust sandwich over the
 //! experiments): C M C with C the posterior covariance and M = A/(A-1) sum_a g_a g_a^T from each

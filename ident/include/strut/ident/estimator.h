@@ -48,6 +48,17 @@ struct EstimatorOptions {
   //! experiment's input series: the noise of its kept Fourier coefficients, from the spread between
   //! periods), propagated through the model to the outputs and on to the estimate.
   bool input_noise = true;
+  //! Errors in variables done properly: the measured input's Fourier coefficients (the mean and the
+  //! cosine and sine of harmonics 1 .. `input_harmonics`, capped below the averaged record's Nyquist)
+  //! are estimated with the parameters, each with the prior N(measured value, its noise variance from
+  //! the spread between periods). Per experiment they are nuisance parameters, eliminated from the
+  //! normal equations by the Schur complement; the posterior then carries their uncertainty exactly
+  //! (the `input_noise` sandwich is left to the kept harmonics above `input_harmonics`). The force
+  //! locates a velocity reversal the truncated stroke series misplaces (servo actuator: the loop's
+  //! reaction at the reversal sits below one coefficient's noise). Empty: on for stroke input, off
+  //! for force input.
+  std::optional<bool> estimate_input;
+  int input_harmonics = 20;
   //! Step halvings per iteration when the objective does not improve.
   int max_halvings = 12;
   //! Output channels to fit; empty: the outputs of the causality (stroke and pressure for force
@@ -67,6 +78,10 @@ struct ChannelStatistics {
   double rms = 0.0;
   double noise_ratio = NAN;  //!< residual mean square / noise variance of the averaged data (about 1: fits to the noise)
   bool fitted = true;        //!< false when excluded for a data defect
+  //! Residual degrees of freedom the estimated input takes from this channel (errors in variables,
+  //! EstimatorOptions::estimate_input): tr(A^-1 J_c^T W J_c). The expected residual sum of squares
+  //! at the truth is (count - input_dof) noise variances, and `noise_ratio` is taken over that.
+  double input_dof = 0.0;
 };
 
 struct ExperimentFit {

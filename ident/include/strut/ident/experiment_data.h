@@ -21,6 +21,9 @@ struct PeriodicSeries {
   double frequency = 0.0;                          //!< Hz
   std::vector<std::complex<double>> coefficients;  //!< c_h, h = 0..H (zero for dropped harmonics)
   int kept = 0;                                    //!< harmonics kept above the noise
+  //! Every harmonic's coefficient as measured, h = 0..H, before the threshold (the errors-in-variables
+  //! estimate of the input starts from the series and is tied to these by their noise).
+  std::vector<std::complex<double>> measured;
 
   //! From one averaged period sampled at `count` equidistant phases starting at phase 0.
   static PeriodicSeries Fit(const Eigen::VectorXd& period, double frequency);
@@ -59,6 +62,9 @@ struct ExperimentData {
   //! reaches the model (errors in variables). NaN variance: one period, unknown.
   std::vector<int> input_harmonics;
   double input_mean_variance = NAN, input_harmonic_variance = NAN;
+  //! The input's Fourier coefficients as measured, c_h for h = 0 .. below the Nyquist harmonic of the
+  //! averaged record (u = c_0 + sum 2 Re(c_h exp(i 2 pi h tau))), the dropped harmonics included.
+  std::vector<std::complex<double>> input_measured;
   //! Cyclic phases in [0, 1) of the averaged samples: the recorded sample phases when a period
   //! holds a whole number of samples (averaging then needs no interpolation), else the grid's.
   std::vector<double> phases;

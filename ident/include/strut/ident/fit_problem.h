@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "strut/ident/bard.h"
 #include "strut/ident/experiment_data.h"
 #include "strut/ident/model.h"
 #include "strut/ident/periodic.h"
@@ -26,10 +27,12 @@ struct FitProgress;
 struct ResidualSums {
   std::vector<double> sum_squares;
   std::vector<long> counts;
+  //! Residual degrees of freedom the estimated inputs take per channel (ChannelStatistics::input_dof).
+  std::vector<double> input_dof;
   bool finite = true;
   //! Log-likelihood with each channel's variance at its maximum-likelihood value M_bb / count.
   double LogLikelihood() const;
-  //! Bias-corrected channel variances of eq. 18, v_b = M_bb / (count_b - l).
+  //! Bias-corrected channel variances of eq. 18, v_b = M_bb / (count_b - l - input_dof_b).
   std::vector<double> Variances(int estimated) const;
 };
 
@@ -43,6 +46,10 @@ struct NormalEquations {
   Eigen::MatrixXd input_noise;
   //! Per experiment, its share of `gradient` (zero for inactive experiments).
   std::vector<Eigen::VectorXd> experiment_gradient;
+  //! Per experiment, the block of its estimated input's coefficients (errors in variables,
+  //! EstimatorOptions::estimate_input; empty where the input is not estimated): eliminated by the
+  //! Bard step and the posterior (bard.h).
+  std::vector<NuisanceBlock> inputs;
 };
 
 //! How Linearise computes sensitivities.
@@ -50,6 +57,8 @@ struct LinearisationMode {
   bool exact = false;        //!< sensitivities at the solution itself (else the carried factorisation may serve)
   bool reuse = false;        //!< the previous call's sensitivities where an experiment has them (modified Gauss-Newton)
   bool input_noise = false;  //!< also NormalEquations::input_noise (one adjoint solve per parameter and experiment)
+  //! also NormalEquations::inputs where the fit estimates the input (a forward solve per coefficient)
+  bool inputs = true;
 };
 
 class FitProblem {
@@ -78,9 +87,21 @@ class FitProblem {
              const std::function<void(const FitProgress&)>& progress = {});
   //! Experiments left out at the start that have a solution at `theta` now come back in.
   bool Readmit(const std::vector<double>& theta);
-  //! The current solutions, to undo a rejected trial with Restore.
-  std::vector<PeriodicSolution> Snapshot() const;
-  void Restore(std::vector<PeriodicSolution> solutions);
+  //! The current solutions and estimated inputs, to undo a rejected trial with Restore.
+  struct Saved {
+    std::vector<PeriodicSolution> solutions;
+    std::vector<Eigen::VectorXd> inputs;
+  };
+  Saved Snapshot() const;
+  void Restore(Saved saved);
+
+  //! Whether any experiment's input is estimated (errors in variables, EstimatorOptions::estimate_input).
+  bool estimates_inputs() const;
+  //! Moves the estimated inputs by `fraction` of the Bard step's nuisance steps (one per experiment,
+  //! in units of the coefficients' prior sd); the next Solve uses them.
+  void StepInputs(const std::vector<Eigen::VectorXd>& steps, double fraction);
+  //! The estimated inputs' log prior density, -1/2 sum ((c - measured) / sd)^2 (0 when none).
+  double InputLogPrior() const;
   //! Residual sums of the current solutions.
   ResidualSums Evaluate() const;
   //! Eq. 19's sums at `theta` (the current solutions) with channel `variance`s.

@@ -45,6 +45,10 @@ class OscillatorPredictor : public PeriodicPredictor {
                                  const std::vector<Eigen::MatrixXd>& output_weights) override {
     return solver_.InputGradients(solution, theta, output_weights);
   }
+  std::vector<Eigen::MatrixXd> InputSensitivities(const PeriodicSolution& solution, std::span<const double> theta,
+                                                  const Eigen::MatrixXd& directions, bool exact = true) override {
+    return solver_.InputSensitivities(solution, theta, directions, exact);
+  }
 
  private:
   Model model_;

@@ -154,6 +154,15 @@ class PeriodicPredictor {
                                          const std::vector<Eigen::MatrixXd>& output_weights) {
     return {};
   }
+  //! d outputs / d input along input `directions` (n x k, each column a grid function added to the
+  //! input's values, its rates taken by the scheme as the solver takes the input's): one (n x k)
+  //! matrix per output channel. The forward counterpart of InputGradients, a forward solve per
+  //! direction. `exact` as in OutputSensitivities. Empty when the predictor cannot.
+  virtual std::vector<Eigen::MatrixXd> InputSensitivities(const PeriodicSolution& solution,
+                                                          std::span<const double> theta,
+                                                          const Eigen::MatrixXd& directions, bool exact = true) {
+    return {};
+  }
 };
 
 //! Solves periodic equilibria of one model; keeps the last factorisation for sensitivities.
@@ -184,6 +193,12 @@ class PeriodicSolver : public PeriodicPredictor {
   //! rates enter through the scheme's stencil, as the solver applies it.
   Eigen::MatrixXd InputGradients(const PeriodicSolution& solution, std::span<const double> theta,
                                  const std::vector<Eigen::MatrixXd>& output_weights) override;
+
+  //! d outputs / d input along `directions` (see PeriodicPredictor): -dG/du along each direction
+  //! (the input, its rate and acceleration through the scheme's stencil) solved with the Jacobian at
+  //! the solution (eq. 14's factorisation), mapped through the output equations.
+  std::vector<Eigen::MatrixXd> InputSensitivities(const PeriodicSolution& solution, std::span<const double> theta,
+                                                  const Eigen::MatrixXd& directions, bool exact = true) override;
 
   //! The scaled residual G(z) of the discretised equations (m x n), for tests.
   Eigen::MatrixXd Residual(const Eigen::MatrixXd& unknowns, const PeriodicInput& input,

@@ -69,7 +69,7 @@ std::map<std::string, double> Quantities(const Truth& unit, const Truth& base) {
   if (u.find("polytropic_exponent")) q["polytropic_exponent"] = u.get("polytropic_exponent") - 1.2;
   for (const char* name : {"friction_base", "friction_pressure", "friction_sharpness"}) q[name] = factor(name);
   q["load_cell_zero"] = (u.get("theta11") + kPatm * u.get("theta4")) - (b.get("theta11") + kPatm * b.get("theta4"));
-  q["stroke_offset"] = u.get("theta12") - b.get("theta12");
+  q["stroke_offset"] = u.get("theta12");  // drawn around the lab's nominal zero, not the shipped -2 mm
   if (u.find("gas_heat_capacity")) {
     q["gas_heat_capacity"] = factor("gas_heat_capacity");
     q["wall_heat_conductance"] = factor("wall_heat_conductance");
@@ -77,7 +77,7 @@ std::map<std::string, double> Quantities(const Truth& unit, const Truth& base) {
   if (u.find("viscous_damping")) q["viscous_damping"] = std::log(factor("viscous_damping"));
   if (u.find("stribeck_excess")) q["stribeck_excess"] = factor("stribeck_excess");
   if (u.find("end_stop_stiffness")) q["end_stop_stiffness"] = std::log(factor("end_stop_stiffness"));
-  if (u.find("oil_bulk_modulus")) q["oil_bulk_modulus"] = factor("oil_bulk_modulus");
+  if (u.find("oil_compliance")) q["oil_compliance"] = factor("oil_compliance");
   return q;
 }
 
@@ -164,7 +164,9 @@ TEST(SimDraw, EveryDrawnUnitIsFeasibleAndUnconstrainedSpreadsHold) {
   std::printf("%d feasible units from %d candidates (%.0f %% accepted) in %.1f s\n", units, attempts,
               100.0 * units / attempts,
               std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
-  EXPECT_GT(static_cast<double>(units) / attempts, 0.5);
+  // About half: the stroke zero is drawn around the lab's nominal 0 (sd 2 mm), and a zero more than
+  // about 3 mm high puts experiment n's true stroke within 1 mm of full extension (rejected).
+  EXPECT_GT(static_cast<double>(units) / attempts, 0.4);
 }
 
 TEST(SimDraw, OneDofUnitsAreFeasibleToo) {

@@ -16,6 +16,8 @@ void RegisterDiscoverCommand(CLI::App& app);
 void RegisterBenchDiscover(CLI::App& bench);
 //! Adds `units` (identification of drawn units) under the `bench` subcommand.
 void RegisterBenchUnits(CLI::App& bench);
+//! Adds `confusion` (discovery on drawn units) under the `bench` subcommand.
+void RegisterBenchConfusion(CLI::App& bench);
 void RegisterSimCommand(CLI::App& app);
 void RegisterImportCommand(CLI::App& app);
 

@@ -39,6 +39,7 @@ int main(int argc, char** argv) {
   strut::tools::RegisterBenchCommand(app);
   strut::tools::RegisterBenchDiscover(*app.get_subcommand("bench"));
   strut::tools::RegisterBenchUnits(*app.get_subcommand("bench"));
+  strut::tools::RegisterBenchConfusion(*app.get_subcommand("bench"));
   strut::tools::RegisterSimCommand(app);
   strut::tools::RegisterImportCommand(app);
 

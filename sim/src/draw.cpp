@@ -103,7 +103,7 @@ const std::vector<DrawSpread>& DrawSpreads() {
       {"friction_sharpness", "theta10", K::kUniformFactor, 0.5, 1.5, "all", "§1.3: 500-2e4 s/m"},
       {"load_cell_zero", "theta11", K::kNormalOffset, 100.0, 300.0, "all",
        "§1.3, §1.7: theta11 = -p_atm A + a load-cell zero of about 100 N"},
-      {"stroke_offset", "theta12", K::kNormalOffset, 2e-3, 5e-3, "all", "§1.3: LVDT zero 2 mm, within 5 mm"},
+      {"stroke_offset", "theta12", K::kNormalOffset, 2e-3, 5e-3, "all", "§1.3: LVDT zero within 5 mm of nominal (sd 2 mm, the prior identify puts on it)"},
       {"gas_heat_capacity", "theta15", K::kUniformFactor, 0.6, 1.4, "heat-exchange",
        "§1.3, §1.4: kappa m c_v with kappa 1-3 (nominal 2)"},
       {"wall_heat_conductance", "theta16", K::kUniformFactor, 0.6, 1.4, "heat-exchange",
@@ -112,7 +112,7 @@ const std::vector<DrawSpread>& DrawSpreads() {
        "§2.6, §2.8: 100-1500 N s/m"},
       {"stribeck_excess", "theta19", K::kUniformFactor, 0.5, 1.5, "stribeck-friction", "§2.8: F_S / F_C 1.2-1.5"},
       {"end_stop_stiffness", "theta21", K::kLogUniformFactor, 0.5, 2.0, "end-stop", "§2.9: 2e6-1e7 N/m"},
-      {"oil_bulk_modulus", "theta26", K::kUniformFactor, 0.75, 1.25, "oil-compressibility",
+      {"oil_compliance", "theta26", K::kUniformFactor, 0.75, 1.25, "oil-compressibility",
        "§1.2, §2.3: 0.8-1.5 GPa"},
       {"virial_b0", "theta28", K::kUniformFactor, 1.0, 1.0, "real-gas",
        "§2.10: a property of nitrogen, not of the unit: not drawn"},
@@ -254,6 +254,7 @@ Truth DrawUnit(const Truth& around, const UnitDraw& spec, std::uint64_t seed) {
       const double x0 = s.quantity == "compression_ratio" ? ratio0
                         : s.quantity == "preload_fraction" ? k0
                         : s.quantity == "load_cell_zero"   ? zero0
+                        : s.quantity == "stroke_offset"    ? 0.0  // around the lab's nominal zero
                         : has(index) ? Value(base, index) : 0.0;
       const double x = draws.Draw(s, x0);
       if (s.quantity == "gas_area") {

@@ -200,6 +200,7 @@ FitSummary Estimator::Fit(const std::vector<ExperimentData>& data, const Paramet
     double lambda = 1.0;
     bool accepted = false;
     Eigen::VectorXd taken;
+    double gain = 0.0;
     for (int halving = 0; halving <= options_.max_halvings; ++halving, lambda *= 0.5) {
       const Eigen::VectorXd trial_x = bounds.Project(x + lambda * step.step);
       const std::vector<double> trial = unscaled(trial_x);
@@ -210,6 +211,7 @@ FitSummary Estimator::Fit(const std::vector<ExperimentData>& data, const Paramet
         const double value = e.LogLikelihood() + priors.LogDensity(trial_x) + problem.InputLogPrior();
         if (e.finite && value >= objective - 1e-12 * std::abs(objective)) {
           taken = trial_x - x;
+          gain = value - objective;
           spdlog::debug("fit iteration {}: loglik {:.6g} (+{:.3g}), step {}, damping sd {:.3g}", iteration + 1, value,
                         value - objective, lambda, damping_sd);
           theta = trial;
@@ -244,7 +246,17 @@ FitSummary Estimator::Fit(const std::vector<ExperimentData>& data, const Paramet
       continue;
     }
     damping_sd = lambda == 1.0 ? std::min(damping_sd * 2.0, 1e3) : std::max(damping_sd * 0.25, 1e-6);
-    // Convergence is judged at the top of the next iteration, on its undamped step. An estimated
+    // At the rounding floor: the objective no longer changes beyond rounding (1e-10 of itself: the
+    // residual sums of tens of thousands of samples carry about that) while the undamped step is
+    // within a tenth of an sd. The sensitivities' accuracy, not the optimum, then limits the step,
+    // and the line search would go on accepting steps that change nothing.
+    if (std::abs(gain) < 1e-10 * std::abs(objective) && step.NewtonInSd() < 0.1) {
+      if (estimate_inputs_now()) continue;
+      converged = true;
+      spdlog::debug("fit converged at the rounding floor (gain {:.3g}, undamped step {:.3g} sd)", gain, step.NewtonInSd());
+      break;
+    }
+    // Otherwise convergence is judged at the top of the next iteration, on its undamped step. An estimated
     // input moves the reversals, where the friction makes the sensitivities change fastest: frozen
     // only after input steps below a tenth of their sd too.
     reuse_sensitivities = taken.cwiseAbs().maxCoeff() < kFrozenSensitivityStep &&

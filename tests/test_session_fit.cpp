@@ -15,14 +15,8 @@
 namespace strut::ident {
 namespace {
 
-//! The shipped rig with an ideal actuator and perfectly calibrated transducers: what the damper
-//! model describes (docs/identification.md, "Drawn units").
-sim::Truth IdealRig() {
-  sim::Truth t = sim::DefaultTruth();
-  t.actuator.ideal = true;
-  for (sim::SensorOptions* s : {&t.sensors.stroke, &t.sensors.force, &t.sensors.pressure}) s->offset = s->gain_error = 0.0;
-  return t;
-}
+//! The shipped rig with nothing the damper model leaves out (an ideal actuator, calibrated transducers).
+sim::Truth IdealRig() { return sim::WithIdealRig(sim::DefaultTruth()); }
 
 daq::Session DrawnSession(unsigned long seed) {
   const sim::SimulatedRig rig(sim::DrawUnit(IdealRig(), sim::UnitDraw{}, seed));

@@ -28,10 +28,8 @@ struct BenchConfusion {
 
   void Run() const {
     CheckOutputPath("--json", json_path, {});
-    sim::Truth around = sim::DefaultTruth();
-    around.actuator.ideal = !servo;
-    for (sim::SensorOptions* s : {&around.sensors.stroke, &around.sensors.force, &around.sensors.pressure})
-      s->offset = 0.0, s->gain_error = 0.0;
+    sim::Truth around = sim::WithIdealRig(sim::DefaultTruth());
+    if (servo) around.actuator.ideal = false;
     ident::SessionFitOptions fit;
     fit.composition = base;
     const ident::Model model = ident::Model::Build(base, fit.causality);

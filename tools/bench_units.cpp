@@ -48,14 +48,12 @@ struct BenchUnits {
 
   void Run() const {
     CheckOutputPath("--json", json_path, {});
-    sim::Truth around = sim::DefaultTruth();
     // The method's own figures: the actuator and the transducers' calibration of the shipped rig
-    // are outside the damper model (docs/identification.md, "Drawn units"); --servo and
-    // --shipped-calibration put them back.
-    around.actuator.ideal = !servo;
-    if (!shipped_calibration)
-      for (sim::SensorOptions* s : {&around.sensors.stroke, &around.sensors.force, &around.sensors.pressure})
-        s->offset = 0.0, s->gain_error = 0.0;
+    // are outside the damper model (docs/identification.md, "Units nobody has characterised");
+    // --servo and --shipped-calibration put them back.
+    sim::Truth around = sim::WithIdealRig(sim::DefaultTruth());
+    if (servo) around.actuator.ideal = false;
+    if (shipped_calibration) around.sensors = sim::DefaultTruth().sensors;
     sim::UnitDraw draw;
     draw.base = base;
     ident::SessionFitOptions options;

@@ -316,4 +316,11 @@ Truth DrawUnit(const Truth& around, const UnitDraw& spec, std::uint64_t seed) {
                                spec.max_attempts, seed, last_reason));
 }
 
+Truth WithIdealRig(Truth truth) {
+  truth.actuator.ideal = true;
+  for (SensorOptions* s : {&truth.sensors.stroke, &truth.sensors.force, &truth.sensors.pressure})
+    s->offset = s->gain_error = 0.0;
+  return truth;
+}
+
 }  // namespace strut::sim

@@ -83,6 +83,11 @@ Feasibility CheckFeasibility(const Truth& unit, const std::vector<rig::MatrixEnt
 //! parameter of its model. Throws TruthError for an invalid spec or when max_attempts candidates
 //! all failed the rule.
 Truth DrawUnit(const Truth& around, const UnitDraw& spec, std::uint64_t seed);
+//! `truth` on a rig with nothing the damper model leaves out: an ideal actuator (the stroke follows
+//! the set-point) and perfectly calibrated transducers (no zero or gain errors; the noise and the
+//! ADC stay). The studies of the identification method's own figures use it (docs/identification.md).
+Truth WithIdealRig(Truth truth);
+
 //! Draws around the shipped default truth.
 Truth DrawUnit(const UnitDraw& spec, std::uint64_t seed);
 

@@ -41,6 +41,30 @@ TEST(SimCli, MatrixFileAndTruthFileAreUsed) {
   EXPECT_EQ(s.experiments[0].sample_count(), 800u);
 }
 
+TEST(SimCli, AnExistingSessionIsReplacedOnlyWithForceAndAMissingFolderFailsBeforeTheWork) {
+  test::TempDir dir;
+  std::ofstream(dir.file("m.toml")) << "periods = 2\nsample_rate = 400.0\n[[experiment]]\nlabel = \"x1\"\n"
+                                       "frequency = 2.0\nstatic_position = 0.1\namplitude = 0.01\n";
+  const std::string run = "sim matrix --matrix " + dir.file("m.toml") + " -o " + dir.file("x.h5");
+  ASSERT_EQ(test::RunStrut(run).exit_code, 0);
+  const std::string before = test::ReadFile(dir.file("x.h5"));
+  const auto again = test::RunStrut(run + " --seed 2");
+  EXPECT_EQ(again.exit_code, 1);
+  EXPECT_NE(again.output.find("--force"), std::string::npos) << again.output;
+  EXPECT_EQ(test::ReadFile(dir.file("x.h5")), before);
+  EXPECT_EQ(test::RunStrut(run + " --seed 2 --force").exit_code, 0);
+  EXPECT_NE(test::ReadFile(dir.file("x.h5")), before);
+  // The folder is checked before the simulation: the error comes at once and names it.
+  const auto missing = test::RunStrut("sim matrix -o " + dir.file("no/such/x.h5"));
+  EXPECT_EQ(missing.exit_code, 1);
+  EXPECT_NE(missing.output.find("does not exist"), std::string::npos) << missing.output;
+  EXPECT_EQ(missing.output.find("simulated rig:"), std::string::npos) << "the simulation ran first";
+  // The truth file itself is never an output.
+  std::ofstream(dir.file("t.toml")) << "[actuator]\nideal = true\n";
+  EXPECT_EQ(test::RunStrut("sim matrix --truth " + dir.file("t.toml") + " -o " + dir.file("t.toml")).exit_code, 1);
+  EXPECT_EQ(test::ReadFile(dir.file("t.toml")), "[actuator]\nideal = true\n");
+}
+
 TEST(SimCli, DropWritesADropSessionAndTheCoolingTimeConstant) {
   test::TempDir dir;
   const auto r = test::RunStrut("sim drop --mass 350 --velocity 0.5 --duration 30 -o " + dir.file("d.h5"));

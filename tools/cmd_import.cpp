@@ -6,6 +6,7 @@
 #include <iostream>
 
 #include "commands.h"
+#include "output_files.h"
 #include "strut/daq/session.h"
 #include "strut/ident/import.h"
 
@@ -20,6 +21,7 @@ struct ImportCommand {
   double sample_rate = 0.0;
   std::string input, serial, rig;
   int gzip = 4;
+  bool force = false;
 
   void Run() const {
     ident::ImportSpec spec;
@@ -44,6 +46,7 @@ struct ImportCommand {
       throw ident::ImportError(fmt::format("{}: map at least one column (--column u=V1:V) or use --preset", file));
     if (!(spec.sample_rate > 0)) throw ident::ImportError(fmt::format("{}: give --sample-rate (Hz)", file));
 
+    CheckOutputPath("--out", out, {file}, force);
     std::vector<std::string> wanted = variables;
     if (format == "mat" && wanted.empty())
       for (const auto& c : spec.columns) wanted.push_back(c.column);
@@ -73,7 +76,8 @@ void AddFormat(CLI::App& parent, const std::string& format, const std::string& h
   command->format = format;
   CLI::App* sub = parent.add_subcommand(format, help);
   sub->add_option("file", command->file, "The measured record")->required()->check(CLI::ExistingFile);
-  sub->add_option("-o,--out", command->out, "Session file to write (HDF5)")->required();
+  sub->add_option("-o,--out", command->out, "Session file to write (HDF5).")->required();
+  sub->add_flag("--force", command->force, "Replace an existing session file at the output path.");
   sub->add_option("--preset", command->preset, "Column mapping, rate and segmentation of a known record")
       ->check(CLI::IsMember({"silverbox"}));
   sub->add_option("--column", command->columns, "CHANNEL=COLUMN[:UNITS[:SCALE]], e.g. u=V1:V (repeatable)");

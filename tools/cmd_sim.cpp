@@ -10,6 +10,7 @@
 #include <iostream>
 
 #include "commands.h"
+#include "output_files.h"
 #include "strut/daq/session.h"
 #include "strut/sim/draw.h"
 #include "strut/sim/simulated_rig.h"
@@ -113,8 +114,12 @@ struct SimMatrixCommand {
   RunOptions run;
   std::string matrix_path;
   std::string output;
+  bool force = false;
 
   void Run() const {
+    // Before the simulation (under a paced clock a whole run would be lost): the output must not
+    // replace an input or an existing session without --force, and its folder must be writable.
+    CheckOutputPath("--output", output, {truth.truth_path, matrix_path}, force);
     const auto start = std::chrono::steady_clock::now();
     const sim::SimulatedRig rig(truth.Load());
     const sim::MatrixPlan plan = matrix_path.empty() ? sim::StandardMatrixPlan() : sim::ReadMatrixFile(matrix_path);
@@ -151,8 +156,10 @@ struct SimDropCommand {
   RunOptions run;
   sim::DropSpec drop;
   std::string output;
+  bool force = false;
 
   void Run() const {
+    CheckOutputPath("--output", output, {truth.truth_path}, force);
     const auto start = std::chrono::steady_clock::now();
     const sim::SimulatedRig rig(truth.Load());
     spdlog::info("simulated drop: {} kg at {} m/s for {} s on {} ({})", drop.mass, drop.impact_velocity, drop.duration,
@@ -233,7 +240,8 @@ void RegisterSimCommand(CLI::App& app) {
   matrix->truth.Add(*m, true);
   matrix->run.Add(*m);
   m->add_option("--matrix", matrix->matrix_path, "Matrix file (TOML, docs/simulated-rig.md)")->check(CLI::ExistingFile);
-  m->add_option("-o,--output", matrix->output, "Session file to write (HDF5)")->required();
+  m->add_option("-o,--output", matrix->output, "Session file to write (HDF5).")->required();
+  m->add_flag("--force", matrix->force, "Replace an existing session file at the output path.");
   m->callback([matrix] { matrix->Run(); });
 
   auto drop = std::make_shared<SimDropCommand>();
@@ -248,7 +256,8 @@ void RegisterSimCommand(CLI::App& app) {
       ->check(CLI::Range(1e-3, 3600.0))
       ->capture_default_str();
   d->add_option("--label", drop->drop.label, "Experiment label")->capture_default_str();
-  d->add_option("-o,--output", drop->output, "Session file to write (HDF5)")->required();
+  d->add_option("-o,--output", drop->output, "Session file to write (HDF5).")->required();
+  d->add_flag("--force", drop->force, "Replace an existing session file at the output path.");
   d->callback([drop] { drop->Run(); });
 
   auto truth = std::make_shared<SimTruthCommand>();

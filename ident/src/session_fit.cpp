@@ -128,11 +128,9 @@ FitPlan PlanFit(const Model& model, const FitData& data, const SessionFitOptions
   std::vector<ParameterFileEntry> file;
   if (!options.params_file.empty()) {
     file = ReadParameterFile(options.params_file);
-    for (const ParameterFileEntry& entry : file) {
-      const int i = plan.start.position(entry.name);
-      plan.start.values()[i] = entry.value;
-      plan.sources[i] = fmt::format("{} line {}", options.params_file, entry.line);
-    }
+    plan.start.apply_file(options.params_file);  // checks every value against its physical range
+    for (const ParameterFileEntry& entry : file)
+      plan.sources[plan.start.position(entry.name)] = fmt::format("{} line {}", options.params_file, entry.line);
   }
   if (!options.assignments.empty()) {
     const ParameterSet before = plan.start;

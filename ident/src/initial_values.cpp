@@ -119,6 +119,16 @@ FrictionEstimate PreidentifyFriction(const std::vector<ExperimentData>& data) {
   result.base = x[0];
   result.per_pressure = x[1];
   result.sharpness = sharpness[sharpness.size() / 2];
+  // A jump sharper than the samples resolve fits any sharpness beyond it equally (the profile runs to
+  // its 1e6 s/m end, and a Stribeck spike pushes it there); such a start leaves the fit no gradient.
+  // 5e4 s/m switches within 0.02 mm/s, under one sample's change of the rate at a 0.04 Hz reversal.
+  constexpr double kSharpestResolved = 5e4;
+  if (result.sharpness > kSharpestResolved) {
+    result.note += fmt::format("{}sharpness {:.3g} s/m at the reversals is beyond what the samples resolve; "
+                               "started at {:.3g}",
+                               result.note.empty() ? "" : "; ", result.sharpness, kSharpestResolved);
+    result.sharpness = kSharpestResolved;
+  }
   result.ok = std::isfinite(result.base) && std::isfinite(result.per_pressure);
   return result;
 }

@@ -185,7 +185,8 @@ FitPlan PlanFit(const Model& model, const FitData& data, const SessionFitOptions
     // A ridge far below any determined parameter's information: a direction the data do not see at
     // all (a term whose effect no experiment reaches has exactly zero sensitivity) gets a huge sd
     // instead of the pseudo-inverse's zero.
-    const double ridge = 1e-12 * std::max(h.diagonal().maxCoeff(), 1e-300);
+    const double largest = std::max(h.diagonal().maxCoeff(), 1e-300);
+    const double ridge = 1e-14 * largest;
     h.diagonal().array() += ridge;
     const Eigen::VectorXd sd = h.ldlt().solve(Eigen::MatrixXd::Identity(m, m)).diagonal().cwiseMax(0.0).cwiseSqrt();
     // In scaled units the typical size is 1 (or the start's size when that is larger).
@@ -196,7 +197,9 @@ FitPlan PlanFit(const Model& model, const FitData& data, const SessionFitOptions
       // Against the parameter's own size where that is larger than its typical one (a sharpness
       // started at 5e4 s/m is determined to 10 % even when that is 2.5 of the typical 2e3).
       const double typical = std::max(plan.start.spec(i).typical_size(), std::abs(plan.start.value(i))) / scale[i];
-      const double ratio = (std::isfinite(sd[a]) ? sd[a] : INFINITY) / std::max(typical, 1e-300);
+      // No information at all (the data do not depend on it): undetermined whatever its size.
+      const bool blind = !(h(a, a) - ridge > 1e-13 * largest);
+      const double ratio = blind || !std::isfinite(sd[a]) ? INFINITY : sd[a] / std::max(typical, 1e-300);
       if (plan.choices[i].prior_sd || !(ratio > worst_ratio)) continue;
       worst_ratio = ratio;
       worst = a;
@@ -205,9 +208,12 @@ FitPlan PlanFit(const Model& model, const FitData& data, const SessionFitOptions
     const int i = est[kept[worst]];
     plan.choices[i].estimate = false;
     const double size = std::max(plan.start.spec(i).typical_size(), std::abs(plan.start.value(i)));
-    plan.undetermined.push_back(fmt::format("{} {} (sd at the start {:.3g} {}, {:.3g} times its size {:.3g})",
-                                            plan.start.spec(i).key(), plan.start.spec(i).name, worst_ratio * size,
-                                            plan.start.spec(i).unit, worst_ratio, size));
+    const ParameterSpec& spec = plan.start.spec(i);
+    plan.undetermined.push_back(
+        std::isfinite(worst_ratio)
+            ? fmt::format("{} {} (sd at the start {:.3g} {}, {:.3g} times its size {:.3g})", spec.key(), spec.name,
+                          worst_ratio * size, spec.unit, worst_ratio, size)
+            : fmt::format("{} {} (no experiment's outputs depend on it at the start)", spec.key(), spec.name));
     kept.erase(kept.begin() + worst);
   }
   return plan;

@@ -1,6 +1,7 @@
 // strut periodic: one period of the periodic equilibrium state of a model.
 #include <spdlog/spdlog.h>
 
+#include <cmath>
 #include <fstream>
 #include <iostream>
 #include <nlohmann/json.hpp>
@@ -40,16 +41,74 @@ struct PeriodicCommand {
     return ident::PeriodicInput::FromRecord(e.channel(channel).samples, e.sample_rate, e.frequency, e.periods, n);
   }
 
+  //! Refuses inputs the model cannot have a physical periodic state for, before solving: one line
+  //! naming the option and its valid range.
+  void Validate(const ident::Model& m, const ident::ParameterSet& parameters) const {
+    const int n_min = scheme == "spectral" ? 4 : 8, n_max = 1000000;
+    if (n < n_min || n > n_max)
+      throw std::invalid_argument(fmt::format("--n must be in {} .. {} with --scheme {}, got {}", n_min, n_max, scheme, n));
+    if (!from.empty()) return;  // a recorded input: its checks are the recording's
+    if (!(frequency > 0) || !std::isfinite(frequency))
+      throw std::invalid_argument(fmt::format("--frequency must be a positive number of Hz, got {}", frequency));
+    const bool stroke_input = m.causality() == ident::Causality::kStrokeInput;
+    const char* unit = stroke_input ? "m" : "N";
+    if (!(amplitude > 0) || !std::isfinite(amplitude))
+      throw std::invalid_argument(fmt::format("--amplitude must be positive (the input amplitude, {}), got {}", unit,
+                                              amplitude));
+    if (!std::isfinite(static_value))
+      throw std::invalid_argument(fmt::format("--static must be finite, got {}", static_value));
+    if (!stroke_input) {
+      if (!(static_value > 0))
+        throw std::invalid_argument(
+            fmt::format("--static must be a positive static force (N, compression-positive) with --input force, got {}",
+                        static_value));
+      return;
+    }
+    // Stroke input: the measured stroke is q + theta12, and q must stay inside the damper.
+    if (m.output_channels().front() != "stroke") return;  // not a damper: no stroke range
+    const int offset_position = m.defaults().position_of_index(12);
+    const double offset = offset_position >= 0 ? parameters.value(offset_position) : 0.0;
+    const double low = offset, high = ident::kDamperStroke + offset;
+    if (static_value - amplitude < low || static_value + amplitude > high)
+      throw std::invalid_argument(fmt::format(
+          "--static {} ± --amplitude {} leaves the damper's stroke: static ± amplitude must lie in {:.4g} .. {:.4g} m{}",
+          static_value, amplitude, low, high,
+          offset != 0 ? fmt::format(" (the damper's stroke 0 .. {} m shifted by the stroke offset theta12 = {:.4g} m)",
+                                    ident::kDamperStroke, offset)
+                      : std::string(" (the damper's stroke)")));
+  }
+
   void Run() const {
     const ident::Model m = model.BuildModel();
     const ident::ParameterSet parameters = model.Parameters(m);
+    Validate(m, parameters);
     ident::PeriodicSolverOptions options;
     options.scheme = ident::ParseScheme(scheme);
     ident::PeriodicSolver solver(m, options);
     const ident::PeriodicInput input = Input(m);
     const ident::PeriodicSolution solution = solver.Solve(input, parameters.values());
-    spdlog::info("{} ({} input), {} at n = {}: {} Newton iterations, scaled residual {:.3g}", m.composition(),
-                 ident::ToString(m.causality()), scheme, n, solution.newton_iterations, solution.residual_norm);
+    // The solver converges on the size of the Newton step (each unknown's scale times the
+    // tolerance), not on the residual, whose scale under steep friction is arbitrary. Check the
+    // same at the solution it returned: the correction its Jacobian makes of the residual there.
+    Eigen::MatrixXd correction = -solver.Residual(solution.unknowns, input, parameters.values());
+    const double residual_at_solution = correction.size() > 0 ? correction.cwiseAbs().maxCoeff() : 0.0;
+    if (solution.jacobian)
+      solution.jacobian->Solve(Eigen::Map<Eigen::VectorXd>(correction.data(), correction.size()));
+    double step_left = solution.jacobian ? 0.0 : INFINITY;
+    for (int j = 0; j < correction.rows() && solution.jacobian; ++j)
+      step_left = std::max(step_left, correction.row(j).cwiseAbs().maxCoeff() /
+                                          (m.unknown_spec(j).scale * options.tolerance));
+    spdlog::info("{} ({} input), {} at n = {}: {} Newton iterations, scaled residual {:.3g}, Newton step left {:.3g} "
+                 "of the tolerance",
+                 m.composition(), ident::ToString(m.causality()), scheme, n, solution.newton_iterations,
+                 residual_at_solution, step_left);
+    if (const auto violation = ident::PhysicalViolation(m, solution, parameters.values()))
+      throw std::runtime_error("no physical periodic solution: " + *violation);
+    if (!(step_left <= 1.0))
+      throw std::runtime_error(fmt::format(
+          "no periodic solution: Newton did not converge; at the state it returned the next Newton step is {:.3g} "
+          "times the solver's tolerance (scaled residual {:.3g})",
+          step_left, residual_at_solution));
 
     const std::vector<double> time = solution.time();
     if (json_path.empty()) {

@@ -141,6 +141,71 @@ Eigen::VectorXd PeriodicSolution::channel(std::string_view name) const {
   throw std::out_of_range(fmt::format("periodic solution has no channel '{}'", name));
 }
 
+std::optional<std::string> PhysicalViolation(const Model& model, const PeriodicSolution& solution,
+                                             std::span<const double> theta) {
+  const int n = solution.n, m = model.unknown_count();
+  if (static_cast<int>(theta.size()) != model.parameter_count() || n <= 0 || solution.unknowns.rows() != m ||
+      solution.unknowns.cols() != n || static_cast<int>(solution.input.values.size()) != n ||
+      solution.outputs.cols() != n || solution.outputs.rows() != static_cast<int>(solution.channels.size()))
+    throw std::invalid_argument("PhysicalViolation: the solution or the parameters do not fit the model");
+  const auto at = [&](int mu) { return solution.frequency > 0 ? mu / (n * solution.frequency) : 0.0; };
+  // The worst (lowest, or a non-finite) value of a row against a lower bound it must exceed.
+  const auto check_above = [&](const auto& value_at, double bound, std::string_view what, std::string_view unit,
+                               std::string_view rule) -> std::optional<std::string> {
+    int worst = -1;
+    for (int mu = 0; mu < n; ++mu) {
+      const double v = value_at(mu);
+      if (!std::isfinite(v)) return fmt::format("{} is not finite at t = {:.4g} s", what, at(mu));
+      if (v <= bound && (worst < 0 || v < value_at(worst))) worst = mu;
+    }
+    if (worst < 0) return std::nullopt;
+    return fmt::format("{} {:.4g}{}{} at t = {:.4g} s ({})", what, value_at(worst), unit.empty() ? "" : " ", unit,
+                       at(worst), rule);
+  };
+  const auto row = [&](std::string_view name) {
+    for (std::size_t c = 0; c < solution.channels.size(); ++c)
+      if (solution.channels[c] == name) return static_cast<int>(c);
+    return -1;
+  };
+  if (const int p = row("pressure"); p >= 0)
+    if (auto v = check_above([&](int mu) { return solution.outputs(p, mu); }, 0.0, "absolute gas pressure", "Pa",
+                             "must be positive"))
+      return v;
+  if (const int t = row("temperature"); t >= 0)
+    if (auto v = check_above([&](int mu) { return solution.outputs(t, mu); }, 0.0, "gas temperature", "K",
+                             "must be positive"))
+      return v;
+  const std::vector<std::string> channels = model.output_channels();
+  if (channels.empty() || channels[0] != "stroke") return std::nullopt;  // not a damper
+  // The true stroke q: the unknown under force input, measured stroke - theta12 under stroke input.
+  const int offset = model.defaults().position_of_index(12);
+  const auto stroke = [&](int mu) {
+    if (model.causality() == Causality::kForceInput) return solution.unknowns(0, mu);
+    return solution.input.values[mu] - (offset >= 0 ? theta[offset] : 0.0);
+  };
+  if (const int volume = model.defaults().position_of_index(6); volume >= 0)
+    if (auto v = check_above([&](int mu) { return 1.0 + theta[volume] * stroke(mu); }, 0.0,
+                             "relative gas volume 1 + theta6 q =", "",
+                             fmt::format("must be positive; theta6 = {:.4g} 1/m", theta[volume])))
+      return v;
+  if (model.causality() == Causality::kForceInput) {
+    const double low = -kDamperStrokeMargin, high = kDamperStroke + kDamperStrokeMargin;
+    for (int mu = 0; mu < n; ++mu) {
+      const double q = stroke(mu);
+      if (!std::isfinite(q)) return fmt::format("stroke is not finite at t = {:.4g} s", at(mu));
+    }
+    int worst = 0;
+    for (int mu = 1; mu < n; ++mu)
+      if (std::max(low - stroke(mu), stroke(mu) - high) > std::max(low - stroke(worst), stroke(worst) - high))
+        worst = mu;
+    const double q = stroke(worst);
+    if (q < low || q > high)
+      return fmt::format("stroke {:.4g} m at t = {:.4g} s (outside the damper, 0 .. {} m with a {} m margin)", q,
+                         at(worst), kDamperStroke, kDamperStrokeMargin);
+  }
+  return std::nullopt;
+}
+
 PeriodicSolver::PeriodicSolver(Model model, PeriodicSolverOptions options)
     : model_(std::move(model)), options_(options) {
   std::string error;

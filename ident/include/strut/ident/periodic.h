@@ -129,6 +129,20 @@ struct PeriodicSolution {
   Eigen::VectorXd channel(std::string_view name) const;
 };
 
+//! The damper's full dynamic stroke, m (method.md: q = 0 fully extended, 0.264 m fully compressed).
+inline constexpr double kDamperStroke = 0.264;
+//! How far a solved stroke may leave 0 .. kDamperStroke before it is impossible, m.
+inline constexpr double kDamperStrokeMargin = 0.005;
+
+//! The first physically impossible part of a periodic solution of `model` for `theta`, in words
+//! (what, its worst value, where in the period and the allowed range), or nullopt when it is
+//! possible: absolute gas pressure <= 0, gas temperature <= 0 K, gas volume 1 + theta6 q <= 0, or
+//! under force input a stroke q outside -kDamperStrokeMargin .. kDamperStroke + kDamperStrokeMargin
+//! (models whose first output is "stroke"). Channels and parameters a model lacks are not checked;
+//! non-finite values are violations. Throws std::invalid_argument when the sizes do not fit the model.
+std::optional<std::string> PhysicalViolation(const Model& model, const PeriodicSolution& solution,
+                                             std::span<const double> theta);
+
 //! What the estimator needs from a way of predicting periodic outputs: the periodic solver, or
 //! (for comparison) transient integration to steady state. Failures throw PeriodicSolverError.
 class PeriodicPredictor {

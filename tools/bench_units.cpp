@@ -115,16 +115,16 @@ struct BenchUnits {
       if (s.converged) {
         std::mt19937_64 rng(seed);
         std::uniform_real_distribution<double> off(-start_off, start_off);
-        ident::SessionFitOptions restart = options;
+        // The same estimated set (the plan), another start: through the entry point's fit, so a start
+        // that ends off the floor is repeated from the data's own values as for any user.
+        ident::FitPlan far = fit.plan;
         for (int i : s.estimated_positions) {
-          const ident::ParameterSpec& spec = fit.plan.start.spec(i);
-          const auto t = truth_values.find(spec.key());
-          const double v = t ? truth_values.value(*t) : fit.plan.start.value(i);
+          const auto t = truth_values.find(far.start.spec(i).key());
+          const double v = t ? truth_values.value(*t) : far.start.value(i);
           const double factor = 1.0 + off(rng);
-          if (!fit.plan.choices[i].prior_sd)
-            restart.assignments += fmt::format("{}{}={:.17g}", restart.assignments.empty() ? "" : ",", spec.key(), v * factor);
+          if (!far.choices[i].prior_sd) far.start.values()[i] = v * factor;
         }
-        const ident::FitSummary again = ident::FitPrepared(fit.data, model, restart).summary;
+        const ident::FitSummary again = ident::FitPlanned(fit.data, model, std::move(far), options).summary;
         double apart = 0.0;
         for (int i : s.estimated_positions)
           apart = std::max(apart, std::abs(again.parameters.value(i) - s.parameters.value(i)) / s.sd[i]);

@@ -124,6 +124,7 @@ FitPlan PlanFit(const Model& model, const FitData& data, const SessionFitOptions
   FitPlan plan;
   plan.start = InitialValuesFromData(model, data.experiments, nullptr, &plan.sources);
   plan.data_start = plan.start;
+  plan.data_sources = plan.sources;
   // The user's values win over the data's: the file, then the assignments.
   std::vector<ParameterFileEntry> file;
   if (!options.params_file.empty()) {
@@ -148,18 +149,24 @@ FitPlan PlanFit(const Model& model, const FitData& data, const SessionFitOptions
   }
   if (!defaults) return plan;
 
-  // What the data can determine: at the start, with the channels' noise floors as their variances,
-  // the sd each estimated parameter would have. One that exceeds its typical size is fixed and
-  // named, the least determined first (fixing it can make the others determinable).
+  // What the data can determine: with the channels' noise floors as their variances, the sd each
+  // estimated parameter would have. One that exceeds its size is fixed and named, the least
+  // determined first (fixing it can make the others determinable). Judged at the data's own
+  // starting values (the user's values only for the parameters that are not estimated), so what is
+  // estimated depends on the data and on what the user says (the values given with --set or in a
+  // file: an end stop's known position), not on the data's rough starting values.
+  ParameterSet at = plan.data_start;
   std::vector<int> est;
-  std::vector<double> scale(plan.start.size());
-  for (int i = 0; i < plan.start.size(); ++i) {
-    scale[i] = std::max({std::abs(plan.start.value(i)), plan.start.spec(i).typical_size(), 1e-300});
+  std::vector<double> scale(at.size());
+  for (int i = 0; i < at.size(); ++i) {
+    if (!plan.choices[i].estimate || plan.choices[i].prior_sd || plan.sources[i] != plan.data_sources[i])
+      at.values()[i] = plan.start.value(i);
+    scale[i] = std::max({std::abs(at.value(i)), at.spec(i).typical_size(), 1e-300});
     if (plan.choices[i].estimate) est.push_back(i);
   }
   if (est.empty()) return plan;
   FitProblem problem(model, options.estimator, data.experiments, data.issues, est, scale);
-  problem.Solve(plan.start.values(), true);
+  problem.Solve(at.values(), true);
   if (problem.active_count() == 0) return plan;  // the fit itself will say why
   std::vector<double> variance;
   for (const std::string& channel : problem.channels()) {
@@ -171,7 +178,7 @@ FitPlan PlanFit(const Model& model, const FitData& data, const SessionFitOptions
     }
     variance.push_back(count > 0 ? sum / count : 1.0);
   }
-  const NormalEquations eq = problem.Linearise(plan.start.values(), variance, {true, false, false, false});
+  const NormalEquations eq = problem.Linearise(at.values(), variance, {true, false, false, false});
   std::vector<int> kept(est.size());
   for (std::size_t k = 0; k < est.size(); ++k) kept[k] = static_cast<int>(k);
   while (!kept.empty()) {
@@ -196,7 +203,7 @@ FitPlan PlanFit(const Model& model, const FitData& data, const SessionFitOptions
       const int i = est[kept[a]];
       // Against the parameter's own size where that is larger than its typical one (a sharpness
       // started at 5e4 s/m is determined to 10 % even when that is 2.5 of the typical 2e3).
-      const double typical = std::max(plan.start.spec(i).typical_size(), std::abs(plan.start.value(i))) / scale[i];
+      const double typical = std::max(plan.start.spec(i).typical_size(), std::abs(at.value(i))) / scale[i];
       // No information at all (the data do not depend on it): undetermined whatever its size.
       const bool blind = !(h(a, a) - ridge > 1e-13 * largest);
       const double ratio = blind || !std::isfinite(sd[a]) ? INFINITY : sd[a] / std::max(typical, 1e-300);
@@ -207,7 +214,7 @@ FitPlan PlanFit(const Model& model, const FitData& data, const SessionFitOptions
     if (worst < 0) break;
     const int i = est[kept[worst]];
     plan.choices[i].estimate = false;
-    const double size = std::max(plan.start.spec(i).typical_size(), std::abs(plan.start.value(i)));
+    const double size = std::max(plan.start.spec(i).typical_size(), std::abs(at.value(i)));
     const ParameterSpec& spec = plan.start.spec(i);
     plan.undetermined.push_back(
         std::isfinite(worst_ratio)
@@ -221,8 +228,13 @@ FitPlan PlanFit(const Model& model, const FitData& data, const SessionFitOptions
 
 SessionFit FitPrepared(FitData data, const Model& model, const SessionFitOptions& options,
                        const std::function<void(const FitProgress&)>& progress) {
-  SessionFit fit{model, std::move(data), {}, {}};
-  fit.plan = PlanFit(fit.model, fit.data, options);
+  FitPlan plan = PlanFit(model, data, options);
+  return FitPlanned(std::move(data), model, std::move(plan), options, progress);
+}
+
+SessionFit FitPlanned(FitData data, const Model& model, FitPlan plan, const SessionFitOptions& options,
+                      const std::function<void(const FitProgress&)>& progress) {
+  SessionFit fit{model, std::move(data), std::move(plan), {}};
   const Estimator estimator(fit.model, options.estimator);
   fit.summary = estimator.Fit(fit.data.experiments, fit.plan.start, fit.plan.choices, fit.data.issues, progress);
   if (fit.summary.Verdict() != FitVerdict::kAtNoiseFloor && fit.plan.data_start.values() != fit.plan.start.values()) {

@@ -51,7 +51,8 @@ FitData PrepareFitData(const daq::Session& session, const std::string& name, con
 //! What a fit starts from and what it estimates.
 struct FitPlan {
   ParameterSet start;
-  ParameterSet data_start;  //!< the starting values from the data alone (a second start: FitPrepared)
+  ParameterSet data_start;  //!< the starting values from the data alone (a second start: FitPlanned)
+  std::vector<std::string> data_sources;  //!< per parameter, where data_start's value came from
   std::vector<ParameterChoice> choices;
   std::vector<std::string> sources;       //!< per parameter: where its starting value came from
   std::vector<std::string> undetermined;  //!< parameters fixed because the data do not determine them, with why
@@ -81,5 +82,9 @@ SessionFit FitSessions(const std::vector<std::string>& sessions, const SessionFi
 //! the user's value, the prior's mean) and the better posterior is kept; the summary says so.
 SessionFit FitPrepared(FitData data, const Model& model, const SessionFitOptions& options,
                    const std::function<void(const FitProgress&)>& progress = {});
+//! Fits with a given plan (what FitPrepared does after PlanFit), the second start included: a
+//! benchmark restarts a fit from far-off values with the same estimated set this way.
+SessionFit FitPlanned(FitData data, const Model& model, FitPlan plan, const SessionFitOptions& options,
+                      const std::function<void(const FitProgress&)>& progress = {});
 
 }  // namespace strut::ident

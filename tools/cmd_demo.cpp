@@ -2,8 +2,10 @@
 // rig (actuator, sensors, a damper with every extra effect of the default truth), records the
 // session, identifies the paper's 1 dof and 2 dof models, lets discovery name what they leave
 // out, and writes the fits (JSON) and reports (HTML).
+#include <fmt/ranges.h>
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <chrono>
 #include <filesystem>
 #include <fstream>
@@ -32,6 +34,8 @@ struct DemoCommand {
     const std::string session_path = out_dir + "/session.h5";
 
     // 1. The rig: the standard matrix on the simulated rig, default truth (every effect on).
+    // Progress goes to the log (stderr) as each step starts; results to stdout.
+    spdlog::info("demo step 1 of 3: the standard matrix on the simulated rig (a few seconds)");
     const sim::SimulatedRig rig(sim::DefaultTruth());
     sim::RigRunOptions run;
     run.seed = seed;
@@ -47,6 +51,7 @@ struct DemoCommand {
     std::cout << "2. identification (stroke input; every parameter the data determine):\n";
     std::vector<ident::FitSummary> fits;
     for (const char* composition : {"1dof", "2dof"}) {
+      spdlog::info("demo step 2 of 3: identifying the {} model (every parameter the data determine)", composition);
       ident::SessionFitOptions options;
       options.composition = composition;
       const ident::Model model = ident::Model::Build(composition, options.causality);
@@ -78,6 +83,7 @@ struct DemoCommand {
                              fits[1].bic < fits[0].bic ? "better" : "no better", fits[1].bic, fits[0].bic);
 
     // 3. Discovery from 1 dof: what physics do the recordings show beyond it?
+    spdlog::info("demo step 3 of 3: discovery from 1dof (up to a minute: every round refits every candidate)");
     std::cout << "\n3. discovery from 1dof (the truth has every effect of the catalogue):\n";
     start = Clock::now();
     ident::SessionFitOptions baseline;
@@ -89,6 +95,17 @@ struct DemoCommand {
       std::cout << fmt::format("   + {:<20} ΔBIC {:+11.1f}   {}\n", step.term, step.delta_bic, step.evidence);
     std::cout << fmt::format("   {} ({:.1f} s)\n", found.conclusion,
                              std::chrono::duration<double>(Clock::now() - start).count());
+    // Against the truth the rig simulated: what discovery named, missed, or added that is not there.
+    std::vector<std::string> named, missed, extra;
+    const auto in = [](const std::vector<std::string>& list, const std::string& name) {
+      return std::find(list.begin(), list.end(), name) != list.end();
+    };
+    for (const std::string& effect : rig.truth().effects) (in(found.missing, effect) ? named : missed).push_back(effect);
+    for (const std::string& term : found.missing)
+      if (!in(rig.truth().effects, term)) extra.push_back(term);
+    const auto list = [](const std::vector<std::string>& v) { return v.empty() ? std::string("none") : fmt::format("{}", fmt::join(v, ", ")); };
+    std::cout << fmt::format("   against the simulated truth: found {}; missed {}; extra {}\n", list(named), list(missed),
+                             list(extra));
     std::cout << fmt::format("\n   Fits: {0}/fit-*.json, reports: {0}/fit-*.html, session: {1}\n", out_dir, session_path);
   }
 };

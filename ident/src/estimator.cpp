@@ -341,6 +341,13 @@ FitSummary Estimator::Fit(const std::vector<ExperimentData>& data, const Paramet
   summary.aic = -2.0 * summary.loglik + 2.0 * l;
   summary.bic = -2.0 * summary.loglik + l * std::log(static_cast<double>(std::max(1L, summary.observations)));
   problem.Summarise(current, variance, summary);
+  // A fit that only matches the data with an impossible state (negative absolute pressure, a gas
+  // volume through zero) says so: the parameters then mean nothing physical.
+  for (const ExperimentFit& e : summary.experiments)
+    if (e.converged)
+      if (const auto violation = PhysicalViolation(model_, e.solution, theta))
+        summary.warnings.push_back(fmt::format("experiment '{}': the fitted state is physically impossible: {}", e.label,
+                                               *violation));
   if (!summary.converged && summary.warnings.empty())
     summary.warnings.push_back(fmt::format("estimator: not converged after {} iterations", iteration));
   return summary;

@@ -15,8 +15,6 @@ Eigen::VectorXd ScaledBounds::Project(const Eigen::VectorXd& x) const {
   return x.cwiseMax(lower).cwiseMin(upper);
 }
 
-double BardStep::StepInSd() const { return step.size() == 0 ? 0.0 : (step.array().abs() / sd.array()).maxCoeff(); }
-
 double BardStep::NewtonInSd() const {
   return newton.size() == 0 ? 0.0 : (newton.array().abs() / sd.array()).maxCoeff();
 }

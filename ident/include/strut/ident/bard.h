@@ -50,8 +50,6 @@ struct BardStep {
   std::vector<Eigen::VectorXd> nuisance_step;
   //! Largest |nuisance step| over its sd given the parameters (sqrt of diag A^-1); 0 without.
   double nuisance_step_in_sd = 0.0;
-  //! Largest |step| / sd: the damped step in units of the posterior uncertainty.
-  double StepInSd() const;
   //! Largest |newton| / sd: the distance to the optimum in posterior sd (the convergence measure).
   double NewtonInSd() const;
 };

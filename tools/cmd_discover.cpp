@@ -110,7 +110,6 @@ void WriteDiscoveryReport(const ident::DiscoveryResult& r, const std::string& pa
 struct DiscoverCommand {
   std::vector<std::string> sessions;
   ModelOptions model;
-  std::vector<std::string> exclude;
   std::string json_path, report_path;
   int n = 800;
   int threads = 2;
@@ -118,14 +117,8 @@ struct DiscoverCommand {
   void Run() const {
     CheckOutputPath("--json", json_path, sessions);
     CheckOutputPath("--report", report_path, sessions);
-    ident::SessionFitOptions fit;
-    fit.composition = model.composition;
-    fit.causality = ident::ParseCausality(model.input);
-    fit.params_file = model.params_file;
-    fit.assignments = model.assignments;
-    fit.exclude = exclude;
-    fit.estimator.n = n;
-    const ident::FitData data = ident::ReadFitData(sessions, model.BuildModel(), n, exclude);
+    const ident::SessionFitOptions fit = model.FitOptions(n);
+    const ident::FitData data = ident::ReadFitData(sessions, model.BuildModel(), n, fit.exclude);
     for (const auto& line : data.excluded) spdlog::info("{}", line);
     ident::DiscoverOptions options;
     options.threads = threads;
@@ -149,9 +142,7 @@ void RegisterDiscoverCommand(CLI::App& app) {
       "the mismatch, add the catalogue term that explains it (BIC and cross-validation), and show the fit improve.");
   sub->add_option("sessions", command->sessions, "Session files (HDF5).")->required()->check(CLI::ExistingFile);
   command->model.Add(*sub);
-  sub->add_option("--exclude", command->exclude,
-                  "Leave out an experiment (LABEL) or one of its channels (LABEL:CHANNEL); repeat or separate by commas.")
-      ->delimiter(',');
+  command->model.AddExclude(*sub);
   sub->add_option("--json", command->json_path, "Write the findings as JSON to this file.");
   sub->add_option("--report", command->report_path, "Write a self-contained HTML report to this file.");
   sub->add_option("--n", command->n, "Grid points per period.")->check(CLI::Range(16, 100000))->capture_default_str();

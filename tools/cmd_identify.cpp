@@ -19,7 +19,6 @@ struct IdentifyCommand {
   std::vector<std::string> sessions;
   ModelOptions model;
   std::string estimate;
-  std::vector<std::string> exclude;
   std::string json_path, report_path;
   int n = 800;
   std::string scheme = "backward2";
@@ -33,19 +32,13 @@ struct IdentifyCommand {
     CheckOutputPath("--report", report_path, sessions);
     if (!json_path.empty() && json_path == report_path)
       throw std::invalid_argument("--json and --report name the same file " + json_path);
-    ident::SessionFitOptions options;
-    options.composition = model.composition;
-    options.causality = ident::ParseCausality(model.input);
+    ident::SessionFitOptions options = model.FitOptions(n);
     options.estimate = estimate;
-    options.params_file = model.params_file;
-    options.assignments = model.assignments;
-    options.exclude = exclude;
-    options.estimator.n = n;
     options.estimator.scheme = ident::ParseScheme(scheme);
     if (estimate_input != "auto") options.estimator.estimate_input = estimate_input == "on";
     options.estimator.input_harmonics = input_harmonics;
     const ident::Model m = model.BuildModel();
-    ident::FitData data = ident::ReadFitData(sessions, m, n, exclude);
+    ident::FitData data = ident::ReadFitData(sessions, m, n, options.exclude);
     for (const auto& issue : data.issues)
       spdlog::warn("{}: experiment '{}', channel '{}': {}: {}", sessions.size() == 1 ? sessions[0] : "session",
                    issue.experiment, issue.channel, issue.kind, issue.detail);
@@ -68,7 +61,7 @@ struct IdentifyCommand {
     if (!json_path.empty()) {
       nlohmann::json j = ident::FitToJson(fit.summary);
       j["sessions"] = sessions;
-      j["excluded"] = exclude;
+      j["excluded"] = options.exclude;
       WriteTextOutput(json_path, j.dump(1) + "\n");
     }
     if (!report_path.empty()) {
@@ -102,9 +95,7 @@ void RegisterIdentifyCommand(CLI::App& app) {
   sub->add_option("--estimate", command->estimate,
                   "Parameters to estimate: a list such as theta4,theta6,theta16, or 'paper' for the paper's set. "
                   "Default: every parameter the data can determine, with a prior on the stroke sensor's zero.");
-  sub->add_option("--exclude", command->exclude,
-                  "Leave out an experiment (LABEL) or one of its channels (LABEL:CHANNEL); repeat or separate by commas.")
-      ->delimiter(',');
+  command->model.AddExclude(*sub);
   sub->add_option("--json", command->json_path, "Write the fit as JSON to this file.");
   sub->add_option("--report", command->report_path, "Write a self-contained HTML report to this file.");
   sub->add_option("--n", command->n, "Grid points per period.")->check(CLI::Range(16, 100000))->capture_default_str();

@@ -25,4 +25,22 @@ ident::ParameterSet ModelOptions::Parameters(const ident::Model& model) const {
   return parameters;
 }
 
+void ModelOptions::AddExclude(CLI::App& command) {
+  command
+      .add_option("--exclude", exclude,
+                  "Leave out an experiment (LABEL) or one of its channels (LABEL:CHANNEL); repeat or separate by commas.")
+      ->delimiter(',');
+}
+
+ident::SessionFitOptions ModelOptions::FitOptions(int n) const {
+  ident::SessionFitOptions options;
+  options.composition = composition;
+  options.causality = ident::ParseCausality(input);
+  options.params_file = params_file;
+  options.assignments = assignments;
+  options.exclude = exclude;
+  options.estimator.n = n;
+  return options;
+}
+
 }  // namespace strut::tools

@@ -5,6 +5,7 @@
 #include <string>
 
 #include "strut/ident/model.h"
+#include "strut/ident/session_fit.h"
 
 namespace strut::tools {
 
@@ -13,12 +14,17 @@ struct ModelOptions {
   std::string input = "stroke";
   std::string assignments;  //!< --set NAME=VALUE[,NAME=VALUE...]
   std::string params_file;  //!< --params FILE
+  std::vector<std::string> exclude;  //!< --exclude LABEL[:CHANNEL],... (commands that read sessions)
 
   //! Adds --model, --input, --set and --params to a subcommand.
   void Add(CLI::App& command);
   ident::Model BuildModel() const;
   //! The model's defaults, then --params, then --set (later wins).
   ident::ParameterSet Parameters(const ident::Model& model) const;
+  //! Adds --exclude to a subcommand that fits sessions.
+  void AddExclude(CLI::App& command);
+  //! The fit options these settings make (model, causality, file, assignments, exclusions; grid n).
+  ident::SessionFitOptions FitOptions(int n) const;
 };
 
 }  // namespace strut::tools

@@ -269,6 +269,7 @@ FitSummary Estimator::Fit(const std::vector<ExperimentData>& data, const Paramet
   // Uncertainty at the final iterate: posterior covariance without the damping prior, with exact
   // sensitivities and the measured inputs' noise.
   const std::vector<double> variance = current.Variances(l);
+  const std::vector<double> ratios = problem.NoiseRatios();
   summary.sd.assign(np, NAN);
   if (l > 0) {
     const NormalEquations eq = problem.Linearise(theta, variance, {true, false, options_.input_noise, estimating_inputs});
@@ -278,7 +279,6 @@ FitSummary Estimator::Fit(const std::vector<ExperimentData>& data, const Paramet
     // systematic, not white, and the covariance above (white noise at the residual variance) is
     // then far too narrow. Each parameter's sd is widened to what the experiments' disagreement
     // implies (the sandwich over experiments) where that is larger.
-    const std::vector<double> ratios = problem.NoiseRatios();
     const bool above_floor = std::any_of(ratios.begin(), ratios.end(), [](double r) { return r >= kNoiseFloorRatio; });
     if (above_floor) {
       const Eigen::MatrixXd robust = ExperimentSandwich(posterior.covariance, eq.experiment_gradient);
@@ -340,7 +340,7 @@ FitSummary Estimator::Fit(const std::vector<ExperimentData>& data, const Paramet
   summary.loglik = current.LogLikelihood();
   summary.aic = -2.0 * summary.loglik + 2.0 * l;
   summary.bic = -2.0 * summary.loglik + l * std::log(static_cast<double>(std::max(1L, summary.observations)));
-  problem.Summarise(current, variance, summary);
+  problem.Summarise(current, variance, ratios, summary);
   // A fit that only matches the data with an impossible state (negative absolute pressure, a gas
   // volume through zero) says so: the parameters then mean nothing physical.
   for (const ExperimentFit& e : summary.experiments)

@@ -629,9 +629,9 @@ std::vector<double> FitProblem::NoiseRatios() const {
   return ratio;
 }
 
-void FitProblem::Summarise(const ResidualSums& sums, const std::vector<double>& variance, FitSummary& summary) {
+void FitProblem::Summarise(const ResidualSums& sums, const std::vector<double>& variance,
+                           const std::vector<double>& ratio, FitSummary& summary) {
   const int nc = static_cast<int>(channels_.size());
-  const std::vector<double> ratio = NoiseRatios();
   for (int b = 0; b < nc; ++b) {
     FitChannel c;
     c.name = channels_[b];

@@ -113,7 +113,9 @@ class FitProblem {
   //! no experiment knows its noise.
   std::vector<double> NoiseRatios() const;
   //! Fills the summary's channel and experiment statistics (and moves the solutions into it).
-  void Summarise(const ResidualSums& sums, const std::vector<double>& variance, FitSummary& summary);
+  //! `ratio`: NoiseRatios() of the same solutions.
+  void Summarise(const ResidualSums& sums, const std::vector<double>& variance, const std::vector<double>& ratio,
+                 FitSummary& summary);
 
  private:
   struct Experiment;

@@ -7,6 +7,8 @@
 #include <chrono>
 #include <iostream>
 #include <nlohmann/json.hpp>
+#include <cmath>
+#include <random>
 #include <sstream>
 
 #include "commands.h"
@@ -18,12 +20,50 @@
 namespace strut::tools {
 namespace {
 
+//! The detection study's sizes (--sizes study): per effect the parameter that sets how strongly the
+//! unit shows it, drawn from barely detectable to plain (docs/discovery.md, "Detection sizes").
+struct StudyRange {
+  std::string effect;
+  int index;        //!< theta index of the size
+  double low, high;
+  bool log;         //!< log-uniform (else uniform)
+  bool via_draw;    //!< the draw itself spreads it (sim::DrawSpreads); no size is requested
+  const char* unit;
+};
+const std::vector<StudyRange>& StudyRanges() {
+  static const std::vector<StudyRange> ranges = {
+      {"viscous-damping", 18, 30.0, 3000.0, true, false, "N s/m"},
+      {"stribeck-friction", 19, 0.02, 0.6, false, false, "-"},
+      {"oil-compressibility", 26, 1e-10, 2e-9, true, false, "1/Pa"},
+      {"real-gas", 31, 0.05, 1.5, false, false, "-"},
+      {"end-stop", 23, 0.0, 8e-3, false, true, "m"},
+  };
+  return ranges;
+}
+const StudyRange* FindStudyRange(const std::string& effect) {
+  for (const StudyRange& r : StudyRanges())
+    if (r.effect == effect) return &r;
+  return nullptr;
+}
+
+//! The smallest size above which at least 95 % of the units (and at least 10) had the right first
+//! term; NaN when no such size.
+double DetectionSize(std::vector<std::pair<double, bool>> units) {
+  std::sort(units.begin(), units.end());
+  for (std::size_t k = 0; k + 10 <= units.size(); ++k) {
+    const long right = std::count_if(units.begin() + k, units.end(), [](const auto& u) { return u.second; });
+    if (right >= 0.95 * static_cast<double>(units.size() - k)) return units[k].first;
+  }
+  return NAN;
+}
+
 struct BenchConfusion {
   int units = 10;
   unsigned long first_seed = 2000;
   std::string base = "2dof";
   std::string effects = "none,viscous-damping,stribeck-friction,oil-compressibility,real-gas,end-stop";
   bool servo = false;
+  std::string sizes = "drawn";
   std::string json_path;
 
   void Run() const {
@@ -40,17 +80,32 @@ struct BenchConfusion {
                              base, units, first_seed, servo ? "servo" : "ideal");
     std::cout << fmt::format("  {:<20} {:>6} {:>12} {:>12} {:>10} {:>10}  {}\n", "truth holds", "units", "right first",
                              "extra terms", "none found", "median s", "what was added");
-    nlohmann::json rows = nlohmann::json::array();
+    nlohmann::json rows = nlohmann::json::array(), unit_rows = nlohmann::json::array();
+    std::vector<std::string> detection_lines;
     for (const std::string& effect : list) {
-      sim::UnitDraw draw;
-      draw.base = base;
-      if (effect != "none") draw.effects.push_back({effect, std::nullopt});
+      const StudyRange* study = sizes == "study" ? FindStudyRange(effect) : nullptr;
+      if (sizes == "study" && effect != "none" && !study)
+        throw std::invalid_argument(fmt::format("--effects: no study range for '{}'", effect));
       int right = 0, extra = 0, none = 0;
       std::vector<double> seconds;
       std::map<std::string, int> added;
+      std::vector<std::pair<double, bool>> by_size;  // (size, right first term)
       for (int u = 0; u < units; ++u) {
         const unsigned long seed = first_seed + u;
-        const sim::SimulatedRig rig(sim::DrawUnit(around, draw, seed));
+        sim::UnitDraw draw;
+        draw.base = base;
+        if (effect != "none") {
+          std::optional<double> size;
+          if (study && !study->via_draw) {
+            // Its own stream, so the size does not move the unit's other drawn quantities.
+            std::mt19937_64 engine(seed * 7919 + 17);
+            const double v = static_cast<double>(engine() >> 11) * 0x1.0p-53;
+            size = study->log ? study->low * std::pow(study->high / study->low, v) : study->low + (study->high - study->low) * v;
+          }
+          draw.effects.push_back({effect, size});
+        }
+        const sim::Truth truth = sim::DrawUnit(around, draw, seed);
+        const sim::SimulatedRig rig(truth);
         sim::RigRunOptions run;
         run.seed = seed;
         const daq::Session session = rig.RunMatrix(sim::StandardMatrixPlan(), run);
@@ -58,13 +113,47 @@ struct BenchConfusion {
         const ident::DiscoveryResult r =
             ident::Discover(ident::PrepareFitData(session, fmt::format("unit {}", seed), model, fit.estimator.n), fit, {});
         seconds.push_back(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+        const bool right_first = effect != "none" && !r.missing.empty() && r.missing.front() == effect;
         if (r.missing.empty()) ++none;
-        if (effect != "none" && !r.missing.empty() && r.missing.front() == effect) ++right;
+        if (right_first) ++right;
         const std::size_t expected = effect == "none" ? 0 : 1;
         if (r.missing.size() > expected || (effect != "none" && !r.missing.empty() && r.missing.front() != effect)) ++extra;
         std::string names;
         for (const auto& t : r.missing) names += (names.empty() ? "" : "+") + t;
         ++added[names.empty() ? "(nothing)" : names];
+        // Per unit: the effect's size and its candidate's first-round scores.
+        nlohmann::json row{{"effect", effect}, {"seed", seed}, {"found", r.missing}, {"right_first", right_first},
+                           {"seconds", seconds.back()}};
+        if (study) {
+          const ident::ParameterSet p = truth.Parameters(rig.model());
+          const double size = p.value(p.position_of_index(study->index));
+          row["size"] = size;
+          by_size.emplace_back(size, right_first);
+        }
+        if (!r.steps.empty())
+          for (const ident::CandidateFit& c : r.steps.front().candidates)
+            if (c.term == effect)
+              row["first_round"] = {{"delta_bic", c.delta_bic}, {"cv_ratio", c.cv_ratio}, {"verdict", c.verdict}};
+        unit_rows.push_back(row);
+      }
+      if (study) {
+        // Detection by size: the units sorted by size in five bins.
+        std::sort(by_size.begin(), by_size.end());
+        std::string bins;
+        const std::size_t count = by_size.size();
+        for (int b = 0; b < 5 && count > 0; ++b) {
+          const std::size_t lo = b * count / 5, hi = (b + 1) * count / 5;
+          if (hi <= lo) continue;
+          const long k = std::count_if(by_size.begin() + lo, by_size.begin() + hi, [](const auto& x) { return x.second; });
+          bins += fmt::format("    {:.3g}..{:.3g} {}: right first {}/{}\n", by_size[lo].first, by_size[hi - 1].first,
+                              study->unit, k, hi - lo);
+        }
+        const double detection = DetectionSize(by_size);
+        detection_lines.push_back(fmt::format(
+            "  {} (theta{}, {} {:.3g}..{:.3g} {}): detection size (>= 95 % right first above it) {}\n{}", effect,
+            study->index, study->log ? "log-uniform" : "uniform", study->low, study->high, study->unit,
+            std::isfinite(detection) ? fmt::format("{:.3g} {}", detection, study->unit) : std::string("not reached"),
+            bins));
       }
       std::sort(seconds.begin(), seconds.end());
       std::string what;
@@ -75,7 +164,12 @@ struct BenchConfusion {
       rows.push_back({{"effect", effect}, {"units", units}, {"right_first", right}, {"extra", extra},
                       {"nothing_found", none}, {"median_seconds", seconds[seconds.size() / 2]}, {"added", added}});
     }
-    if (!json_path.empty()) WriteTextOutput(json_path, nlohmann::json{{"confusion", rows}}.dump(1) + "\n");
+    if (!detection_lines.empty()) {
+      std::cout << "detection by size (units sorted by the effect's size, five bins):\n";
+      for (const std::string& line : detection_lines) std::cout << line;
+    }
+    if (!json_path.empty())
+      WriteTextOutput(json_path, nlohmann::json{{"confusion", rows}, {"sizes", sizes}, {"units", unit_rows}}.dump(1) + "\n");
   }
 };
 
@@ -93,7 +187,12 @@ void RegisterBenchConfusion(CLI::App& bench) {
   sub->add_option("--effects", command->effects, "Comma-separated effects, 'none' for units with nothing missing.")
       ->capture_default_str();
   sub->add_flag("--servo", command->servo, "Drive the damper through the servo actuator (default: an ideal actuator).");
-  sub->add_option("--json", command->json_path, "Also write the table as JSON to this file.");
+  sub->add_option("--sizes", command->sizes,
+                  "How the effects' sizes are drawn: 'drawn' (the simulated rig's realistic spreads) or 'study' (from "
+                  "barely detectable to plain, docs/discovery.md), which also prints the detection size.")
+      ->check(CLI::IsMember({"drawn", "study"}))
+      ->capture_default_str();
+  sub->add_option("--json", command->json_path, "Also write the table and every unit's result as JSON to this file.");
   sub->callback([command] { command->Run(); });
 }
 

@@ -114,8 +114,12 @@ const std::vector<DrawSpread>& DrawSpreads() {
       {"end_stop_stiffness", "theta21", K::kLogUniformFactor, 0.5, 2.0, "end-stop", "§2.9: 2e6-1e7 N/m"},
       {"oil_compliance", "theta26", K::kUniformFactor, 0.75, 1.25, "oil-compressibility",
        "§1.2, §2.3: 0.8-1.5 GPa"},
-      {"virial_b0", "theta28", K::kUniformFactor, 1.0, 1.0, "real-gas",
-       "§2.10: a property of nitrogen, not of the unit: not drawn"},
+      {"virial_gain", "theta31", K::kUniformFactor, 1.0, 1.0, "real-gas",
+       "§2.10: nitrogen's virial coefficients are not the unit's: not drawn (gain 1 = N2 as it is)"},
+      // Last, so the quantities above take the same random numbers as before it was added.
+      {"end_stop_position", "theta23", K::kUniformOffset, 0.0, 8e-3, "end-stop",
+       "§2.9: a top-out snubber of a few mm engages 0-8 mm inside full extension (the matrix's "
+       "shallowest experiments come within about 4 mm of it)"},
   };
   return spreads;
 }
@@ -250,6 +254,11 @@ Truth DrawUnit(const Truth& around, const UnitDraw& spec, std::uint64_t seed) {
     // Every spread takes its random numbers on every attempt, whether it applies or not: the
     // quantities a base shares with another are then the same for the same seed.
     for (const DrawSpread& s : DrawSpreads()) {
+      // The stop's position came last and only for units with a stop, so every other unit of a seed
+      // is the one it was before the stop's position was drawn.
+      if (s.quantity == "end_stop_position" &&
+          std::none_of(spec.effects.begin(), spec.effects.end(), [](const EffectRequest& r) { return r.name == "end-stop"; }))
+        continue;
       const int index = std::stoi(s.sets.substr(5));
       const double x0 = s.quantity == "compression_ratio" ? ratio0
                         : s.quantity == "preload_fraction" ? k0
@@ -271,9 +280,11 @@ Truth DrawUnit(const Truth& around, const UnitDraw& spec, std::uint64_t seed) {
         const auto request = std::find_if(spec.effects.begin(), spec.effects.end(),
                                           [&](const EffectRequest& r) { return r.name == s.applies; });
         if (request == spec.effects.end()) continue;
-        const double size = request->size.value_or(x);
+        // The first spread of an effect is its size (EffectRequest::size); later ones its shape.
+        const bool sizing = std::none_of(sizes.begin(), sizes.end(), [&](const EffectSize& e) { return e.effect == s.applies; });
+        const double size = sizing ? request->size.value_or(x) : x;
         set(index, size);
-        sizes.push_back({s.applies, s.sets, size, request->size.has_value()});
+        if (sizing) sizes.push_back({s.applies, s.sets, size, request->size.has_value()});
       } else if (has(index)) {
         set(index, x);
       }

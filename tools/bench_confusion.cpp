@@ -134,6 +134,8 @@ struct BenchConfusion {
           for (const ident::CandidateFit& c : r.steps.front().candidates)
             if (c.term == effect)
               row["first_round"] = {{"delta_bic", c.delta_bic}, {"cv_ratio", c.cv_ratio}, {"verdict", c.verdict}};
+        // A line per unit as it ends, so a long study that is stopped keeps what it measured.
+        std::cout << "unit " << row.dump() << std::endl;
         unit_rows.push_back(row);
       }
       if (study) {

@@ -31,7 +31,7 @@ std::vector<Normalised> Collect(const FitSummary& fit) {
       const double variance = e.noise_variance.count(channel) ? e.noise_variance.at(channel) : NAN;
       if (!(variance > 0)) continue;
       Normalised n{&e, channel, r / std::sqrt(variance), e.measured.at("stroke"), Eigen::VectorXd(r.size()), {}};
-      for (Eigen::Index i = 0; i < r.size(); ++i) n.rate[i] = stroke.At(e.phases[i], 1);
+      n.rate = stroke.OnPhases(static_cast<int>(r.size()), 1);
       if (e.measured.count("pressure")) n.pressure = e.measured.at("pressure");
       out.push_back(std::move(n));
     }

@@ -56,15 +56,21 @@ PeriodicSeries PeriodicSeries::Fit(const Eigen::VectorXd& period, double frequen
   return series;
 }
 
-double PeriodicSeries::At(double tau, int derivative) const {
-  double value = derivative == 0 ? coefficients[0].real() : 0.0;
-  for (std::size_t h = 1; h < coefficients.size(); ++h) {
+Eigen::VectorXd PeriodicSeries::OnPhases(int count, int derivative) const {
+  if (count < 1) throw std::invalid_argument("periodic series: no phases to evaluate at");
+  std::vector<std::complex<double>> spectrum(count, 0.0);
+  if (derivative == 0) spectrum[0] = coefficients[0] * static_cast<double>(count);
+  const int harmonics = std::min<int>(static_cast<int>(coefficients.size()) - 1, (count - 1) / 2);
+  for (int h = 1; h <= harmonics; ++h) {
     if (coefficients[h] == 0.0) continue;
-    const double w = 2.0 * std::numbers::pi * frequency * h;
-    const std::complex<double> factor = std::pow(std::complex<double>(0.0, w), derivative);
-    value += 2.0 * (coefficients[h] * factor * std::polar(1.0, 2.0 * std::numbers::pi * h * tau)).real();
+    const std::complex<double> factor = std::pow(std::complex<double>(0.0, 2.0 * std::numbers::pi * frequency * h), derivative);
+    spectrum[h] = coefficients[h] * factor * static_cast<double>(count);
+    spectrum[count - h] = std::conj(spectrum[h]);
   }
-  return value;
+  Eigen::FFT<double> fft;
+  std::vector<double> values;
+  fft.inv(values, spectrum);
+  return Eigen::Map<const Eigen::VectorXd>(values.data(), count);
 }
 
 PeriodicInput PeriodicSeries::OnGrid(int n) const {

@@ -245,13 +245,8 @@ struct FitProblem::Experiment {
   }
   //! Every column of an n-row matrix at the data phases.
   Eigen::MatrixXd AtPhasesColumns(const Eigen::MatrixXd& grid) const {
-    const int n = static_cast<int>(grid.rows());
     Eigen::MatrixXd out(static_cast<Eigen::Index>(j0.size()), grid.cols());
-    for (std::size_t i = 0; i < j0.size(); ++i) {
-      auto row = out.row(static_cast<Eigen::Index>(i));
-      row = weights[i][0] * grid.row((j0[i] - 1 + n) % n);
-      for (int k = 1; k < 4; ++k) row += weights[i][k] * grid.row((j0[i] + k - 1) % n);
-    }
+    for (Eigen::Index c = 0; c < grid.cols(); ++c) out.col(c) = AtPhases(grid.col(c));
     return out;
   }
   //! The transpose of AtPhases: values at the data phases spread back onto the n grid points.

@@ -68,8 +68,8 @@ FrictionEstimate PreidentifyFriction(const std::vector<ExperimentData>& data) {
     if (s == e.channels.end() || f == e.channels.end() || p == e.channels.end()) continue;
     const PeriodicSeries stroke = PeriodicSeries::Fit(s->second.mean, e.frequency);
     const int count = static_cast<int>(e.phases.size());
-    std::vector<double> rate(count);
-    for (int i = 0; i < count; ++i) rate[i] = stroke.At(e.phases[i], 1);
+    const Eigen::VectorXd stroke_fit = stroke.OnPhases(count, 0), rate = stroke.OnPhases(count, 1),
+                          accel = stroke.OnPhases(count, 2);
     for (int i = 0; i < count; ++i) {
       const int next = (i + 1) % count;
       if ((rate[i] > 0) == (rate[next] > 0) || rate[i] == 0.0) continue;
@@ -80,9 +80,9 @@ FrictionEstimate PreidentifyFriction(const std::vector<ExperimentData>& data) {
       for (int k = -half; k <= half + 1; ++k) {
         const int j = ((i + k) % count + count) % count;
         const Eigen::Index row = k + half;
-        w.stroke[row] = stroke.At(e.phases[j], 0);
+        w.stroke[row] = stroke_fit[j];
         w.rate[row] = rate[j];
-        w.accel[row] = stroke.At(e.phases[j], 2);
+        w.accel[row] = accel[j];
         w.force[row] = f->second.mean[j];
       }
       FrictionReversal r;
@@ -155,8 +155,10 @@ void ForceBalanceRegression(const Model& model, const std::vector<ExperimentData
     const Eigen::VectorXd& f = e.channels.at("force").mean;
     const Eigen::VectorXd& p = e.channels.at("pressure").mean;
     ++experiments;
-    for (std::size_t i = 0; i < e.phases.size(); ++i) {
-      const double rate = stroke.At(e.phases[i], 1), accel = stroke.At(e.phases[i], 2);
+    const int count = static_cast<int>(e.phases.size());
+    const Eigen::VectorXd rates = stroke.OnPhases(count, 1), accels = stroke.OnPhases(count, 2);
+    for (int i = 0; i < count; ++i) {
+      const double rate = rates[i], accel = accels[i];
       const double friction = std::atan(values.value(sharpness) * rate);
       Eigen::RowVectorXd row(columns);
       row << accel, rate * std::abs(rate), p[static_cast<Eigen::Index>(i)], friction,
@@ -223,10 +225,11 @@ ParameterSet InitialValuesFromData(const Model& model, const std::vector<Experim
     const Eigen::Index m = y.size();
     // Force = theta4 p + constant + friction sign: up and down strokes average the friction out.
     Eigen::MatrixXd a(m, 3);
+    const Eigen::VectorXd rate = stroke.OnPhases(static_cast<int>(m), 1);
     for (Eigen::Index i = 0; i < m; ++i) {
       a(i, 0) = p[i];
       a(i, 1) = 1.0;
-      a(i, 2) = stroke.At(slow->phases[i], 1) >= 0 ? 1.0 : -1.0;
+      a(i, 2) = rate[i] >= 0 ? 1.0 : -1.0;
     }
     Eigen::VectorXd x;
     LeastSquares(a, force, x);

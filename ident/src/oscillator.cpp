@@ -9,26 +9,6 @@
 #include <unsupported/Eigen/FFT>
 
 namespace strut::ident {
-namespace {
-
-// The `derivative`-th time derivative of a series at `count` equidistant phases (one inverse FFT).
-Eigen::VectorXd SeriesAt(const PeriodicSeries& series, int count, int derivative) {
-  std::vector<std::complex<double>> spectrum(count, 0.0);
-  if (derivative == 0) spectrum[0] = series.coefficients[0] * static_cast<double>(count);
-  const int harmonics = std::min<int>(static_cast<int>(series.coefficients.size()) - 1, (count - 1) / 2);
-  for (int h = 1; h <= harmonics; ++h) {
-    const std::complex<double> factor =
-        std::pow(std::complex<double>(0.0, 2.0 * std::numbers::pi * series.frequency * h), derivative);
-    spectrum[h] = series.coefficients[h] * factor * static_cast<double>(count);
-    spectrum[count - h] = std::conj(spectrum[h]);
-  }
-  Eigen::FFT<double> fft;
-  std::vector<double> values;
-  fft.inv(values, spectrum);
-  return Eigen::Map<const Eigen::VectorXd>(values.data(), count);
-}
-
-}  // namespace
 
 ParameterSet OscillatorInitialValues(const Model& model, const std::vector<ExperimentData>& data,
                                      std::vector<std::string>* log) {
@@ -57,7 +37,7 @@ ParameterSet OscillatorInitialValues(const Model& model, const std::vector<Exper
     const Eigen::VectorXd& y = d.channels.at(y_name).mean;
     const int count = static_cast<int>(y.size());
     const PeriodicSeries series = PeriodicSeries::Fit(y, d.frequency);
-    const Eigen::VectorXd y2 = SeriesAt(series, count, 2), y1 = SeriesAt(series, count, 1);
+    const Eigen::VectorXd y2 = series.OnPhases(count, 2), y1 = series.OnPhases(count, 1);
     int col = 0;
     a.block(row, col++, count, 1) = y2;
     a.block(row, col++, count, 1) = y1;

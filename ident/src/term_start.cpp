@@ -58,11 +58,13 @@ std::vector<Sample> Collect(const FitSummary& fit, const Values& v) {
     };
     const double vf = variance("force"), vp = variance("pressure");
     const PeriodicSeries series = PeriodicSeries::Fit(*stroke, e.frequency);
-    for (std::size_t i = 0; i < e.phases.size(); ++i) {
+    const int count = static_cast<int>(e.phases.size());
+    const Eigen::VectorXd rate = series.OnPhases(count, 1), accel = series.OnPhases(count, 2);
+    for (int i = 0; i < count; ++i) {
       Sample s;
       s.q = (*stroke)[i] - offset;
-      s.rate = series.At(e.phases[i], 1);
-      s.accel = series.At(e.phases[i], 2);
+      s.rate = rate[i];
+      s.accel = accel[i];
       s.p = (*pressure)[i];
       if (rf && std::isfinite(vf)) {
         const double r_p = rp ? (*rp)[i] : 0.0;

@@ -27,8 +27,9 @@ struct PeriodicSeries {
 
   //! From one averaged period sampled at `count` equidistant phases starting at phase 0.
   static PeriodicSeries Fit(const Eigen::VectorXd& period, double frequency);
-  //! The `derivative`-th time derivative (0, 1, 2) at cyclic phase tau in [0, 1).
-  double At(double tau, int derivative = 0) const;
+  //! The `derivative`-th time derivative (0, 1, 2) at the `count` equidistant phases tau_i = i / count
+  //! (ExperimentData::phases), by one inverse FFT; harmonics at or above count / 2 are left out.
+  Eigen::VectorXd OnPhases(int count, int derivative = 0) const;
   //! Values on the n-point grid tau_mu = mu / n, as a solver input.
   PeriodicInput OnGrid(int n) const;
 };

@@ -118,8 +118,14 @@ TEST(FitReport, DiscoverReportHoldsTheFinalModelAndSaysWhatItsNameMeans) {
   EXPECT_NE(html.find("1dof+heat-exchange+gas-solubility is the model 2dof"), std::string::npos);
   // Signed ΔBIC, negative for a kept term, as the caption explains.
   EXPECT_NE(html.find("negative means the term explains more than its parameters cost"), std::string::npos);
-  EXPECT_TRUE(std::regex_search(html, std::regex("<td>heat-exchange</td><td class=\"num\">-[0-9]+\\.[0-9]</td>")));
-  EXPECT_EQ(html.find("<td class=\"num\">+"), std::string::npos) << "a kept term's ΔBIC is negative";
+  const auto added = html.find("<h2>What was added</h2>"), rounds = html.find("<caption>Round 1:");
+  ASSERT_LT(added, rounds);
+  const std::string steps = html.substr(added, rounds - added);
+  EXPECT_TRUE(std::regex_search(steps, std::regex("<td>heat-exchange</td><td class=\"num\">-[0-9]+\\.[0-9]</td>")));
+  EXPECT_TRUE(std::regex_search(steps, std::regex("<td>gas-solubility</td><td class=\"num\">-[0-9]+\\.[0-9]</td>")));
+  EXPECT_EQ(steps.find("<td class=\"num\">+"), std::string::npos) << "a kept term's ΔBIC is negative";
+  // Rejected candidates keep their sign: a term that does not pay for itself shows a positive ΔBIC.
+  EXPECT_NE(html.find("(ΔBIC negative is better)"), std::string::npos);
   // The final model's parameter table and verdict.
   EXPECT_NE(html.find("<h2>The final model 2dof</h2>"), std::string::npos);
   EXPECT_NE(html.find("<td>theta16</td><td>wall_heat_conductance</td>"), std::string::npos);

@@ -64,7 +64,7 @@ void WriteDiscoveryReport(const DiscoveryResult& r, const std::string& path) {
                                           : "Nothing: no catalogue term improved the fit enough to be kept.");
   } else {
     report.AddTable({"added term", "ΔBIC", "noise ratio before", "noise ratio after", "held-out noise ratio before",
-                     "after", "evidence"},
+                     "held-out noise ratio after", "evidence"},
                     rows,
                     "Each step adds the catalogue term with the most negative ΔBIC that also brings the noise ratios "
                     "down and predicts left-out experiments better.");
@@ -73,7 +73,10 @@ void WriteDiscoveryReport(const DiscoveryResult& r, const std::string& path) {
     rows.clear();
     for (const auto& c : r.steps[k].candidates)
       rows.push_back({c.term, c.ok ? fmt::format("{:+.1f}", c.delta_bic) : "—", Ratios(c.noise_ratio),
-                      Number(c.cv_ratio, "{:.3f}"), fmt::format("{:.1f}", c.evidence), c.ok ? c.verdict : c.error});
+                      Number(c.cv_ratio, "{:.3f}"), fmt::format("{:.1f}", c.evidence),
+                      !c.ok                ? c.error
+                      : c.verdict.empty() ? "not needed: a candidate with a more negative ΔBIC was kept"
+                                          : c.verdict});
     report.AddTable({"candidate", "ΔBIC", "noise ratio", "held-out noise ratio", "evidence", "verdict"}, rows,
                     fmt::format("Round {}: every candidate refitted (ΔBIC negative is better).", k + 1));
   }
@@ -85,14 +88,15 @@ void WriteDiscoveryReport(const DiscoveryResult& r, const std::string& path) {
     report.AddParagraph("No feature of the baseline's residuals stands above the noise.");
   } else {
     report.AddTable({"feature", "channel", "score", "detail"}, rows,
-                    "Scores are the signal-to-noise ratio of each feature in the baseline's residuals: about 1 or "
-                    "below, the feature is not there.");
+                    "Scores are signed signal-to-noise ratios of each feature in the baseline's residuals: large "
+                    "and positive, the feature is there; about 1 or below, it is not (negative: the residuals are "
+                    "smaller there than elsewhere).");
   }
   if (!r.unexplained.empty()) {
     rows.clear();
     for (const auto& f : r.unexplained) rows.push_back({f.locus, f.channel, fmt::format("{:.1f}", f.score), f.detail});
     report.AddTable({"feature", "channel", "score", "detail"}, rows,
-                    "Left unexplained by the final model " + r.final_model + " (signal-to-noise, as above).");
+                    "Left unexplained by the final model " + r.final_model + " (signed signal-to-noise, as above).");
   }
 
   report.AddHeading("Residuals before and after");

@@ -10,6 +10,8 @@
   const palette = ["#0b5394", "#d55e00", "#009e73", "#cc79a7", "#e69f00", "#56b4e9", "#6a3d9a", "#000000"];
   const colour = (i) => palette[i % palette.length];
   const AXIS = {stroke: "#3e4c59", grid: {stroke: "#e4e7eb", width: 1}, ticks: {stroke: "#9aa5b1", width: 1}};
+  // A y axis as wide as its longest tick label, so the axis title never overlaps the numbers.
+  const yAxisSize = (u, values) => (values ? Math.max(...values.map((v) => String(v).length)) * 7 + 22 : 50);
 
   function numbers(ref, n) {
     if (ref === null || ref === undefined) return Array.from({length: n}, (_, i) => i);
@@ -53,7 +55,7 @@
       width: Math.max(240, el.clientWidth),
       height: fig.height || 320,
       scales: {x: {time: false}, y: {}},
-      axes: [Object.assign({label: fig.x}, AXIS), Object.assign({label: fig.y}, AXIS)],
+      axes: [Object.assign({label: fig.x}, AXIS), Object.assign({label: fig.y, size: yAxisSize}, AXIS)],
       legend: {show: fig.legend !== false, live: false},
       cursor: {drag: {x: true, y: true, uni: 30}, points: {show: false}},
       hooks: {draw: [() => { el.dataset.drawn = "1"; }]},
@@ -237,7 +239,7 @@
         ctx.fillRect(Math.min(x0, x1) + r, Math.min(y0, y1) + r, Math.abs(x1 - x0) - r, Math.abs(y1 - y0) - r);
         if (fig.annotate && v !== null) {
           ctx.fillStyle = c.dark ? "#ffffff" : "#1f2933";
-          ctx.fillText(v.toFixed(fig.digits), (x0 + x1) / 2, (y0 + y1) / 2);
+          ctx.fillText(v.toFixed(fig.digits).replace(/^-(0\.?0*)$/, "$1"), (x0 + x1) / 2, (y0 + y1) / 2);
         }
       }
       ctx.restore();

@@ -79,6 +79,19 @@ std::string Escape(std::string_view text) {
   return out;
 }
 
+// Escaped text whose newlines become line breaks.
+std::string EscapeLines(std::string_view text) {
+  std::string html;
+  for (char c : Escape(text)) {
+    if (c == '\n') {
+      html += "<br>";
+    } else {
+      html += c;
+    }
+  }
+  return html;
+}
+
 // JSON for a <script> element: compact, non-finite numbers as null (nlohmann's serializer does
 // that), invalid UTF-8 replaced, and every '<' escaped so no string can close the script.
 // '<' only occurs inside JSON strings, where \u003c is the same character.
@@ -252,18 +265,7 @@ void HtmlReport::AddHeading(const std::string& text, int level) {
   body_ += "<" + tag + ">" + Escape(text) + "</" + tag + ">\n";
 }
 
-void HtmlReport::AddParagraph(const std::string& text) {
-  std::string escaped = Escape(text);
-  std::string html;
-  for (char c : escaped) {
-    if (c == '\n') {
-      html += "<br>";
-    } else {
-      html += c;
-    }
-  }
-  body_ += "<p>" + html + "</p>\n";
-}
+void HtmlReport::AddParagraph(const std::string& text) { body_ += "<p>" + EscapeLines(text) + "</p>\n"; }
 
 void HtmlReport::AddTable(const std::vector<std::string>& header, const std::vector<std::vector<std::string>>& rows,
                           const std::string& caption) {
@@ -293,15 +295,7 @@ void HtmlReport::AddTable(const std::vector<std::string>& header, const std::vec
 
 void HtmlReport::AddCallout(const std::string& text, Tone tone) {
   const char* css = tone == Tone::kGood ? "good" : tone == Tone::kWarning ? "warning" : "bad";
-  std::string html;
-  for (char c : Escape(text)) {
-    if (c == '\n') {
-      html += "<br>";
-    } else {
-      html += c;
-    }
-  }
-  body_ += std::string("<p class=\"callout ") + css + "\">" + html + "</p>\n";
+  body_ += std::string("<p class=\"callout ") + css + "\">" + EscapeLines(text) + "</p>\n";
 }
 
 int HtmlReport::Numbers(const std::vector<double>& values) {

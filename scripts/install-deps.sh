@@ -8,8 +8,11 @@ packages=(
   libmodbus-dev libgtest-dev libgmock-dev libsundials-dev liblapack-dev
   nlohmann-json3-dev libtomlplusplus-dev libmatio-dev
   python3-h5py python3-numpy
-  python3-plotly esbuild chromium
+  chromium
 )
+# npm fetches uPlot for the HTML reports at configure time (ident/web/package-lock.json); it comes
+# with the machine's Node.js, and Debian's package provides it where Node.js is missing.
+command -v npm >/dev/null 2>&1 || packages+=(npm)
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

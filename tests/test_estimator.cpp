@@ -368,35 +368,3 @@ TEST(IdentifyCommand, WritesTheFitAsJson) {
 
 }  // namespace
 }  // namespace strut::ident
-
-namespace strut::ident {
-namespace {
-
-TEST(IdentifyCommand, ReportRendersWithItsPlotsInHeadlessChromium) {
-  if (!test::ChromiumAvailable()) GTEST_SKIP() << test::kChromium << " not installed (scripts/install-deps.sh installs it)";
-  test::TempDir dir;
-  const ParameterSet truth = Model::Build("2dof", Causality::kStrokeInput).defaults();
-  daq::WriteSession(dir.file("s.h5"),
-                    sim::SimulatePeriodicSession("2dof", truth.values(), Pick("bh"), sim::PeriodicSessionOptions{}));
-  const std::string report = dir.file("fit.html");
-  const auto r = test::RunStrut("identify " + dir.file("s.h5") + " --model 2dof --input stroke --n 400 --no-progress " +
-                                "--report " + report);
-  ASSERT_EQ(r.exit_code, 0) << r.output;
-  const test::ShellResult dom =
-      test::Shell(test::ChromiumCommand(dir.file("profile")) + " --dump-dom file://" + report, dir.file("dom"));
-  ASSERT_EQ(dom.exit_code, 0) << dom.err;
-  // 2 residual plots, correlation, convergence, and per experiment 2 traces + 2 loops.
-  EXPECT_EQ(test::Count(dom.out, "class=\"plot-container plotly\""), 2u + 1u + 1u + 2u * 4u);
-  for (const char* text : {"force residual: mean ± 2σ per experiment", "correlation", "log-likelihood per iteration",
-                           "b: force-stroke loop", "h: pressure-stroke loop", "measured", "predicted"})
-    EXPECT_NE(dom.out.find(std::string("data-unformatted=\"") + text + "\""), std::string::npos) << text;
-  const std::string png = dir.file("fit.png");
-  const test::ShellResult shot = test::Shell(
-      test::ChromiumCommand(dir.file("profile2")) + " --window-size=1200,2400 --screenshot=" + png + " file://" + report,
-      dir.file("shot"));
-  ASSERT_EQ(shot.exit_code, 0) << shot.err;
-  EXPECT_GT(test::ReadFile(png).size(), 50'000u);
-}
-
-}  // namespace
-}  // namespace strut::ident

@@ -1,6 +1,6 @@
-// HTML reports: the document itself (escaping, inline plotly.js, no external sources, NaN as null,
-// crash-safe writing), and a real browser: headless Chromium runs the report's scripts and
-// plotly.js must have drawn every plot (docs/reports.md).
+// HTML reports: the document itself (escaping, the plotting script inline, no external sources,
+// NaN as null, shared and rounded number arrays, thinning, crash-safe writing), and a real browser:
+// headless Chromium runs the report's scripts and every plot must have drawn (docs/reports.md).
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -79,12 +79,11 @@ TEST(HtmlReport, RendersOneSelfContainedDocument) {
   HtmlReport report("Damper <model> & \"friends\"");
   report.AddHeading("Section <1>");
   report.AddParagraph("This is <b>not bold</b> & stays text.");
+  report.AddCallout("Converged <at> the noise floor.", strut::ident::Tone::kGood);
   report.AddTable({"name", "value"}, {{"<script>", "1.5e3"}, {"plain", "n/a"}}, "Table <caption>");
   report.AddLinePlot("Line", "x", "y", {{"with gap", {0, 1, 2}, {1.0, kNaN, 3.0}}});
-  report.AddPlot(nlohmann::json::array({{{"type", "scatter"},
-                                         {"name", "</script><script>alert(1)</script>"},
-                                         {"y", {std::numeric_limits<double>::infinity(), 2.0}}}}),
-                 {{"title", {{"text", "raw"}}}}, "caption");
+  report.AddLinePlot("</script><script>alert(1)</script>", "x", "y",
+                     {{"</script><!--", {}, {std::numeric_limits<double>::infinity(), 2.0}}});
   const std::string html = report.Render();
 
   EXPECT_EQ(html.rfind("<!DOCTYPE html>", 0), 0u);
@@ -93,26 +92,31 @@ TEST(HtmlReport, RendersOneSelfContainedDocument) {
   EXPECT_NE(html.find("<h2>Section &lt;1&gt;</h2>"), std::string::npos);
   EXPECT_NE(html.find("<p>This is &lt;b&gt;not bold&lt;/b&gt; &amp; stays text.</p>"), std::string::npos);
   EXPECT_EQ(html.find("<b>not bold"), std::string::npos);
+  EXPECT_NE(html.find("<p class=\"callout good\">Converged &lt;at&gt; the noise floor.</p>"), std::string::npos);
   EXPECT_NE(html.find("<caption>Table &lt;caption&gt;</caption>"), std::string::npos);
   EXPECT_NE(html.find("<td>&lt;script&gt;</td><td class=\"num\">1.5e3</td>"), std::string::npos);
   EXPECT_NE(html.find("Generated "), std::string::npos);
 
-  // plotly.js inline, whole, once; its licence header kept.
-  const std::string_view plotly = HtmlReport::PlotlyBundle();
-  ASSERT_GT(plotly.size(), 1'000'000u);
-  EXPECT_NE(plotly.substr(0, 400).find("plotly.js v"), std::string_view::npos);
-  EXPECT_NE(plotly.substr(0, 400).find("MIT"), std::string_view::npos);
-  const auto bundle_at = html.find(plotly);
-  ASSERT_NE(bundle_at, std::string::npos);
-  EXPECT_EQ(html.find(plotly, bundle_at + 1), std::string::npos);
-  EXPECT_NE(html.find("responsive:true,displaylogo:false"), std::string::npos);
-  // The bundle can be inlined: nothing in it ends the script element early.
-  EXPECT_EQ(Lower(std::string(plotly)).find("</script"), std::string::npos);
-  EXPECT_EQ(plotly.find("<!--"), std::string_view::npos);
+  // The plotting script inline, whole, once: uPlot with its licence banner, then strut's figures.
+  const std::string_view script = HtmlReport::PlotScript();
+  ASSERT_GT(script.size(), 40'000u);
+  EXPECT_LT(script.size(), 120'000u);  // the point of uPlot: a report is mostly its data
+  EXPECT_EQ(script.substr(0, 200).find("/*! uPlot v1.6.32 | Copyright (c)"), 0u) << script.substr(0, 200);
+  EXPECT_NE(script.substr(0, 200).find("MIT License"), std::string_view::npos);
+  EXPECT_NE(script.find("window.strutDrawFigures"), std::string_view::npos);
+  const auto script_at = html.find(script);
+  ASSERT_NE(script_at, std::string::npos);
+  EXPECT_EQ(html.find(script, script_at + 1), std::string::npos);
+  EXPECT_NE(html.find(HtmlReport::PlotStyle()), std::string::npos);
+  EXPECT_NE(HtmlReport::PlotStyle().find(".uplot"), std::string_view::npos);
+  // The script can be inlined: nothing in it ends the script element early.
+  EXPECT_EQ(Lower(std::string(script)).find("</script"), std::string::npos);
+  EXPECT_EQ(script.find("<!--"), std::string_view::npos);
 
-  // The markup around the bundle (its own strings mention map-tile sites it never loads here).
-  const std::string markup = html.substr(0, bundle_at) + html.substr(bundle_at + plotly.size());
-  EXPECT_EQ(Count(markup, "Plotly.newPlot("), 2u);
+  // The markup around the script (uPlot's banner names its home page).
+  const std::string markup = html.substr(0, script_at) + html.substr(script_at + script.size());
+  EXPECT_EQ(Count(markup, "strutDrawFigures(["), 1u);
+  EXPECT_EQ(Count(markup, "\"kind\":\"xy\""), 2u);
   // Nothing loaded from elsewhere: no script or link sources at all, no URLs in attributes or CSS.
   const std::string lower = Lower(markup);
   EXPECT_EQ(lower.find("<script src"), std::string::npos);
@@ -121,14 +125,56 @@ TEST(HtmlReport, RendersOneSelfContainedDocument) {
   EXPECT_EQ(lower.find("https://"), std::string::npos);
   EXPECT_EQ(lower.find("url("), std::string::npos);
 
-  // Data: NaN and Inf as null, compact JSON, strings cannot close the script element.
-  EXPECT_NE(html.find("\"y\":[1.0,null,3.0]"), std::string::npos);
-  EXPECT_NE(html.find("\"y\":[null,2.0]"), std::string::npos);
+  // Data: NaN and Inf as null, strings cannot close the script element or open a comment.
+  EXPECT_NE(markup.find("[1,null,3]"), std::string::npos);
+  EXPECT_NE(markup.find("[null,2]"), std::string::npos);
   EXPECT_EQ(markup.find("NaN"), std::string::npos);
   EXPECT_EQ(markup.find("Infinity"), std::string::npos);
   EXPECT_EQ(html.find("alert(1)</script>"), std::string::npos);
   EXPECT_NE(html.find("\\u003c/script>\\u003cscript>alert(1)"), std::string::npos);
-  EXPECT_NE(html.find("<figcaption>caption</figcaption>"), std::string::npos);
+  EXPECT_EQ(Count(markup, "<!--"), 0u);
+}
+
+// Arrays are written once however many plots use them, at 1e-5 of their range.
+TEST(HtmlReport, WritesEachNumberArrayOnceRoundedToItsRange) {
+  HtmlReport report("data");
+  const std::vector<double> t{0.0, 0.25, 0.5, 0.75};
+  report.AddLinePlots({{"a", "t", "force", {{"one", t, {1234.56789, 1200.0, 1100.0, 1000.0}}}},
+                       {"b", "t", "stroke", {{"two", t, {0.1234567891, 0.1234667891, -0.0000001, 0.0}}}}},
+                      "side by side");
+  report.AddLinePlot("c", "t", "force", {{"again", t, {1234.56789, 1200.0, 1100.0, 1000.0}}});
+  const std::string html = report.Render();
+  EXPECT_EQ(Count(html, "<div class=\"row\">"), 1u);
+  EXPECT_NE(html.find("<p class=\"row-caption\">side by side</p>"), std::string::npos);
+  // Range 234.6: resolution 2.3e-3, three decimals; 0.75: six; trailing zeros and -0 dropped.
+  const auto data = html.find("var strutData=[");
+  ASSERT_NE(data, std::string::npos);
+  const std::string arrays = html.substr(data, html.find("];\nstrutDrawFigures", data) - data);
+  EXPECT_EQ(Count(arrays, "[0,0.25,0.5,0.75]"), 1u) << arrays;
+  EXPECT_EQ(Count(arrays, "[1234.568,1200,1100,1000]"), 1u) << arrays;
+  EXPECT_EQ(Count(arrays, "[0.123457,0.123467,0,0]"), 1u) << arrays;
+  EXPECT_EQ(Count(arrays, "\n"), 2u) << "three arrays, one line each";
+}
+
+// A series longer than kMaxPlotPoints keeps its envelope: every run's lowest and highest point.
+TEST(HtmlReport, ThinsLongSeriesToTheirEnvelope) {
+  HtmlReport report("long");
+  Series s{"long", {}, {}};
+  const std::size_t n = 100'000;
+  for (std::size_t i = 0; i < n; ++i) s.y.push_back(i == 54'321 ? 7.0 : i == 9'876 ? -5.0 : std::sin(0.001 * i));
+  report.AddLinePlot("long", "sample", "y", {s});
+  const std::string html = report.Render();
+  const auto data = html.find("var strutData=[");
+  const std::string arrays = html.substr(data, html.find("];\nstrutDrawFigures", data) - data);
+  // x (made explicit) and y, each at most kMaxPlotPoints numbers.
+  EXPECT_EQ(Count(arrays, "\n"), 1u);
+  const std::string y = arrays.substr(arrays.find('\n') + 1);
+  EXPECT_LE(Count(y, ","), HtmlReport::kMaxPlotPoints);
+  EXPECT_GE(Count(y, ","), HtmlReport::kMaxPlotPoints / 2);
+  EXPECT_NE(y.find(",7,"), std::string::npos);
+  EXPECT_NE(y.find(",-5,"), std::string::npos);
+  EXPECT_NE(arrays.find(",54321,"), std::string::npos);  // its sample number kept with it
+  EXPECT_NE(arrays.find(",99999]"), std::string::npos);  // the last point too
 }
 
 TEST(HtmlReport, RejectsMismatchedSizes) {
@@ -138,7 +184,8 @@ TEST(HtmlReport, RejectsMismatchedSizes) {
   EXPECT_THROW(report.AddHeatmap("h", {"a", "b"}, Eigen::MatrixXd::Identity(3, 3), -1, 1), std::invalid_argument);
   EXPECT_THROW(report.AddHeatmap("h", {"a"}, Eigen::MatrixXd::Identity(1, 1), 1, 1), std::invalid_argument);
   EXPECT_THROW(report.AddErrorBars("e", "y", {"a", "b"}, {{"s", {1, 2}, {1}}}), std::invalid_argument);
-  EXPECT_THROW(report.AddPlot(nlohmann::json::object(), {}), std::invalid_argument);
+  EXPECT_THROW(report.AddLinePlots({{"fine", "x", "y", {{"s", {1, 2}, {1, 2}}}}, {"bad", "x", "y", {{"s", {1}, {1, 2}}}}}),
+               std::invalid_argument);
   EXPECT_EQ(Count(report.Render(), "<figure>"), 0u);  // nothing half-added
 }
 
@@ -168,29 +215,28 @@ TEST(HtmlReport, RendersItsPlotsInHeadlessChromium) {
   const std::string path = dir.file("report.html");
   MakeFullReport().Write(path);
 
-  // The DOM after the scripts ran: plotly.js replaced each empty div by its SVG figure.
+  // The DOM after the scripts ran: each figure's empty <div> now holds a uPlot chart (a canvas,
+  // its title and legend as HTML) and is marked drawn; the page counts the figures that drew.
   const ShellResult dom =
       Shell(ChromiumCommand(dir.file("profile-dom")) + " --dump-dom file://" + path, dir.file("dom"));
   ASSERT_EQ(dom.exit_code, 0) << dom.err;
-  const std::string& html = dom.out;
-  EXPECT_EQ(Count(html, "class=\"plot-container plotly\""), 3u) << dom.err;
-  EXPECT_GE(Count(html, "class=\"main-svg\""), 3u);  // plotly draws several SVG layers per plot
-  // Legend entries and titles exist only as rendered SVG text (data-unformatted), not in the JSON.
-  for (const char* text : {"measured force", "model force", "stroke residual", "force residual",
-                           "Force over time", "Parameter correlation", "Residual mean per experiment"}) {
-    EXPECT_NE(html.find(std::string("data-unformatted=\"") + text + "\""), std::string::npos) << text;
-  }
-  EXPECT_EQ(Count(html, "class=\"hm\""), 1u);         // the heat map image
-  EXPECT_EQ(Count(html, "class=\"errorbar\""), 28u);  // one per experiment and series
-  EXPECT_GE(Count(html, "class=\"js-line\""), 1u);    // the model line
-  EXPECT_NE(html.find("data-unformatted=\"0.82\""), std::string::npos);  // a heat-map annotation
-  // What plotly.js added refers to nothing outside the file (SVG namespaces aside); the modebar
-  // has no plotly logo link (displaylogo: false).
+  EXPECT_NE(dom.out.find("<html lang=\"en\" data-figures-drawn=\"3\">"), std::string::npos) << dom.err;
+  const std::string html = dom.out.substr(dom.out.find("<body"));  // the head's script mentions the markers
+  EXPECT_EQ(html.find("data-figures-failed"), std::string::npos);
+  EXPECT_EQ(Count(html, "data-drawn=\"1\""), 3u);
+  EXPECT_EQ(Count(html, "<canvas"), 3u);
+  // Titles and legend entries exist only as rendered HTML, not in the figure JSON's form.
+  for (const char* title : {"Force over time", "Parameter correlation", "Residual mean per experiment"})
+    EXPECT_NE(html.find(std::string("<div class=\"u-title\">") + title + "</div>"), std::string::npos) << title;
+  for (const char* label : {"measured force", "model force", "stroke residual", "force residual"})
+    EXPECT_NE(html.find(std::string("<div class=\"u-label\">") + label + "</div>"), std::string::npos) << label;
+  EXPECT_NE(html.find("data-bars=\"28\""), std::string::npos);  // one error bar per experiment and series
+  EXPECT_NE(html.find("<div class=\"readout\">"), std::string::npos);
+  // What the script added refers to nothing outside the file.
   const std::string body = Lower(html.substr(html.find("<body")));
   EXPECT_EQ(body.find("src=\"http"), std::string::npos);
   EXPECT_EQ(body.find("href=\"http"), std::string::npos);
   EXPECT_EQ(body.find("url(http"), std::string::npos);
-  EXPECT_EQ(body.find("plotly.com"), std::string::npos);
 
   // A screenshot: plots drawn make a large PNG (a blank page is a few kB).
   const std::string png = dir.file("report.png");

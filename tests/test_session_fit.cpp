@@ -106,19 +106,10 @@ TEST(SessionFit, ExcludeLeavesOutExperimentsAndChannelsAndNamesMistakes) {
   }
 }
 
-//! A 2 dof session of the standard matrix's experiments named in `labels`, written to `path`.
-void WriteTwoDofSession(const std::string& path, const std::string& labels) {
-  std::vector<rig::MatrixEntry> matrix;
-  for (const auto& e : rig::StandardMatrix())
-    if (labels.find(e.label) != std::string::npos) matrix.push_back(e);
-  const ParameterSet truth = Model::Build("2dof", Causality::kStrokeInput).defaults();
-  daq::WriteSession(path, sim::SimulatePeriodicSession("2dof", truth.values(), matrix, {}));
-}
-
 TEST(IdentifyCommand, ExitCodesSayWhetherTheFitReachedTheNoiseFloor) {
   test::TempDir dir;
   // 2 dof data: 2dof reaches the floor (0), 1dof does not (3).
-  WriteTwoDofSession(dir.file("s.h5"), "bcghkl");
+  test::WriteTwoDofSession(dir.file("s.h5"), "bcghkl");
   const auto good = test::RunStrut("identify " + dir.file("s.h5") + " --no-progress --json " + dir.file("fit.json"));
   EXPECT_EQ(good.exit_code, 0) << good.output;
   std::ifstream in(dir.file("fit.json"));
@@ -149,8 +140,8 @@ TEST(SessionFit, AFitStoppedBeforeItConvergedSaysSoAndWhatToTry) {
 
 TEST(IdentifyCommand, OutputsNeverReplaceAnInputOrASession) {
   test::TempDir dir;
-  WriteTwoDofSession(dir.file("a.h5"), "bh");
-  WriteTwoDofSession(dir.file("b.h5"), "bh");
+  test::WriteTwoDofSession(dir.file("a.h5"), "bh");
+  test::WriteTwoDofSession(dir.file("b.h5"), "bh");
   const std::string before = test::ReadFile(dir.file("a.h5"));
   // The natural slip: --json A.h5 B.h5 (info --json is a switch, identify --json takes a file).
   const auto slip = test::RunStrut("identify --json " + dir.file("a.h5") + " " + dir.file("b.h5") + " --no-progress");

@@ -9,8 +9,8 @@
 #include "output_files.h"
 #include "strut/daq/session.h"
 #include "strut/ident/discover.h"
+#include "strut/ident/discover_report.h"
 #include "strut/ident/fit_report.h"
-#include "strut/ident/html_report.h"
 
 namespace strut::tools {
 namespace {
@@ -67,46 +67,6 @@ nlohmann::json DiscoveryJson(const ident::DiscoveryResult& r) {
   return j;
 }
 
-void WriteDiscoveryReport(const ident::DiscoveryResult& r, const std::string& path) {
-  ident::HtmlReport report("strut discover: " + r.baseline.model + " → " + r.final_model);
-  report.AddHeading("What was found");
-  report.AddParagraph(r.conclusion);
-  std::vector<std::vector<std::string>> rows;
-  for (const auto& s : r.steps) {
-    std::string before, after;
-    for (const auto& [c, v] : s.noise_before) before += fmt::format("{} {:.2f} ", c, v);
-    for (const auto& [c, v] : s.noise_after) after += fmt::format("{} {:.2f} ", c, v);
-    rows.push_back({s.term, fmt::format("{:+.1f}", s.delta_bic), before, after, s.evidence});
-  }
-  if (!rows.empty())
-    report.AddTable({"added", "ΔBIC", "noise ratio before", "after", "evidence"}, rows,
-                    "Each step adds the catalogue term that lowers BIC most and brings the residuals towards the noise.");
-  report.AddHeading("Where the baseline did not fit");
-  rows.clear();
-  for (const auto& f : r.mismatch) rows.push_back({f.locus, f.channel, fmt::format("{:.1f}", f.score), f.detail});
-  report.AddTable({"feature", "channel", "score", "detail"}, rows,
-                  "Scores are in noise units (about 1 or below: not there).");
-  // Residual rms per experiment, before and after, per channel.
-  for (const auto& channel : r.baseline.channels) {
-    std::vector<std::string> labels;
-    ident::ErrorBarSeries before{"baseline " + r.baseline.model, {}, {}}, after{"final " + r.final_model, {}, {}};
-    for (std::size_t a = 0; a < r.baseline.experiments.size(); ++a) {
-      labels.push_back(r.baseline.experiments[a].label);
-      for (auto* pair : {&before, &after}) {
-        const auto& e = pair == &before ? r.baseline.experiments[a] : r.final_fit.experiments[a];
-        double mean = NAN, sd = NAN;
-        for (const auto& c : e.channels)
-          if (c.channel == channel.name) mean = c.mean, sd = c.sd;
-        pair->mean.push_back(mean);
-        pair->sigma.push_back(sd);
-      }
-    }
-    report.AddErrorBars(channel.name + " residual before and after (mean ± 2σ per experiment)", channel.name + " [SI]",
-                        labels, {before, after});
-  }
-  report.Write(path);
-}
-
 struct DiscoverCommand {
   std::vector<std::string> sessions;
   ModelOptions model;
@@ -128,7 +88,7 @@ struct DiscoverCommand {
     for (const auto& s : result.steps)
       std::cout << fmt::format("  + {:<20} ΔBIC {:+.1f}  {}\n", s.term, s.delta_bic, s.evidence);
     if (!json_path.empty()) WriteTextOutput(json_path, DiscoveryJson(result).dump(1) + "\n");
-    if (!report_path.empty()) WriteDiscoveryReport(result, report_path);
+    if (!report_path.empty()) ident::WriteDiscoveryReport(result, report_path);
   }
 };
 

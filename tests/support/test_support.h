@@ -27,6 +27,10 @@ struct CommandResult {
 //! Runs the built strut binary with the given argument string (shell-quoted by the caller).
 CommandResult RunStrut(const std::string& args);
 
+//! A session of the standard matrix's experiments named in `labels` (e.g. "bcghkl"), simulated by
+//! the stroke-driven 2dof model at its defaults (sim::SimulatePeriodicSession), written to `path`.
+void WriteTwoDofSession(const std::string& path, const std::string& labels);
+
 //! Debian's Chromium, which renders reports in the tests (scripts/install-deps.sh installs it).
 inline constexpr const char* kChromium = "/usr/bin/chromium";
 bool ChromiumAvailable();

@@ -237,14 +237,13 @@ int UdpSocket(const std::string& name) {
 
 }  // namespace
 
-std::unique_ptr<UdpCanTransport> UdpCanTransport::Listen(const std::string& host, std::uint16_t port) {
+std::unique_ptr<UdpCanTransport> UdpCanTransport::Listen(const std::string& host, std::uint16_t port,
+                                                         int receive_buffer) {
   const std::string name = fmt::format("udp:{}:{}", host, port);
   const sockaddr_in address = Resolve(host, port, name);
   const int s = UdpSocket(name);
   std::unique_ptr<UdpCanTransport> t(new UdpCanTransport(name, s));
-  // Room for a few hundred ms of CAN FD frames at 50 kHz; the kernel caps it at rmem_max.
-  const int buffer = 4 << 20;
-  setsockopt(s, SOL_SOCKET, SO_RCVBUF, &buffer, sizeof buffer);
+  setsockopt(s, SOL_SOCKET, SO_RCVBUF, &receive_buffer, sizeof receive_buffer);
   EnableDropCounter(s);
   if (bind(s, reinterpret_cast<const sockaddr*>(&address), sizeof address) < 0)
     throw AcquisitionError(fmt::format("cannot open {}: bind: {}", name, Errno(errno)));

@@ -84,8 +84,11 @@ class SocketCanTransport : public CanTransport {
 //! CAN frames in UDP datagrams, one frame per datagram, the exact struct bytes.
 class UdpCanTransport : public CanTransport {
  public:
-  //! Receives on host:port (port 0: an ephemeral port, see local_port()).
-  static std::unique_ptr<UdpCanTransport> Listen(const std::string& host, std::uint16_t port);
+  //! Receives on host:port (port 0: an ephemeral port, see local_port()). `receive_buffer`:
+  //! SO_RCVBUF bytes asked for (the kernel caps it at net.core.rmem_max); 4 MiB hold
+  //! roughly a second of CAN FD frames at 50 kHz (each datagram costs about 1 kB of buffer).
+  static std::unique_ptr<UdpCanTransport> Listen(const std::string& host, std::uint16_t port,
+                                                 int receive_buffer = 4 << 20);
   //! Sends to host:port.
   static std::unique_ptr<UdpCanTransport> Connect(const std::string& host, std::uint16_t port);
   ~UdpCanTransport() override;

@@ -39,10 +39,13 @@ struct Fed {
   }
 };
 
-Fed FeedAll(CanStreamDecoder& decoder, const std::vector<CanFrame>& frames, std::int64_t t = kT0) {
+Fed FeedAll(CanStreamDecoder& decoder, const std::vector<CanFrame>& frames, std::int64_t t = kT0,
+            const std::vector<std::int64_t>& times = {}) {
   Fed fed;
   AcquiredBlock block;
-  for (const CanFrame& f : frames) {
+  for (std::size_t i = 0; i < frames.size(); ++i) {
+    const CanFrame& f = frames[i];
+    if (!times.empty()) t = times[i];
     if (!decoder.Feed(f, t, block)) {
       decoder.Finish(block);
       fed.blocks.push_back(std::move(block));
@@ -129,21 +132,80 @@ TEST(CanStreamDecoder, SequenceGapEndsTheBlockAndIsRecordedWithItsSize) {
       << after.events[0].text;
 }
 
-TEST(CanStreamDecoder, LossOfWholeSequenceWrapsIsFoundByTheStatusFrame) {
+//! Arrival times of frames sent in real time at 2 kHz: frame k (one set each) at set `index[k]`.
+std::vector<std::int64_t> ArrivalTimes(const std::vector<std::uint64_t>& indices) {
+  std::vector<std::int64_t> t;
+  for (const auto i : indices) t.push_back(kT0 + static_cast<std::int64_t>(i) * 500'000);
+  return t;
+}
+
+TEST(CanStreamDecoder, StatusFrameIndexCountsWholeSequenceWrapsTheClockConfirms) {
   const auto options = FourChannelOptions();
   CanSampleEncoder encoder(options.layout);
+  const std::uint64_t skipped = (1u << 18) * 2 + 3;  // invisible to the 18-bit sequence but for 3
   auto frames = Ramp(encoder, 0, 10);
-  encoder.AddStatus(0, 0, 0, frames);   // gives the module's 32-bit index of our set 0
-  encoder.Skip((1u << 18) * 2 + 3);      // invisible to the 18-bit sequence but for 3
+  encoder.AddStatus(0, 0, 0, frames);  // gives the module's 32-bit index of our set 0
+  encoder.Skip(skipped);
   encoder.AddStatus(0, 0, 0, frames);
   const auto more = Ramp(encoder, 0, 5);
   frames.insert(frames.end(), more.begin(), more.end());
+  std::vector<std::uint64_t> at = {0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 10 + skipped};
+  for (std::uint64_t i = 0; i < 5; ++i) at.push_back(10 + skipped + i);
   CanStreamDecoder decoder(options);
   decoder.Reset(kT0);
-  const Fed fed = FeedAll(decoder, frames);  // all at one time: the clock cannot tell
+  const Fed fed = FeedAll(decoder, frames, kT0, ArrivalTimes(at));
   ASSERT_EQ(fed.blocks.size(), 2u);
-  EXPECT_EQ(fed.blocks[1].lost_before, (1u << 18) * 2 + 3);
-  EXPECT_EQ(fed.blocks[1].first_index, 10u + (1u << 18) * 2 + 3);
+  EXPECT_EQ(fed.blocks[1].lost_before, skipped);
+  EXPECT_EQ(fed.blocks[1].first_index, 10u + skipped);
+  EXPECT_EQ(fed.blocks[1].time_ns[0], kT0 + static_cast<std::int64_t>(10 + skipped) * 500'000);
+}
+
+TEST(CanStreamDecoder, SequenceOrIndexAheadOfTheClockIsDroppedNotAGap) {
+  const auto options = FourChannelOptions();  // 2 kHz: tolerance 1024 sets (half a second, at least 1024)
+  CanSampleEncoder encoder(options.layout);
+  auto frames = Ramp(encoder, 0, 10);
+  encoder.AddStatus(0, 0, 0, frames);
+  CanFrame bogus_status = frames.back();
+  bogus_status.raw.data[3] ^= 0x40;  // index + 2^30: a corrupted status frame
+  frames.push_back(bogus_status);
+  CanFrame bogus_sample = Ramp(encoder, 10, 1)[0];
+  bogus_sample.raw.can_id ^= 1u << 16;  // sequence + 65536 sets, 33 s ahead of a clock that says 5 ms
+  frames.push_back(bogus_sample);
+  for (const auto& f : Ramp(encoder, 11, 5)) frames.push_back(f);
+  std::vector<std::int64_t> times;
+  for (int i = 0; i < 10; ++i) times.push_back(kT0 + i * 500'000);
+  for (int i = 0; i < 8; ++i) times.push_back(kT0 + (10 + i) * 500'000);
+  CanStreamDecoder decoder(options);
+  decoder.Reset(kT0);
+  const Fed fed = FeedAll(decoder, frames, kT0, times);
+  EXPECT_EQ(decoder.stats().ahead_of_clock, 2u);
+  EXPECT_EQ(decoder.stats().lost_sample_sets, 1u);  // only the set the bogus frame carried
+  EXPECT_EQ(fed.last().first_index, 11u);
+  EXPECT_EQ(fed.last().counts[0].front(), 11);
+}
+
+TEST(CanStreamDecoder, ModuleRestartIsFollowedAfterARunOfOutOfStepFrames) {
+  const auto options = FourChannelOptions();
+  CanSampleEncoder before(options.layout);
+  before.Skip(100000);
+  auto frames = Ramp(before, 0, 20);
+  CanSampleEncoder restarted(options.layout);  // counts from 0 again: behind the stream
+  for (const auto& f : Ramp(restarted, 1000, 40)) frames.push_back(f);
+  std::vector<std::int64_t> times;
+  for (std::size_t i = 0; i < frames.size(); ++i) times.push_back(kT0 + static_cast<std::int64_t>(i) * 500'000);
+  CanStreamDecoder decoder(options);
+  decoder.Reset(kT0);
+  const Fed fed = FeedAll(decoder, frames, kT0, times);
+  EXPECT_EQ(decoder.stats().late_frames, 15u);
+  EXPECT_EQ(decoder.stats().resyncs, 1u);
+  ASSERT_EQ(fed.blocks.size(), 2u);
+  const AcquiredBlock& after = fed.blocks[1];
+  EXPECT_TRUE(after.quality.has(Quality::kSequenceGap));
+  EXPECT_EQ(after.first_index, 20u);  // indices continue
+  EXPECT_EQ(after.counts[0].front(), 1015);  // the 16th frame after the restart is the first kept
+  EXPECT_EQ(after.size(), 25u);
+  EXPECT_GT(after.time_ns.front(), fed.blocks[0].time_ns.back());
+  EXPECT_EQ(after.events.front().kind, AcquisitionEvent::Kind::kResynchronised);
 }
 
 TEST(CanStreamDecoder, LongSilenceIsMeasuredByTheClockBeyondTheSequenceRange) {

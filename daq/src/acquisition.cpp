@@ -88,6 +88,7 @@ std::string_view ToString(AcquisitionEvent::Kind kind) {
     case AcquisitionEvent::Kind::kStale: return "stale";
     case AcquisitionEvent::Kind::kResumed: return "resumed";
     case AcquisitionEvent::Kind::kReceiverDrops: return "receiver-drops";
+    case AcquisitionEvent::Kind::kResynchronised: return "resynchronised";
   }
   return "unknown";
 }

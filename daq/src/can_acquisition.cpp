@@ -220,6 +220,7 @@ void CanStreamDecoder::Reset(std::int64_t now_ns) {
   next_index_ = 0;
   pending_lost_ = 0;
   seq_offset_ = 0;
+  consecutive_out_of_step_ = 0;
   anchor_ns_ = 0;
   last_frame_ns_ = now_ns;
   stale_ = false;
@@ -288,11 +289,11 @@ void CanStreamDecoder::Alive(std::int64_t t, AcquiredBlock& block) {
 }
 
 void CanStreamDecoder::FeedError(const CanFrame& frame, std::int64_t t, AcquiredBlock& block) {
-  ++stats_.error_frames;
   if (frame.fd || frame.raw.len != CAN_ERR_DLC) {
     Corrupt(block, stats_.wrong_length, t, "error frame of wrong length");
     return;
   }
+  ++stats_.error_frames;
   const canid_t classes = frame.raw.can_id & CAN_ERR_MASK;
   const std::uint8_t controller = frame.raw.data[1];
   const bool passive_now = (classes & CAN_ERR_CRTL) && (controller & (CAN_ERR_CRTL_RX_PASSIVE | CAN_ERR_CRTL_TX_PASSIVE));
@@ -328,14 +329,43 @@ void CanStreamDecoder::FeedError(const CanFrame& frame, std::int64_t t, Acquired
   }
 }
 
+double CanStreamDecoder::ClockSets(std::int64_t t, std::uint64_t base) const {
+  const double expected_ns = static_cast<double>(anchor_ns_) + (static_cast<double>(base) + sets_per_frame_ - 1) * period_ns_;
+  return (static_cast<double>(t) - expected_ns) / period_ns_;
+}
+
+double CanStreamDecoder::ClockTolerance(std::int64_t t) const {
+  // Half a second of latency and jitter, plus 200 ppm of the time since the anchor for the
+  // module's crystal against the host's clock.
+  return std::max(1024.0, 0.5 * options_.sample_rate) + 2e-4 * (static_cast<double>(t - anchor_ns_) / period_ns_);
+}
+
 void CanStreamDecoder::FeedStatus(const CanFrame& frame, std::int64_t t, AcquiredBlock& block) {
   if (frame.fd || frame.raw.len != 8) {
     Corrupt(block, stats_.wrong_length, t, "status frame of wrong length");
     return;
   }
-  Alive(t, block);
   const std::uint32_t index = Le32(frame.raw.data);
   const std::uint16_t word = Le16(frame.raw.data + 4);
+  if (started_) {
+    // The full 32-bit index catches losses the 18-bit sequence cannot see (whole multiples of
+    // 2^18 sets) when the clock agrees; the remainder shows in the next sample frame's sequence.
+    const std::uint64_t base = next_index_ + pending_lost_;
+    if (!have_device_base_) {
+      device_base_ = index - static_cast<std::uint32_t>(base);
+      have_device_base_ = true;
+    } else {
+      const std::uint32_t ahead = index - (device_base_ + static_cast<std::uint32_t>(base));
+      const std::uint64_t aliased = ahead < (1u << 31) ? ahead & ~CanFrameLayout::kSequenceMask : 0;
+      if (aliased > 0 && static_cast<double>(aliased) > ClockSets(t, base) + ClockTolerance(t)) {
+        Corrupt(block, stats_.ahead_of_clock, t, "status frame index ahead of the clock");
+        return;
+      }
+      pending_lost_ += aliased;
+    }
+  }
+  Alive(t, block);
+  ++stats_.status_frames;
   if (!have_device_status_ || word != device_status_) {
     Event(block, AcquisitionEvent::Kind::kDeviceStatus, t, word,
           fmt::format("module {} status {}, tx errors {}, rx errors {}", options_.layout.module, StatusText(word),
@@ -343,54 +373,67 @@ void CanStreamDecoder::FeedStatus(const CanFrame& frame, std::int64_t t, Acquire
     device_status_ = word;
     have_device_status_ = true;
   }
-  if (!started_) return;
-  // The full 32-bit index catches losses the 18-bit sequence cannot see (whole multiples of
-  // 2^18 sets); the remainder shows in the next sample frame's sequence.
-  const std::uint32_t expected = device_base_ + static_cast<std::uint32_t>(next_index_ + pending_lost_);
-  if (!have_device_base_) {
-    device_base_ = index - static_cast<std::uint32_t>(next_index_ + pending_lost_);
-    have_device_base_ = true;
-    return;
-  }
-  const std::uint32_t ahead = index - expected;
-  if (ahead != 0 && ahead < (1u << 31)) {
-    const std::uint64_t aliased = ahead & ~CanFrameLayout::kSequenceMask;
-    pending_lost_ += aliased;
-  }
 }
 
 bool CanStreamDecoder::FeedSamples(const CanFrame& frame, std::int64_t t, AcquiredBlock& block) {
   const CanFrameLayout& layout = options_.layout;
   if (frame.fd != layout.fd || frame.raw.len != layout.sample_payload()) {
-    ++stats_.frames;
     Corrupt(block, stats_.wrong_length, t, "sample frame of wrong length");
     return true;
   }
   const std::uint32_t seq = frame.raw.can_id & CanFrameLayout::kSequenceMask;
   constexpr std::uint64_t kWrap = 1ull << CanFrameLayout::kSequenceBits;
   std::uint64_t lost = 0;
+  bool resync = false;
   if (started_) {
     const std::uint64_t base = next_index_ + pending_lost_;
     const std::uint64_t diff = (seq - (base + seq_offset_)) & CanFrameLayout::kSequenceMask;
-    // How many sets the clock says went by: decides whole wraps of the sequence after a silence.
-    const double expected_ns = static_cast<double>(anchor_ns_) + (static_cast<double>(base) + sets_per_frame_ - 1) * period_ns_;
-    const double by_clock = (static_cast<double>(t) - expected_ns) / period_ns_;
+    // How many sets the clock says went by: decides whole wraps of the sequence after a silence,
+    // and refuses a sequence that runs ahead of time (a corrupted id, not a gap).
+    const double by_clock = ClockSets(t, base);
+    const bool late = by_clock <= kWrap / 4.0 && diff >= kWrap / 2;
     if (by_clock > kWrap / 4.0) {
       const double wraps = std::max(0.0, std::round((by_clock - static_cast<double>(diff)) / kWrap));
       lost = pending_lost_ + diff + static_cast<std::uint64_t>(wraps) * kWrap;
-    } else if (diff >= kWrap / 2) {
-      ++stats_.frames;
-      Corrupt(block, stats_.late_frames, t, "late or repeated sample frame");
-      return true;
-    } else {
+    } else if (!late) {
       lost = pending_lost_ + diff;
     }
+    const bool ahead = !late && static_cast<double>(lost - pending_lost_) > by_clock + ClockTolerance(t);
+    if (late || ahead) {
+      // A repeated or reordered frame, or one from the future: dropped. A run of them means the
+      // module's sequence jumped (a restart): follow it rather than drop everything.
+      if (consecutive_out_of_step_ + 1 < kResyncAfterFrames) {
+        ++consecutive_out_of_step_;
+        if (late)
+          Corrupt(block, stats_.late_frames, t, "late or repeated sample frame");
+        else
+          Corrupt(block, stats_.ahead_of_clock, t, "sample frame sequence ahead of the clock");
+        return true;
+      }
+      resync = true;
+      lost = 0;
+    }
   }
-  const std::uint32_t flags = state_flags() | (lost > 0 ? Quality::kSequenceGap : 0u);
-  if (!block.empty() && (lost > 0 || (flags & Quality::kInvalidMask) != (block.quality.flags & Quality::kInvalidMask)))
+  const std::uint32_t flags = state_flags() | (lost > 0 || resync ? Quality::kSequenceGap : 0u);
+  if (!block.empty() &&
+      (lost > 0 || resync || (flags & Quality::kInvalidMask) != (block.quality.flags & Quality::kInvalidMask)))
     return false;  // starts a new block
 
   Alive(t, block);
+  consecutive_out_of_step_ = 0;
+  if (resync) {
+    const std::uint32_t jump = (seq - seq_offset_ - static_cast<std::uint32_t>(next_index_)) & CanFrameLayout::kSequenceMask;
+    seq_offset_ = (seq - static_cast<std::uint32_t>(next_index_)) & CanFrameLayout::kSequenceMask;
+    pending_lost_ = 0;
+    have_device_base_ = false;
+    // Time restarts from this frame's arrival, never before the sets already delivered.
+    anchor_ns_ = std::max(anchor_ns_, t - static_cast<std::int64_t>((static_cast<double>(next_index_) + sets_per_frame_ - 1) * period_ns_));
+    ++stats_.resyncs;
+    Event(block, AcquisitionEvent::Kind::kResynchronised, t, jump,
+          fmt::format("module {}'s sequence jumped by {} sets mod 2^18, against the clock (a restart?); {} frames "
+                      "dropped before following it",
+                      options_.layout.module, jump, kResyncAfterFrames - 1));
+  }
   if (!started_) {
     started_ = true;
     seq_offset_ = seq;  // our set 0 is the module's set `seq` (mod 2^18)

@@ -72,7 +72,7 @@ std::int64_t MonotonicNs();
 //! Quality of a block: a set of flags. valid() is false when the data must not be used.
 struct Quality {
   enum Flag : std::uint32_t {
-    kSequenceGap = 1u << 0,    //!< sample sets were lost just before this block (lost_before > 0)
+    kSequenceGap = 1u << 0,    //!< a discontinuity before this block: lost_before sets lost, or a resynchronisation
     kOverRange = 1u << 1,      //!< a reading at the ADC limits or outside its calibrated range
     kErrorPassive = 1u << 2,   //!< the receiver or the module was error-passive: data invalid
     kBusOff = 1u << 3,         //!< the receiver's controller was bus-off: data invalid
@@ -103,6 +103,7 @@ struct AcquisitionEvent {
     kStale,           //!< no frame within stale_after
     kResumed,         //!< frames again after a stale period
     kReceiverDrops,   //!< the receiving socket's queue overflowed (count: datagrams/frames)
+    kResynchronised,  //!< the module's sequence jumped (a restart); indices continue (count: the jump mod 2^18)
   };
   Kind kind;
   std::int64_t monotonic_ns = 0;  //!< when strut saw it
@@ -130,7 +131,8 @@ struct AcquiredBlock {
 
 //! Counters since Start: what arrived and what went wrong.
 struct AcquisitionStats {
-  std::uint64_t frames = 0;          //!< frames decoded (sample, status and error frames)
+  std::uint64_t frames = 0;          //!< frames fed to the decoder, good or not
+  std::uint64_t status_frames = 0;   //!< good status frames
   std::uint64_t sample_sets = 0;     //!< sample sets delivered
   std::uint64_t lost_sample_sets = 0;
   std::uint64_t gaps = 0;            //!< sequence gaps (each may lose many sets)
@@ -138,8 +140,10 @@ struct AcquisitionStats {
   std::uint64_t wrong_length = 0;    //!< known id, wrong payload length or classic/FD mismatch
   std::uint64_t unknown_id = 0;      //!< not one of the module's ids (or standard, or remote frames)
   std::uint64_t late_frames = 0;     //!< sample frames older than the stream (duplicates, reordered)
+  std::uint64_t ahead_of_clock = 0;  //!< sequence or index further ahead than the time since allows
+  std::uint64_t resyncs = 0;         //!< times the module's sequence jumped back and was followed
   std::uint64_t malformed_datagrams = 0;  //!< transport units that are no CAN frame at all
-  std::uint64_t error_frames = 0;
+  std::uint64_t error_frames = 0;    //!< good error frames (SocketCAN's CAN_ERR_FLAG frames)
   std::uint64_t invalid_sample_sets = 0;  //!< delivered in blocks marked invalid
   std::uint64_t receiver_drops = 0;  //!< frames the receiving socket dropped (SO_RXQ_OVFL)
   std::uint64_t stale_periods = 0;

@@ -141,6 +141,11 @@ class CanStreamDecoder {
   void Corrupt(AcquiredBlock& block, std::uint64_t& counter, std::int64_t t, const char* what);
   //! A frame from the module arrived: the stream is alive (ends a stale period).
   void Alive(std::int64_t t, AcquiredBlock& block);
+  //! Sets the clock says the module sampled beyond `base` by the time `t` a frame starting
+  //! at `base` arrived (the linear time rule).
+  double ClockSets(std::int64_t t, std::uint64_t base) const;
+  //! How far (in sets) a frame may run ahead of ClockSets before it is refused.
+  double ClockTolerance(std::int64_t t) const;
 
   CanAcquisitionOptions options_;
   int sets_per_frame_ = 1;
@@ -150,6 +155,8 @@ class CanStreamDecoder {
   std::uint64_t next_index_ = 0;   //!< index of the next expected sample set
   std::uint64_t pending_lost_ = 0; //!< sets a status frame showed lost, charged to the next sample frame
   std::uint32_t seq_offset_ = 0;   //!< the module's sequence of our set 0
+  int consecutive_out_of_step_ = 0;  //!< sample frames behind the stream or ahead of the clock in a row
+  static constexpr int kResyncAfterFrames = 16;
   std::int64_t anchor_ns_ = 0;     //!< monotonic time of sample set 0 (linear time rule)
   std::int64_t last_frame_ns_ = 0;
   bool stale_ = false;

@@ -209,6 +209,7 @@ class CanAcquisitionSender {
   //! Sends a status frame now.
   void SendStatus();
   CanSampleEncoder& encoder() { return encoder_; }
+  const CanSampleEncoder& encoder() const { return encoder_; }
   CanTransport& transport() { return *transport_; }
   std::size_t flush_sets = 64;
   std::chrono::nanoseconds send_timeout = std::chrono::milliseconds(500);

@@ -330,6 +330,26 @@ TEST(CanStreamDecoder, ErrorPassiveFromControllerOrCountersAndBackToActive) {
     }
 }
 
+TEST(CanStreamDecoder, WarningsAndProtocolErrorsAreFlaggedButLeaveTheDataValid) {
+  const auto options = FourChannelOptions();
+  CanSampleEncoder encoder(options.layout);
+  std::vector<CanFrame> frames = Ramp(encoder, 0, 2);
+  frames.push_back(ErrorFrame(CAN_ERR_CRTL, CAN_ERR_CRTL_RX_WARNING));
+  frames.push_back(ErrorFrame(CAN_ERR_PROT | CAN_ERR_BUSERROR));
+  frames.push_back(ErrorFrame(CAN_ERR_CRTL, CAN_ERR_CRTL_RX_OVERFLOW));
+  for (const auto& f : Ramp(encoder, 2, 2)) frames.push_back(f);
+  CanStreamDecoder decoder(options);
+  decoder.Reset(kT0);
+  const Fed fed = FeedAll(decoder, frames);
+  ASSERT_EQ(fed.blocks.size(), 1u);
+  EXPECT_TRUE(fed.last().quality.valid());
+  EXPECT_TRUE(fed.last().quality.has(Quality::kBusErrors));
+  EXPECT_EQ(fed.last().size(), 4u);
+  ASSERT_EQ(fed.last().events.size(), 1u);
+  EXPECT_EQ(fed.last().events[0].kind, AcquisitionEvent::Kind::kBusErrors);
+  EXPECT_EQ(fed.last().events[0].count, 3u);
+}
+
 TEST(CanStreamDecoder, ModuleFaultInTheStatusWordMarksTheDataInvalid) {
   const auto options = FourChannelOptions();
   CanSampleEncoder encoder(options.layout);

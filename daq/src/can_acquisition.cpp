@@ -182,6 +182,7 @@ void CanAcquisitionSender::SendStatus() {
 bool CanAcquisitionOptions::IsValid(std::string* error) const {
   std::string why;
   if (!layout.IsValid(&why)) {
+    // why says it
   } else if (!(sample_rate > 0.0) || !std::isfinite(sample_rate)) {
     why = fmt::format("sample rate {} Hz is not positive", sample_rate);
   } else if (channels.size() != static_cast<std::size_t>(layout.channels)) {
@@ -318,12 +319,15 @@ void CanStreamDecoder::FeedError(const CanFrame& frame, std::int64_t t, Acquired
     error_passive_ = false;
     Event(block, AcquisitionEvent::Kind::kBusRecovered, t, 0, "the receiver's CAN controller is error-active again");
   }
+  // Bus state alone (bus-off, restart, counters, passive/active) is handled above; anything else
+  // (protocol errors, lost arbitration, missing ACK, transceiver faults, warnings, overflows) is a
+  // bus error: the frames that did arrive passed their CRC, so the data stay valid, and lost
+  // frames show as gaps.
   const canid_t state_classes = CAN_ERR_BUSOFF | CAN_ERR_RESTARTED | CAN_ERR_CNT;
-  const bool state_only = (classes & ~state_classes & ~CAN_ERR_CRTL) == 0 &&
-                          (!(classes & CAN_ERR_CRTL) || !(controller & (CAN_ERR_CRTL_RX_OVERFLOW | CAN_ERR_CRTL_TX_OVERFLOW)));
+  const std::uint8_t state_bits = CAN_ERR_CRTL_RX_PASSIVE | CAN_ERR_CRTL_TX_PASSIVE | CAN_ERR_CRTL_ACTIVE;
+  const bool state_only =
+      (classes & ~state_classes & ~CAN_ERR_CRTL) == 0 && (!(classes & CAN_ERR_CRTL) || (controller & ~state_bits) == 0);
   if (!state_only || classes == 0) {
-    // Protocol errors, lost arbitration, missing ACK, transceiver faults, controller overflows:
-    // the frames that did arrive passed their CRC, so the data stay valid; lost frames show as gaps.
     if (block_bus_errors_++ == 0) block_bus_errors_ns_ = t;
     block.quality.flags |= Quality::kBusErrors;
   }

@@ -1,7 +1,7 @@
 // The CAN frame decoder survives any bytes: a million random and mutated transport units
 // (deterministic seeds) through CanFrame::FromBytes and CanStreamDecoder, with every unit
 // accounted for in the counters and every block self-consistent. The libFuzzer target
-// (fuzz/can_decoder_fuzz.cpp, scripts/fuzz-can.sh) explores further with coverage guidance.
+// (daq/fuzz/can_decoder_fuzz.cpp, scripts/fuzz-can.sh) explores further with coverage guidance.
 #include <gtest/gtest.h>
 
 #include <fmt/format.h>

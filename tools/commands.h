@@ -18,6 +18,8 @@ void RegisterBenchDiscover(CLI::App& bench);
 void RegisterBenchUnits(CLI::App& bench);
 //! Adds `confusion` (discovery on drawn units) under the `bench` subcommand.
 void RegisterBenchConfusion(CLI::App& bench);
+//! Adds `acquisition` (the CAN acquisition over UDP on loopback) under the `bench` subcommand.
+void RegisterBenchAcquisition(CLI::App& bench);
 void RegisterSimCommand(CLI::App& app);
 void RegisterImportCommand(CLI::App& app);
 

@@ -58,7 +58,8 @@ ShellResult Shell(const std::string& command, const std::string& stem) {
 }
 
 std::string ChromiumCommand(const std::string& profile_dir) {
-  return std::string("timeout 60 ") + kChromium +
+  // Generous: a busy CI machine (two cores, tests in parallel) slows Chromium's start many times over.
+  return std::string("timeout 240 ") + kChromium +
          " --headless --no-sandbox --disable-gpu --disable-quic --no-first-run --disable-background-networking"
          " --disable-component-update --disable-sync --disable-dev-shm-usage --hide-scrollbars"
          " --user-data-dir=" +

@@ -458,7 +458,7 @@ void ModbusController::SetWatchdog(std::chrono::milliseconds timeout) {
 }
 
 std::vector<std::uint16_t> ModbusController::ReadHoldingRegisters(std::uint16_t address, std::uint16_t count) {
-  const std::string operation = "read holding registers";
+  const std::string operation = "read";
   if (count < 1 || count > MODBUS_MAX_READ_REGISTERS)
     throw DeviceError(DeviceError::Kind::kInvalidValue, Describe(), operation, "", 0,
                       "count " + std::to_string(count) + " is not in 1..125");
@@ -472,7 +472,7 @@ std::vector<std::uint16_t> ModbusController::ReadHoldingRegisters(std::uint16_t 
 }
 
 std::vector<std::uint16_t> ModbusController::ReadInputRegisters(std::uint16_t address, std::uint16_t count) {
-  const std::string operation = "read input registers";
+  const std::string operation = "read";
   if (count < 1 || count > MODBUS_MAX_READ_REGISTERS)
     throw DeviceError(DeviceError::Kind::kInvalidValue, Describe(), operation, "", 0,
                       "count " + std::to_string(count) + " is not in 1..125");
@@ -486,7 +486,7 @@ std::vector<std::uint16_t> ModbusController::ReadInputRegisters(std::uint16_t ad
 }
 
 void ModbusController::WriteHoldingRegisters(std::uint16_t address, std::span<const std::uint16_t> values) {
-  const std::string operation = "write holding registers";
+  const std::string operation = "write";
   if (values.empty() || values.size() > MODBUS_MAX_WRITE_REGISTERS)
     throw DeviceError(DeviceError::Kind::kInvalidValue, Describe(), operation, "", 0,
                       "count " + std::to_string(values.size()) + " is not in 1..123");

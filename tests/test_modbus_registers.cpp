@@ -221,12 +221,12 @@ TEST(ModbusRegisters, StatusRoundTripsAndRefusesNaNAndUnknownState) {
   EXPECT_EQ(DecodeStatus(std::span(block.data(), 15)).refusal.code, RefusalCode::kBadLength);
 }
 
-TEST(ModbusRegisters, RefusalTextIsPrintableAsciiOfAtMost64Bytes) {
-  const Refusal r{RefusalCode::kStateRefused, holding::kCommand, "run refused: not armed\n\xff" + std::string(80, 'x')};
+TEST(ModbusRegisters, RefusalTextIsPrintableAsciiOfAtMost120Bytes) {
+  const Refusal r{RefusalCode::kStateRefused, holding::kCommand, "run refused: not armed\n\xff" + std::string(150, 'x')};
   const Refusal back = DecodeRefusal(EncodeRefusal(r));
   EXPECT_EQ(back.code, r.code);
   EXPECT_EQ(back.address, r.address);
-  EXPECT_EQ(back.message.size(), 64u);
+  EXPECT_EQ(back.message.size(), 120u);
   EXPECT_EQ(back.message.substr(0, 24), "run refused: not armed??");
   EXPECT_EQ(DecodeRefusal(EncodeRefusal({RefusalCode::kBadChecksum, 18, "short"})).message, "short");
 }

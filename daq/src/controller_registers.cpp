@@ -169,8 +169,9 @@ Decoded<SetPoint> DecodeSetPoint(std::span<const std::uint16_t> block) {
   const std::uint16_t expected = SetPointChecksum(block);
   if (block[holding::kChecksum] != expected)
     return Refuse<SetPoint>(R::kBadChecksum, holding::kChecksum,
-                            HoldingName(holding::kChecksum) + " is " + std::to_string(block[holding::kChecksum]) +
-                                " but the block gives " + std::to_string(expected) + ": half-written or corrupted");
+                            "half-written or corrupted block: " + HoldingName(holding::kChecksum) + " is " +
+                                std::to_string(block[holding::kChecksum]) + ", the block gives " +
+                                std::to_string(expected));
   const auto mode = ControlModeFrom(block[holding::kMode]);
   if (!mode)
     return Refuse<SetPoint>(R::kBadMode, holding::kMode,

@@ -60,11 +60,11 @@ inline constexpr std::uint16_t kStatusBlock = 0;      //!< the status block, rea
 inline constexpr std::uint16_t kStatusCount = 16;
 inline constexpr std::uint16_t kRefusalCode = 16;     //!< u16, RefusalCode of the last refused write
 inline constexpr std::uint16_t kRefusalRegister = 17; //!< u16, holding register it was about
-inline constexpr std::uint16_t kRefusalText = 18;     //!< 32 registers: 64 bytes ASCII, NUL padded
-inline constexpr std::uint16_t kRefusalTextCount = 32;
+inline constexpr std::uint16_t kRefusalText = 18;     //!< 60 registers: 120 bytes ASCII, NUL padded
+inline constexpr std::uint16_t kRefusalTextCount = 60;
 inline constexpr std::uint16_t kRefusalBlock = 16;    //!< code, register and text, read in one request
-inline constexpr std::uint16_t kRefusalCount = 34;
-inline constexpr std::uint16_t kCount = 50;
+inline constexpr std::uint16_t kRefusalCount = 62;
+inline constexpr std::uint16_t kCount = 78;
 }  // namespace input
 
 //! Why a write was refused (input register kRefusalCode).
@@ -130,7 +130,7 @@ StatusBlock EncodeStatus(const ControllerStatus& status);
 //! Refuses a wrong length, an unknown state or mode, and a non-finite stroke, force or command.
 Decoded<ControllerStatus> DecodeStatus(std::span<const std::uint16_t> block);
 
-//! The refusal registers (code, register, text; the text cut to 64 bytes of printable ASCII).
+//! The refusal registers (code, register, text; the text cut to 120 bytes of printable ASCII).
 RefusalBlock EncodeRefusal(const Refusal& refusal);
 //! Any registers: bytes outside printable ASCII become '?', the text stops at the first NUL.
 Refusal DecodeRefusal(std::span<const std::uint16_t> block);

@@ -9,6 +9,7 @@ packages=(
   nlohmann-json3-dev libtomlplusplus-dev libmatio-dev
   python3-h5py python3-numpy
   python3-plotly esbuild chromium
+  python3-pymodbus python3-serial-asyncio clang-14 libclang-rt-14-dev
 )
 missing=()
 for p in "${packages[@]}"; do

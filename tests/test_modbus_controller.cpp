@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <random>
 #include <thread>
 
 #include "modbus_test_peer.h"
@@ -280,6 +281,21 @@ TEST(ModbusController, SlowPeerHitsTheResponseTimeoutInAboutTheConfiguredTime) {
   }
 }
 
+TEST(ModbusController, LateAnswerAfterATimeoutIsNotTakenForTheNextAnswer) {
+  // The third request is answered 300 ms late; the client gives up after 150 ms.
+  test::ScriptedModbusPeer peer(2, test::ScriptedModbusPeer::Misbehaviour::kLate, 300ms, 1);
+  ModbusControllerOptions options = Options(peer.port());
+  options.response_timeout = 150ms;
+  ModbusController client(options);
+  client.ReadInputRegisters(0, 1);
+  Expect(DeviceError::Kind::kTimeout, [&] { client.ReadInputRegisters(0, 16); });
+  std::this_thread::sleep_for(300ms);  // the late 16-register answer is now waiting in the socket
+  // The next request gets its own answer (5 registers), not the late one.
+  EXPECT_EQ(client.ReadInputRegisters(0, 5).size(), 5u);
+  EXPECT_EQ(client.ReadInputRegisters(0, 7).size(), 7u);
+  EXPECT_GE(client.stats().flushes, 2);
+}
+
 TEST(ModbusController, PeerStallingMidAnswerHitsTheByteTimeout) {
   test::ScriptedModbusPeer peer(2, test::ScriptedModbusPeer::Misbehaviour::kStallMidAnswer);
   ModbusControllerOptions options = Options(peer.port());
@@ -378,6 +394,7 @@ TEST(ModbusController, CallsFromManyThreadsAreServedByTheOneIoOwner) {
   client.WriteSetPoint(Typical());
   std::atomic<int> ok{0}, failed{0};
   std::vector<std::thread> threads;
+  const auto start = Clock::now();
   for (int t = 0; t < 4; ++t)
     threads.emplace_back([&, t] {
       for (int i = 0; i < 100; ++i) {
@@ -393,6 +410,7 @@ TEST(ModbusController, CallsFromManyThreadsAreServedByTheOneIoOwner) {
       }
     });
   for (auto& t : threads) t.join();
+  std::printf("400 calls from 4 threads in %.3f s\n", Seconds(start));
   EXPECT_EQ(ok, 400);
   EXPECT_EQ(failed, 0);
   EXPECT_EQ(client.ReadHoldingRegisters(reg::holding::kClientHeartbeat, 1)[0], 100);
@@ -409,6 +427,31 @@ TEST(ModbusController, NewClientContinuesAfterTheAppliedSequence) {
   ModbusController second(Options(server.port()));
   EXPECT_EQ(second.WriteSetPoint(Typical()), 4);
   EXPECT_EQ(backend.applied().size(), 4u);
+}
+
+TEST(ModbusControllerServer, GarbageFromTheNetworkNeitherCrashesNorAppliesAnything) {
+  FakeControllerBackend backend;
+  ModbusServerOptions options;
+  options.byte_timeout = 20ms;
+  ModbusControllerServer server(backend, options);
+  std::mt19937 rng(13);
+  std::uniform_int_distribution<int> byte(0, 255);
+  for (int i = 0; i < 150; ++i) {
+    std::vector<std::uint8_t> adu(static_cast<std::size_t>(1 + byte(rng) % 40));
+    for (auto& b : adu) b = static_cast<std::uint8_t>(byte(rng));
+    if (i % 2 == 0 && adu.size() >= 8) {  // a plausible MBAP header with a random PDU
+      adu[2] = adu[3] = 0;
+      adu[4] = 0;
+      adu[5] = static_cast<std::uint8_t>(adu.size() - 6);
+      adu[7] = static_cast<std::uint8_t>(std::array{3, 4, 6, 16, 1, 23, 43}[static_cast<std::size_t>(i / 2 % 7)]);
+    }
+    ASSERT_TRUE(test::SendRawAndClose(server.port(), adu, 2ms));
+  }
+  ModbusController client(Options(server.port()));
+  EXPECT_EQ(client.ReadStatus().applied_sequence, 0);
+  EXPECT_TRUE(backend.applied().empty());
+  EXPECT_TRUE(backend.commands().empty());
+  EXPECT_EQ(client.WriteSetPoint(Typical()), 1);
 }
 
 TEST(ModbusControllerServer, FailingBackendIsReportedAsADeviceFault) {

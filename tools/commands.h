@@ -20,5 +20,7 @@ void RegisterBenchUnits(CLI::App& bench);
 void RegisterBenchConfusion(CLI::App& bench);
 void RegisterSimCommand(CLI::App& app);
 void RegisterImportCommand(CLI::App& app);
+//! `rig controller-status` (tools/cmd_rig.cpp).
+void RegisterRigCommand(CLI::App& app);
 
 }  // namespace strut::tools

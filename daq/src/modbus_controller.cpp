@@ -109,7 +109,12 @@ class ModbusController::Connection {
 
   //! Connected on return, or throws kConnection (and the next attempt is scheduled).
   void Ensure() {
-    if (connected()) return;
+    if (connected()) {
+      // An answer that arrived late after a timeout must not be taken for the next answer.
+      if (dirty_) Flush();
+      dirty_ = false;
+      return;
+    }
     const auto now = Clock::now();
     if (now < next_attempt_) {
       const auto wait = std::chrono::duration_cast<milliseconds>(next_attempt_ - now).count();
@@ -176,14 +181,19 @@ class ModbusController::Connection {
       detail += " (response timeout " + std::to_string(options_.response_timeout.count()) + " ms, byte timeout " +
                 std::to_string(options_.byte_timeout.count()) + " ms)";
       Flush();
+      dirty_ = true;
       std::lock_guard lock(stats_mutex_);
       ++stats_.timeouts;
     } else if (e >= EMBXILFUN && e <= EMBXGTAR) {
       kind = DeviceError::Kind::kRefused;
     } else if (e == EMBBADCRC || e == EMBBADDATA || e == EMBBADEXC || e == EMBUNKEXC || e == EMBMDATA ||
                e == EMBBADSLAVE) {
+      // A garbled or mismatched answer (e.g. a late one, transaction id of an earlier request):
+      // flushing may not catch what is still under way, so start over on a fresh connection.
       kind = DeviceError::Kind::kProtocol;
       Flush();
+      Close();
+      next_attempt_ = Clock::now();
     } else {
       kind = DeviceError::Kind::kConnection;
       Close();
@@ -238,6 +248,7 @@ class ModbusController::Connection {
   Clock::time_point next_attempt_ = Clock::now();
   milliseconds backoff_;
   std::uint16_t sequence_ = 0;
+  bool dirty_ = false;  //!< the last request timed out: flush again before the next one
   mutable std::mutex stats_mutex_;
   ModbusConnectionStats stats_;
 };

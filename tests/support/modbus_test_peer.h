@@ -28,9 +28,10 @@ class ScriptedModbusPeer {
     kStallMidAnswer, //!< sends the first 3 bytes of the answer, then nothing
   };
 
+  //! Requests answer_first .. answer_first + misbehave_count - 1 get the misbehaviour.
   ScriptedModbusPeer(int answer_first, Misbehaviour misbehaviour,
-                     std::chrono::milliseconds delay = std::chrono::milliseconds(0))
-      : answer_first_(answer_first), misbehaviour_(misbehaviour), delay_(delay) {
+                     std::chrono::milliseconds delay = std::chrono::milliseconds(0), int misbehave_count = 1 << 30)
+      : answer_first_(answer_first), misbehave_count_(misbehave_count), misbehaviour_(misbehaviour), delay_(delay) {
     listen_fd_ = socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
     sockaddr_in address{};
     address.sin_family = AF_INET;
@@ -94,7 +95,7 @@ class ScriptedModbusPeer {
       if (!ReadExactly(fd, pdu.data(), pdu.size())) return;
       const int n = requests_++;
       const std::vector<std::uint8_t> answer = Answer(mbap, pdu);
-      if (n < answer_first_) {
+      if (n < answer_first_ || n >= answer_first_ + misbehave_count_) {
         send(fd, answer.data(), answer.size(), MSG_NOSIGNAL);
       } else if (misbehaviour_ == Misbehaviour::kLate) {
         std::this_thread::sleep_for(delay_);
@@ -115,6 +116,7 @@ class ScriptedModbusPeer {
   }
 
   int answer_first_;
+  int misbehave_count_;
   Misbehaviour misbehaviour_;
   std::chrono::milliseconds delay_;
   int listen_fd_ = -1;

@@ -79,7 +79,7 @@ class ScriptedModbusPeer {
     } else if (function == 6) {
       body = pdu;
     } else {
-      body.assign(pdu.begin(), pdu.begin() + 5);
+      body.assign(pdu.data(), pdu.data() + 5);
     }
     std::vector<std::uint8_t> adu = {mbap[0], mbap[1], 0, 0, 0, static_cast<std::uint8_t>(body.size() + 1), mbap[6]};
     adu.insert(adu.end(), body.begin(), body.end());
@@ -92,7 +92,7 @@ class ScriptedModbusPeer {
       const int length = (mbap[4] << 8) | mbap[5];
       if (length < 2 || length > 254) return;
       std::vector<std::uint8_t> pdu(static_cast<std::size_t>(length - 1));
-      if (!ReadExactly(fd, pdu.data(), pdu.size())) return;
+      if (!ReadExactly(fd, pdu.data(), pdu.size()) || pdu.size() < 5) return;  // strut's client sends >= 5
       const int n = requests_++;
       const std::vector<std::uint8_t> answer = Answer(mbap, pdu);
       if (n < answer_first_ || n >= answer_first_ + misbehave_count_) {

@@ -436,7 +436,7 @@ TEST(ModbusControllerServer, GarbageFromTheNetworkNeitherCrashesNorAppliesAnythi
   ModbusControllerServer server(backend, options);
   std::mt19937 rng(13);
   std::uniform_int_distribution<int> byte(0, 255);
-  for (int i = 0; i < 150; ++i) {
+  for (int i = 0; i < 100; ++i) {
     std::vector<std::uint8_t> adu(static_cast<std::size_t>(1 + byte(rng) % 40));
     for (auto& b : adu) b = static_cast<std::uint8_t>(byte(rng));
     if (i % 2 == 0 && adu.size() >= 8) {  // a plausible MBAP header with a random PDU
@@ -445,7 +445,7 @@ TEST(ModbusControllerServer, GarbageFromTheNetworkNeitherCrashesNorAppliesAnythi
       adu[5] = static_cast<std::uint8_t>(adu.size() - 6);
       adu[7] = static_cast<std::uint8_t>(std::array{3, 4, 6, 16, 1, 23, 43}[static_cast<std::size_t>(i / 2 % 7)]);
     }
-    ASSERT_TRUE(test::SendRawAndClose(server.port(), adu, 2ms));
+    ASSERT_TRUE(test::SendRawAndClose(server.port(), adu, 5ms));
   }
   ModbusController client(Options(server.port()));
   EXPECT_EQ(client.ReadStatus().applied_sequence, 0);

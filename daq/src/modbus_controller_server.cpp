@@ -81,7 +81,9 @@ ModbusControllerServer::ModbusControllerServer(ControllerBackend& backend, Modbu
   if (impl_->map == nullptr)
     throw DeviceError(DeviceError::Kind::kConnection, "modbus-tcp server " + where, "allocate registers", "", errno,
                       modbus_strerror(errno));
-  impl_->listen_fd = modbus_tcp_listen(impl_->ctx, options_.max_connections);
+  // The backlog is larger than max_connections: a burst of connects must not wait for SYN
+  // retransmissions while the loop catches up (those beyond max_connections are closed at once).
+  impl_->listen_fd = modbus_tcp_listen(impl_->ctx, 4 * options_.max_connections);
   if (impl_->listen_fd < 0) {
     const int e = errno;
     throw DeviceError(DeviceError::Kind::kConnection, "modbus-tcp server " + where, "listen", "", e, modbus_strerror(e));

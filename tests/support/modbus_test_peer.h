@@ -10,6 +10,7 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cstdint>
@@ -81,8 +82,12 @@ class ScriptedModbusPeer {
     } else {
       body.assign(pdu.data(), pdu.data() + 5);
     }
-    std::vector<std::uint8_t> adu = {mbap[0], mbap[1], 0, 0, 0, static_cast<std::uint8_t>(body.size() + 1), mbap[6]};
-    adu.insert(adu.end(), body.begin(), body.end());
+    std::vector<std::uint8_t> adu(7 + body.size());
+    adu[0] = mbap[0];
+    adu[1] = mbap[1];
+    adu[5] = static_cast<std::uint8_t>(body.size() + 1);
+    adu[6] = mbap[6];
+    std::copy(body.begin(), body.end(), adu.begin() + 7);
     return adu;
   }
   void Serve(int fd) {

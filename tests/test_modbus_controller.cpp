@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <optional>
 #include <random>
 #include <thread>
 
@@ -432,11 +433,11 @@ TEST(ModbusController, NewClientContinuesAfterTheAppliedSequence) {
 TEST(ModbusControllerServer, GarbageFromTheNetworkNeitherCrashesNorAppliesAnything) {
   FakeControllerBackend backend;
   ModbusServerOptions options;
-  options.byte_timeout = 20ms;
+  options.byte_timeout = 10ms;
   ModbusControllerServer server(backend, options);
   std::mt19937 rng(13);
   std::uniform_int_distribution<int> byte(0, 255);
-  for (int i = 0; i < 100; ++i) {
+  for (int i = 0; i < 40; ++i) {
     std::vector<std::uint8_t> adu(static_cast<std::size_t>(1 + byte(rng) % 40));
     for (auto& b : adu) b = static_cast<std::uint8_t>(byte(rng));
     if (i % 2 == 0 && adu.size() >= 8) {  // a plausible MBAP header with a random PDU
@@ -447,8 +448,19 @@ TEST(ModbusControllerServer, GarbageFromTheNetworkNeitherCrashesNorAppliesAnythi
     }
     ASSERT_TRUE(test::SendRawAndClose(server.port(), adu, 5ms));
   }
+  // The server works through the queued connections one at a time (each may hold it for its
+  // byte timeout); then it serves a proper client again.
   ModbusController client(Options(server.port()));
-  EXPECT_EQ(client.ReadStatus().applied_sequence, 0);
+  std::optional<ControllerStatus> status;
+  for (const auto start = Clock::now(); !status && Seconds(start) < 20.0;) {
+    try {
+      status = client.ReadStatus();
+    } catch (const DeviceError&) {
+      std::this_thread::sleep_for(50ms);
+    }
+  }
+  ASSERT_TRUE(status.has_value());
+  EXPECT_EQ(status->applied_sequence, 0);
   EXPECT_TRUE(backend.applied().empty());
   EXPECT_TRUE(backend.commands().empty());
   EXPECT_EQ(client.WriteSetPoint(Typical()), 1);

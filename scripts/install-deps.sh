@@ -9,6 +9,7 @@ packages=(
   nlohmann-json3-dev libtomlplusplus-dev libmatio-dev
   python3-h5py python3-numpy
   chromium
+  python3-pymodbus python3-serial-asyncio
 )
 # npm fetches uPlot for the HTML reports at configure time (ident/web/package-lock.json); it comes
 # with the machine's Node.js, and Debian's package provides it where Node.js is missing.

@@ -22,5 +22,7 @@ void RegisterBenchConfusion(CLI::App& bench);
 void RegisterBenchAcquisition(CLI::App& bench);
 void RegisterSimCommand(CLI::App& app);
 void RegisterImportCommand(CLI::App& app);
+//! `rig controller-status` (tools/cmd_rig.cpp).
+void RegisterRigCommand(CLI::App& app);
 
 }  // namespace strut::tools

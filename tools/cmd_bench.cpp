@@ -1042,6 +1042,8 @@ void RegisterBenchCommand(CLI::App& app) {
   sb->add_option("--threads", silverbox->threads, "Estimator threads (0: one per core)")->capture_default_str();
   sb->add_flag("--no-check", silverbox->no_check, "Skip the IDA cross-check of the arrow simulation");
   sb->callback([silverbox] { silverbox->Run(); });
+
+  RegisterBenchRecorder(*bench);
 }
 
 }  // namespace strut::tools

@@ -20,5 +20,8 @@ void RegisterBenchUnits(CLI::App& bench);
 void RegisterBenchConfusion(CLI::App& bench);
 void RegisterSimCommand(CLI::App& app);
 void RegisterImportCommand(CLI::App& app);
+void RegisterRecoverCommand(CLI::App& app);
+//! Adds `recorder` (streaming recorder throughput and CPU) under the `bench` subcommand.
+void RegisterBenchRecorder(CLI::App& bench);
 
 }  // namespace strut::tools

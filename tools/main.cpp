@@ -42,6 +42,7 @@ int main(int argc, char** argv) {
   strut::tools::RegisterBenchConfusion(*app.get_subcommand("bench"));
   strut::tools::RegisterSimCommand(app);
   strut::tools::RegisterImportCommand(app);
+  strut::tools::RegisterRecoverCommand(app);
 
   try {
     app.parse(argc, argv);

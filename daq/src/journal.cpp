@@ -5,6 +5,7 @@
 #include <spdlog/fmt/fmt.h>
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <array>
 #include <bit>
 #include <cmath>
@@ -331,8 +332,13 @@ class JournalReader {
     size_ = fs::file_size(path, error);
     std::array<char, journal::kHeaderBytes> header{};
     in_.read(header.data(), header.size());
-    if (static_cast<std::size_t>(in_.gcount()) < 8 ||
-        std::memcmp(header.data(), journal::kMagic, 8) != 0) {
+    const auto got = static_cast<std::size_t>(in_.gcount());
+    if (got < journal::kHeaderBytes && std::memcmp(header.data(), journal::kMagic, std::min<std::size_t>(got, 8)) == 0) {
+      // Created, then cut before its header was whole (a crash inside Open).
+      throw RecorderError(fmt::format("{}: journal header cut off ({} of {} bytes): nothing to recover", path, got,
+                                      journal::kHeaderBytes));
+    }
+    if (got < 8 || std::memcmp(header.data(), journal::kMagic, 8) != 0) {
       static constexpr char kHdf5[8] = {'\x89', 'H', 'D', 'F', '\r', '\n', '\x1a', '\n'};
       if (static_cast<std::size_t>(in_.gcount()) >= 8 && std::memcmp(header.data(), kHdf5, 8) == 0) {
         throw RecorderError(fmt::format(
@@ -340,9 +346,6 @@ class JournalReader {
             path));
       }
       throw RecorderError(fmt::format("{}: not a strut recording journal", path));
-    }
-    if (in_.gcount() < static_cast<std::streamsize>(header.size())) {
-      throw RecorderError(fmt::format("{}: journal header cut off: nothing to recover", path));
     }
     std::uint32_t version = 0;
     std::memcpy(&version, header.data() + 8, sizeof version);

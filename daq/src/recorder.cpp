@@ -332,11 +332,21 @@ struct Recorder::Impl {
     if (b.status.size() != (e.status ? n : 0)) {
       ThrowIn(fmt::format("status: {} values in a block of {} (expected {})", b.status.size(), n, e.status ? n : 0));
     }
+    // The contract's constant rate: no step more than 50 % off 1/sample_rate (the reader's rule),
+    // so whatever part of the experiment a crash leaves is a valid file.
+    const double period_ns = 1e9 / e.sample_rate;
     std::int64_t previous = e.last_ns;
     for (std::size_t i = 0; i < n; ++i) {
-      if ((e.samples > 0 || i > 0) && b.monotonic_ns[i] <= previous) {
+      const bool first = e.samples == 0 && i == 0;
+      if (!first && b.monotonic_ns[i] <= previous) {
         ThrowIn(fmt::format("timestamps not increasing at sample {} ({} ns after {} ns)", e.samples + i,
                             b.monotonic_ns[i], previous));
+      }
+      if (!first && std::abs(static_cast<double>(b.monotonic_ns[i] - previous) - period_ns) > 0.5 * period_ns) {
+        ThrowIn(fmt::format("sample {} comes {} ns after the previous one, 1/sample_rate is {:.0f} ns: lost or "
+                            "repeated samples (the contract wants a constant rate: end the experiment aborted "
+                            "and begin another)",
+                            e.samples + i, b.monotonic_ns[i] - previous, period_ns));
       }
       previous = b.monotonic_ns[i];
     }

@@ -28,20 +28,22 @@ class RecorderError : public SessionError {
   using SessionError::SessionError;
 };
 
-//! Raw ADC counts to SI: value = gain * counts + offset. range_min..range_max is the SI span of
+//! Raw ADC counts to SI: value = offset + gain * counts. range_min..range_max is the SI span of
 //! the transducer (what full scale means), kept so a reader can tell a clipped signal.
-struct Calibration {
+//! The same four numbers as the acquisition module's calibration (wt-can's daq::Calibration);
+//! once both are merged this becomes an alias of that one.
+struct RawCalibration {
   double gain = 1.0;       //!< SI units per count
   double offset = 0.0;     //!< SI value at zero counts
   double range_min = 0.0;  //!< SI
   double range_max = 0.0;  //!< SI
-  double ToSI(std::int32_t counts) const { return gain * counts + offset; }
+  double ToSi(std::int32_t counts) const { return offset + gain * static_cast<double>(counts); }
 };
 
 //! A channel whose raw counts are stored beside its SI samples (as `<channel>_counts`).
 struct RawChannel {
   std::string channel;  //!< name of a channel of the experiment
-  Calibration calibration;
+  RawCalibration calibration;
 };
 
 //! Session-wide metadata, written once at Open.
@@ -152,7 +154,8 @@ class Recorder {
   //! contract (the same checks as Validate, naming the experiment and item).
   void BeginExperiment(const ExperimentDescriptor& descriptor);
   //! Queues a block of the open experiment. Throws on a malformed block (sizes, timestamps not
-  //! increasing, NaN/Inf), when no experiment is open, when the queue stays full, or when the
+  //! increasing or a step more than 50 % off 1/sample_rate: a gap, which the contract's constant
+  //! rate forbids; end the experiment aborted and begin another), NaN/Inf), when no experiment is open, when the queue stays full, or when the
   //! writer failed (disk full): the error names the journal, experiment and channel.
   void Append(const SampleBlock& block);
   //! Records an event (trip, abort, pause, resume, note, ...) at a monotonic time.

@@ -49,9 +49,10 @@ struct RecoverCommand {
     const daq::Session session = daq::ReadSession(out);  // what was written passes the contract check
 
     std::cout << fmt::format("{} -> {}: {} records, {} samples, {}\n", journal, out, report.records, report.samples,
-                             report.closed ? "the recording was closed cleanly"
-                                           : fmt::format("cut off ({} bytes of a torn record discarded)",
-                                                         report.bytes_discarded));
+                             report.closed                  ? "the recording was closed cleanly"
+                             : report.bytes_discarded == 0 ? "cut off between two records"
+                                                           : fmt::format("cut off ({} bytes of a torn record discarded)",
+                                                                         report.bytes_discarded));
     for (const daq::Experiment& e : session.experiments) {
       std::cout << fmt::format("  {:<10} {:<9} {:>9} samples  {}\n", e.label, e.status, e.sample_count(),
                                e.extra_attributes.count("recording_end") ? e.extra_attributes.at("recording_end") : "");

@@ -330,6 +330,7 @@ TEST(Recorder, APowerCutLosesOnlyWhatWasHandedOverWithinTheSyncInterval) {
     long samples;
   };
   std::vector<Handed> handed;
+  std::vector<FakeSink::Synced> syncs;
   {
     Recorder r = Recorder::Open(path, Metadata(), options, std::move(sink));
     // 1.2 s of a 200 Hz experiment handed over in real time, 10 samples (50 ms) a block.
@@ -344,9 +345,9 @@ TEST(Recorder, APowerCutLosesOnlyWhatWasHandedOverWithinTheSyncInterval) {
     // Keep the journal as it is before Close converts and removes it.
     while (r.stats().bytes_synced < r.stats().bytes_handed) std::this_thread::sleep_for(std::chrono::milliseconds(5));
     fs::copy_file(r.journal_path(), dir.file("full.journal"));
+    syncs = fake->syncs();  // the recorder owns the sink: read it while the recorder lives
     r.EndExperiment(EndStatus::kComplete);
   }
-  const std::vector<FakeSink::Synced> syncs = fake->syncs();
   ASSERT_GE(syncs.size(), 8u);  // 1.2 s at 100 ms
   // Cut the power at 40 moments: keep what the last sync before it made durable.
   const double bound = 0.1 + 0.4;  // sync interval + slack for a loaded machine, inside the promised 1 s

@@ -267,6 +267,25 @@ TEST(Recorder, BadCallsGetErrorsNamingTheExperimentAndChannel) {
   EXPECT_EQ(s.experiment("c").extra_attributes.at("recording_end"), "not-steady");
 }
 
+TEST(Recorder, NaNInFieldsAStaticExperimentDoesNotUseReadsBack) {
+  // JSON has no NaN: the journal stores null, and the reader must not take that for damage.
+  TempDir dir;
+  const std::string path = dir.file("run.h5");
+  {
+    Recorder r = Recorder::Open(path, Metadata());
+    ExperimentDescriptor d = Periodic("s");
+    d.header.kind = ExperimentKind::kStatic;
+    d.header.frequency = std::nan("");
+    d.raw[0].calibration.range_max = std::nan("");
+    r.BeginExperiment(d);
+    r.Append(Block(0, 0, 20));
+    r.EndExperiment(EndStatus::kComplete);
+  }
+  const Session s = ReadSession(path);
+  EXPECT_EQ(s.experiment("s").kind, ExperimentKind::kStatic);
+  EXPECT_EQ(s.experiment("s").sample_count(), 20u);
+}
+
 // A journal sink that writes the real file and logs each sync (time, bytes durable), and can
 // fail (disk full, after `fail_after` bytes, writing part of the record first) or be slow.
 class FakeSink final : public JournalSink {

@@ -289,20 +289,26 @@ EndStatus EndFromText(const std::string& text) {
   throw std::invalid_argument("unknown end status '" + text + "'");
 }
 
+// A number the writer may have stored as null (JSON has no NaN or Inf).
+double Number(const json& j, const char* key) {
+  const json& v = j.at(key);
+  return v.is_null() ? std::nan("") : v.get<double>();
+}
+
 ExperimentDescriptor DescriptorFromJson(const json& j) {
   ExperimentDescriptor d;
   Experiment& e = d.header;
   e.label = j.at("label").get<std::string>();
   e.kind = KindFromText(j.at("kind").get<std::string>());
-  e.sample_rate = j.at("sample_rate").get<double>();
-  e.frequency = j.at("frequency").get<double>();
-  e.amplitude = j.at("amplitude").get<double>();
-  e.static_position = j.at("static_position").get<double>();
+  e.sample_rate = Number(j, "sample_rate");
+  e.frequency = Number(j, "frequency");
+  e.amplitude = Number(j, "amplitude");
+  e.static_position = Number(j, "static_position");
   e.waveform = j.at("waveform").get<std::string>();
   e.periods = j.at("periods").get<long>();
   e.group = j.at("group").get<std::string>();
-  e.drop_mass = j.at("drop_mass").get<double>();
-  e.impact_velocity = j.at("impact_velocity").get<double>();
+  e.drop_mass = Number(j, "drop_mass");
+  e.impact_velocity = Number(j, "impact_velocity");
   e.extra_attributes = j.at("extra").get<std::map<std::string, std::string>>();
   for (const json& c : j.at("channels")) {
     e.channels.push_back({c.at("name").get<std::string>(), c.at("units").get<std::string>(),
@@ -310,8 +316,7 @@ ExperimentDescriptor DescriptorFromJson(const json& j) {
   }
   for (const json& r : j.at("raw")) {
     d.raw.push_back({r.at("channel").get<std::string>(),
-                     {r.at("gain").get<double>(), r.at("offset").get<double>(),
-                      r.at("range_min").get<double>(), r.at("range_max").get<double>()}});
+                     {Number(r, "gain"), Number(r, "offset"), Number(r, "range_min"), Number(r, "range_max")}});
   }
   d.sequence = j.at("sequence").get<bool>();
   d.status = j.at("status").get<bool>();

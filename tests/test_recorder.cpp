@@ -613,11 +613,13 @@ pid_t SpawnChild(const std::vector<std::string>& args) {
 TEST(Recorder, KillNineAtRandomMomentsLosesAtMostTheLastMomentAndRecoverMendsEveryFile) {
   TempDir dir;
   std::mt19937 random(20261202);
-  std::uniform_int_distribution<int> delay_ms(10, 300), early_ms(0, 30), experiments(1, 4);
+  std::uniform_int_distribution<int> delay_ms(10, 700), early_ms(0, 30), experiments(1, 4);
   const int runs = 100;
   // Promised: at most the last second is lost. Under kill -9 only the queue is lost (the page cache
-  // keeps every write), so a much tighter bound holds and is checked.
-  const double bound_s = 0.1;
+  // keeps every write), so a tighter bound holds and is checked: half a second, which leaves room
+  // for a writer thread starved on a loaded machine (178 ms seen at load 17 on 2 cores) and still
+  // binds for the runs killed later than that.
+  const double bound_s = 0.5;
   int recovered = 0, closed = 0, empty = 0;
   double worst_loss_s = 0.0;
   std::string files;

@@ -23,6 +23,7 @@
 
 #include "strut/daq/session.h"
 #include "test_support.h"
+#include "python_peer.h"
 
 namespace {
 
@@ -34,6 +35,8 @@ using strut::daq::Session;
 using strut::daq::SessionError;
 using strut::daq::WriteOptions;
 using strut::daq::WriteSession;
+using strut::test::PythonWithH5py;
+using strut::test::RunPython;
 using strut::test::TempDir;
 
 constexpr double kTwoPi = 2 * std::numbers::pi;
@@ -292,24 +295,6 @@ class FileEditor {
 
   hid_t file_;
 };
-
-// A python3 that imports h5py and numpy, or empty (the PATH one may be a bare pyenv).
-std::string PythonWithH5py() {
-  for (const char* candidate : {"python3", "/usr/bin/python3"}) {
-    const std::string probe = std::string(candidate) + " -c 'import h5py, numpy' >/dev/null 2>&1";
-    if (std::system(probe.c_str()) == 0) return candidate;
-  }
-  return {};
-}
-
-int RunPython(const std::string& python, const TempDir& dir, const std::string& script,
-              const std::string& argument) {
-  const std::string script_path = dir.file("script.py");
-  std::ofstream(script_path) << script;
-  const std::string command = python + " " + script_path + " " + argument;
-  const int status = std::system(command.c_str());
-  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-}
 
 // Replaces the default logger while alive and keeps what was logged.
 class CapturedLog {
@@ -599,6 +584,10 @@ def text(v):
     return v.decode() if isinstance(v, bytes) else str(v)
 with h5py.File(sys.argv[1], "r") as h:
     assert text(h.attrs["format"]) == "damper-session"
+    # variable-length UTF-8: str in h5py, not bytes
+    assert h.attrs["format"] == "damper-session" and isinstance(h.attrs["rig"], str)
+    assert h["experiments/a/stroke"].attrs["units"] == "m"
+    assert h["experiments/a"].attrs["kind"] == "periodic"
     assert h.attrs["format_version"] == 1 and h.attrs["format_version"].dtype.kind == "i"
     assert text(h.attrs["created_utc"]) == "2026-11-22T05:32:50Z"
     assert text(h.attrs["damper_serial"]) == "MLG-0042"

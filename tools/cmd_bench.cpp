@@ -1044,6 +1044,7 @@ void RegisterBenchCommand(CLI::App& app) {
   sb->callback([silverbox] { silverbox->Run(); });
 
   RegisterBenchAcquisition(*bench);
+  RegisterBenchRecorder(*bench);
 }
 
 }  // namespace strut::tools

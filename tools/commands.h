@@ -24,5 +24,8 @@ void RegisterSimCommand(CLI::App& app);
 void RegisterImportCommand(CLI::App& app);
 //! `rig controller-status` (tools/cmd_rig.cpp).
 void RegisterRigCommand(CLI::App& app);
+void RegisterRecoverCommand(CLI::App& app);
+//! Adds `recorder` (streaming recorder throughput and CPU) under the `bench` subcommand.
+void RegisterBenchRecorder(CLI::App& bench);
 
 }  // namespace strut::tools

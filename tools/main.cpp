@@ -49,6 +49,7 @@ int main(int argc, char** argv) {
   strut::tools::RegisterSimCommand(app);
   strut::tools::RegisterImportCommand(app);
   strut::tools::RegisterRigCommand(app);
+  strut::tools::RegisterRecoverCommand(app);
 
   try {
     app.parse(argc, argv);

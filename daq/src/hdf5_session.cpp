@@ -7,6 +7,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <charconv>
 #include <cerrno>
 #include <climits>
 #include <cmath>
@@ -733,9 +734,23 @@ class Reader {
   bool generic_ = false;  //!< the file's profile is "generic"
 };
 
-bool IsAscii(std::string_view text) {
-  return std::all_of(text.begin(), text.end(),
-                     [](char c) { return static_cast<unsigned char>(c) < 0x80; });
+// The number `text` spells in canonical form: what GetText prints for an int64 or float64
+// attribute (so a rewrite reads back the same text); nullopt for any other text ("0042", "1e3",
+// " 5", "true"), which therefore stays a string.
+std::optional<AttributeValue> CanonicalNumber(const std::string& text) {
+  if (text.empty() || text.size() > 40) return std::nullopt;
+  const char* begin = text.data();
+  const char* end = begin + text.size();
+  long long integer = 0;
+  if (auto [ptr, ec] = std::from_chars(begin, end, integer); ec == std::errc() && ptr == end) {
+    if (std::to_string(integer) == text) return AttributeValue(integer);
+    return std::nullopt;
+  }
+  double value = 0.0;
+  if (auto [ptr, ec] = std::from_chars(begin, end, value); ec == std::errc() && ptr == end) {
+    if (fmt::format("{}", value) == text) return AttributeValue(value);
+  }
+  return std::nullopt;
 }
 
 // Builds the file in memory (HDF5 core driver) and returns its bytes. HDF5 itself never
@@ -824,7 +839,7 @@ class Writer {
       DoubleAttribute(g, "drop_mass", e.drop_mass, where);
       DoubleAttribute(g, "impact_velocity", e.impact_velocity, where);
     }
-    for (const auto& [name, value] : e.extra_attributes) StringAttribute(g, name, value, where);
+    for (const auto& [name, value] : e.extra_attributes) ExtraAttribute(g, name, value, where);
 
     Samples(g, "time", e.time, "s", "", where);
     for (const Channel& c : e.channels) Samples(g, c.name, c.samples, c.units, c.reference, where);
@@ -850,16 +865,33 @@ class Writer {
     Check(group.Close(), where);
   }
 
-  // Fixed-length, null-terminated strings: MATLAB's h5readatt returns them as char arrays and
-  // h5py as bytes; ASCII unless the text needs UTF-8.
+  // Variable-length UTF-8 strings: h5py returns them as `str` (fixed-length ones come back as
+  // `bytes`), MATLAB R2020a+ and HDFView show them as text. ASCII is a subset of UTF-8.
   void StringAttribute(hid_t object, const std::string& name, const std::string& value,
                        std::string_view where) {
     const std::string what = fmt::format("{}: attribute '{}'", where, name);
     hdf5::Datatype type(Checked(H5Tcopy(H5T_C_S1), what));
-    Check(H5Tset_size(type.get(), value.size() + 1), what);
-    Check(H5Tset_strpad(type.get(), H5T_STR_NULLTERM), what);
-    Check(H5Tset_cset(type.get(), IsAscii(value) ? H5T_CSET_ASCII : H5T_CSET_UTF8), what);
-    WriteAttribute(object, name, type.get(), type.get(), value.c_str(), what);
+    Check(H5Tset_size(type.get(), H5T_VARIABLE), what);
+    Check(H5Tset_cset(type.get(), H5T_CSET_UTF8), what);
+    const char* text = value.c_str();
+    WriteAttribute(object, name, type.get(), type.get(), &text, what);
+  }
+
+  // An extra experiment attribute: a text that is a number in canonical form (an integer
+  // without leading zeros, or a float exactly as the reader prints it back) is stored as int64
+  // or float64, so h5py gets numbers for numeric metadata; every other text stays a string.
+  // Reading the file back gives the same text either way.
+  void ExtraAttribute(hid_t object, const std::string& name, const std::string& value,
+                      std::string_view where) {
+    if (const auto number = CanonicalNumber(value)) {
+      if (const long long* i = std::get_if<long long>(&*number)) {
+        IntegerAttribute(object, name, *i, H5T_STD_I64LE, where);
+      } else {
+        DoubleAttribute(object, name, std::get<double>(*number), where);
+      }
+      return;
+    }
+    StringAttribute(object, name, value, where);
   }
 
   void DoubleAttribute(hid_t object, const std::string& name, double value,

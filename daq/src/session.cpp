@@ -117,6 +117,15 @@ std::string UtcNowIso8601() {
 
 namespace detail {
 
+std::optional<std::string> PeriodCountDefect(const Experiment& e, std::size_t samples) {
+  const double exact = static_cast<double>(e.periods) * e.sample_rate / e.frequency;
+  const long long expected = std::llround(exact);
+  const long long actual = static_cast<long long>(samples);
+  if (std::llabs(actual - expected) <= 1) return std::nullopt;
+  return fmt::format("{} samples, but periods * sample_rate / frequency = {} * {} / {} = {} (±1 accepted)",
+                     actual, e.periods, e.sample_rate, e.frequency, expected);
+}
+
 namespace {
 
 // Accepted unit symbols: SI only, so that no reader has to guess a scale factor.
@@ -387,15 +396,7 @@ class ExperimentChecker {
         !periods_ok_)
       return;
     if (e_.periods == 0 || Has(kSamplesItem)) return;
-    const double exact = static_cast<double>(e_.periods) * e_.sample_rate / e_.frequency;
-    const long long expected = std::llround(exact);
-    const long long actual = static_cast<long long>(e_.time.size());
-    if (std::llabs(actual - expected) > 1) {
-      Add(kSamplesItem,
-          fmt::format("{} samples, but periods * sample_rate / frequency = {} * {} / {} "
-                      "= {} (±1 accepted)",
-                      actual, e_.periods, e_.sample_rate, e_.frequency, expected));
-    }
+    if (auto defect = PeriodCountDefect(e_, e_.time.size())) Add(kSamplesItem, *defect);
   }
 
   const Experiment& e_;

@@ -3,6 +3,7 @@
 // same DefectList, then runs CheckSession on what it read; Validate runs CheckSession alone.
 #pragma once
 
+#include <optional>
 #include <set>
 #include <string>
 #include <string_view>
@@ -63,6 +64,10 @@ bool IsKnownUnit(std::string_view units);
 //! Attribute names the writer writes for an experiment of this kind; anything else found in a
 //! file goes to extra_attributes.
 bool IsContractAttribute(ExperimentKind kind, std::string_view name);
+
+//! The defect when `samples` do not cover e.periods whole periods (contract: length = periods *
+//! sample_rate / frequency, ±1 accepted), else nullopt. Needs sample_rate and frequency > 0.
+std::optional<std::string> PeriodCountDefect(const Experiment& e, std::size_t samples);
 
 //! Sorts channels: stroke, force, pressure, then the others by name.
 void SortChannels(std::vector<Channel>& channels);

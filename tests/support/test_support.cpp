@@ -1,4 +1,5 @@
 #include "test_support.h"
+#include "python_peer.h"
 
 #include <sys/wait.h>
 
@@ -64,6 +65,21 @@ std::string ChromiumCommand(const std::string& profile_dir) {
          " --disable-component-update --disable-sync --disable-dev-shm-usage --hide-scrollbars"
          " --user-data-dir=" +
          profile_dir + " --virtual-time-budget=5000";
+}
+
+std::string PythonWithH5py() {
+  for (const char* candidate : {"python3", "/usr/bin/python3"}) {
+    const std::string probe = std::string(candidate) + " -c 'import h5py, numpy' >/dev/null 2>&1";
+    if (std::system(probe.c_str()) == 0) return candidate;
+  }
+  return {};
+}
+
+int RunPython(const std::string& python, const TempDir& dir, const std::string& script, const std::string& arguments) {
+  const std::string script_path = dir.file("script.py");
+  std::ofstream(script_path) << script;
+  const int status = std::system((python + " " + script_path + " " + arguments).c_str());
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
 }
 
 std::string ReadFile(const std::string& path) {

@@ -1,0 +1,202 @@
+// Streaming, crash-safe recording of a session (docs/recording.md): producers hand over blocks
+// of samples as they arrive; one writer thread appends them to a journal beside the session
+// (`<session>.journal`) and makes it durable at least once a second; Close turns the journal
+// into the contract file (session.h, WriteSession). After a crash, kill -9 or power cut,
+// RecoverJournal (`strut recover`) does the same with what the journal kept, the experiment in
+// progress marked aborted.
+#pragma once
+
+#include <chrono>
+#include <cstddef>
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <optional>
+#include <span>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "strut/daq/session.h"
+
+namespace strut::daq {
+
+//! A recording error a user or the machine can cause (bad call, disk full, queue full). what()
+//! names the journal or session file and, where it applies, the experiment and channel.
+class RecorderError : public SessionError {
+ public:
+  using SessionError::SessionError;
+};
+
+//! Raw ADC counts to SI: value = offset + gain * counts. range_min..range_max is the SI span of
+//! the transducer (what full scale means), kept so a reader can tell a clipped signal.
+//! The same four numbers as the acquisition module's calibration (wt-can's daq::Calibration);
+//! once both are merged this becomes an alias of that one.
+struct RawCalibration {
+  double gain = 1.0;       //!< SI units per count
+  double offset = 0.0;     //!< SI value at zero counts
+  double range_min = 0.0;  //!< SI
+  double range_max = 0.0;  //!< SI
+  double ToSi(std::int32_t counts) const { return offset + gain * static_cast<double>(counts); }
+};
+
+//! A channel whose raw counts are stored beside its SI samples (as `<channel>_counts`).
+struct RawChannel {
+  std::string channel;  //!< name of a channel of the experiment
+  RawCalibration calibration;
+};
+
+//! Session-wide metadata, written once at Open.
+struct RecordingMetadata {
+  std::string damper_serial;  //!< required
+  std::string rig;            //!< required: rig or simulator name
+  std::string operator_name;
+  std::string software_version;  //!< empty: this strut's version
+  std::string matrix;            //!< the test matrix: its file's text, or a name ("standard")
+  std::map<std::string, double> limits;  //!< name -> SI value, e.g. "stroke_max" -> 0.25
+  std::string profile = std::string(kDamperProfile);
+  std::vector<MetadataGroup> groups;  //!< further root groups (e.g. a simulator's /truth)
+};
+
+//! What an experiment is, given at BeginExperiment.
+struct ExperimentDescriptor {
+  //! label, kind, sample_rate, the kind's attributes, extra attributes and the channels (name,
+  //! units, reference; no samples). `periods` is the number requested (0: unknown); status and
+  //! the final periods come with EndExperiment.
+  Experiment header;
+  std::vector<RawChannel> raw;  //!< channels recorded with raw counts, in block order
+  bool sequence = false;        //!< blocks carry the acquisition's sequence number per sample
+  bool status = false;          //!< blocks carry a status (quality) word per sample
+};
+
+//! Consecutive samples of the open experiment. Every vector holds size() values.
+struct SampleBlock {
+  //! Per sample, increasing: CLOCK_MONOTONIC (std::chrono::steady_clock on Linux) in ns, the
+  //! clock the recorder pairs with UTC. `time` in the file is this minus the first sample's.
+  std::vector<std::int64_t> monotonic_ns;
+  std::vector<std::vector<double>> values;       //!< SI, one per header channel, in its order
+  std::vector<std::vector<std::int32_t>> counts;  //!< one per RawChannel, in descriptor order
+  std::vector<std::uint64_t> sequence;           //!< when the descriptor says so
+  std::vector<std::uint32_t> status;             //!< when the descriptor says so
+  std::size_t size() const { return monotonic_ns.size(); }
+};
+
+//! How an experiment ended. kNotSteady: recorded in full but the response never settled
+//! (stored as status "complete" with recording_end = "not-steady").
+enum class EndStatus { kComplete, kAborted, kNotSteady };
+std::string_view ToString(EndStatus status);
+
+struct RecorderOptions {
+  //! Overwrite an existing session file or journal at the path. Default false: Open refuses.
+  bool force = false;
+  //! Longest time written data stays unsynced (fdatasync). 1 ms .. 1 s; default 250 ms, so a
+  //! power cut loses at most the last quarter second plus the time of one sync.
+  std::chrono::milliseconds sync_interval{250};
+  //! Bytes handed over but not yet written that the queue holds at most (default 64 MiB: 40 s of
+  //! 4 channels at 50 kHz with counts). When full, Append waits up to queue_full_timeout for the
+  //! writer; then it throws and the recording is failed: a dropped block would break the
+  //! constant-rate time axis, so the recorder never drops data silently.
+  std::size_t queue_limit_bytes = std::size_t{64} << 20;
+  std::chrono::milliseconds queue_full_timeout{2000};
+  //! How often the writer records a (monotonic, UTC) clock pair while running.
+  std::chrono::milliseconds clock_pair_interval{10000};
+  //! How Close writes the contract file (gzip level, chunks).
+  WriteOptions write;
+
+  //! False with a message naming the option when a value is out of range.
+  bool IsValid(std::string* error) const;
+};
+
+//! Figures of a recording so far.
+struct RecorderStats {
+  std::uint64_t samples = 0;          //!< handed over by Append
+  std::uint64_t bytes_handed = 0;     //!< journal bytes queued by the callers
+  std::uint64_t bytes_written = 0;    //!< journal bytes written by the writer thread
+  std::uint64_t bytes_synced = 0;     //!< journal bytes known durable
+  std::uint64_t syncs = 0;
+  std::size_t max_queue_bytes = 0;    //!< high-water mark of the queue
+  double longest_sync_gap_s = 0.0;    //!< longest time written data waited for its sync
+};
+
+//! Where the journal bytes go: a file, or in tests a fake that records writes and syncs and
+//! injects faults. Used by the writer thread only. Every method throws RecorderError on failure.
+class JournalSink {
+ public:
+  virtual ~JournalSink() = default;
+  virtual void Write(std::span<const std::byte> bytes) = 0;
+  //! Makes everything written so far durable.
+  virtual void Sync() = 0;
+  virtual void Close() = 0;
+};
+
+//! The journal file (O_APPEND, fdatasync). Creates it; an existing one only with `force`.
+std::unique_ptr<JournalSink> CreateJournalFile(const std::string& journal_path, bool force);
+
+//! `<session_path>.journal`.
+std::string JournalPath(const std::string& session_path);
+
+//! Records one session. Thread-safe: any number of producer threads may call it.
+class Recorder {
+ public:
+  //! Starts a recording into `session_path`: creates its journal (RecorderError when the session
+  //! or its journal exists and not options.force, when the folder is not writable, or when the
+  //! metadata lack damper_serial or rig). `sink` replaces the journal file (tests); it must
+  //! leave the journal's bytes at JournalPath(session_path).
+  static Recorder Open(const std::string& session_path, const RecordingMetadata& metadata,
+                       const RecorderOptions& options = {},
+                       std::unique_ptr<JournalSink> sink = nullptr);
+  Recorder(Recorder&&) noexcept;
+  Recorder& operator=(Recorder&&) noexcept;
+  //! Closes like Close() when still open (errors are logged, the journal then stays).
+  ~Recorder();
+
+  //! Starts an experiment. Throws when one is open, the label was used, or the header breaks the
+  //! contract (the same checks as Validate, naming the experiment and item).
+  void BeginExperiment(const ExperimentDescriptor& descriptor);
+  //! Queues a block of the open experiment. Throws on a malformed block (sizes, timestamps not
+  //! increasing or a step more than 50 % off 1/sample_rate: a gap, which the contract's constant
+  //! rate forbids; end the experiment aborted and begin another), NaN/Inf), when no experiment is open, when the queue stays full, or when the
+  //! writer failed (disk full): the error names the journal, experiment and channel.
+  void Append(const SampleBlock& block);
+  //! Records an event (trip, abort, pause, resume, note, ...) at a monotonic time.
+  void Event(std::int64_t monotonic_ns, std::string_view kind, std::string_view text);
+  //! Ends the open experiment. `periods` (periodic, complete): whole periods recorded, default
+  //! the requested ones; the sample count must match (contract). Aborted experiments are stored
+  //! with periods = 0 and `requested_periods`.
+  void EndExperiment(EndStatus status, std::optional<long> periods = std::nullopt);
+  //! Ends an open experiment as aborted, drains and syncs the journal, writes the session file
+  //! and removes the journal. When anything failed the journal is kept and RecorderError says so.
+  void Close();
+
+  RecorderStats stats() const;
+  const std::string& session_path() const;
+  const std::string& journal_path() const;
+
+ private:
+  struct Impl;
+  explicit Recorder(std::unique_ptr<Impl> impl);
+  std::unique_ptr<Impl> impl_;
+};
+
+//! What a journal held when it was read.
+struct JournalReport {
+  std::size_t records = 0;
+  std::uint64_t bytes_read = 0;       //!< valid bytes, header included
+  std::uint64_t bytes_discarded = 0;  //!< a torn or damaged tail (nothing after a clean Close)
+  bool closed = false;                //!< the recording ended with Close
+  std::vector<std::string> aborted;   //!< experiments that were in progress at the cut
+  std::vector<std::string> dropped;   //!< experiments without a single sample (not written)
+  std::uint64_t samples = 0;
+};
+
+//! Reads a journal into the session Close would write, tolerating a torn or damaged tail:
+//! everything up to the last intact record is kept, an experiment in progress is aborted.
+//! Throws RecorderError when the file is not a journal or holds no intact header.
+Session ReadJournal(const std::string& journal_path, JournalReport* report = nullptr);
+
+//! Writes the session a journal holds to `session_path` (never over an existing file unless
+//! `force`, never over the journal). The journal itself is not modified.
+JournalReport RecoverJournal(const std::string& journal_path, const std::string& session_path,
+                             bool force, const WriteOptions& options = {});
+
+}  // namespace strut::daq

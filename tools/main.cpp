@@ -6,6 +6,7 @@
 #include <exception>
 
 #include "commands.h"
+#include "qc_commands.h"
 #include "output_files.h"
 
 int main(int argc, char** argv) {
@@ -40,8 +41,10 @@ int main(int argc, char** argv) {
   strut::tools::RegisterBenchDiscover(*app.get_subcommand("bench"));
   strut::tools::RegisterBenchUnits(*app.get_subcommand("bench"));
   strut::tools::RegisterBenchConfusion(*app.get_subcommand("bench"));
+  strut::tools::RegisterBenchQc(*app.get_subcommand("bench"));
   strut::tools::RegisterSimCommand(app);
   strut::tools::RegisterImportCommand(app);
+  strut::tools::RegisterQcCommand(app);
 
   try {
     app.parse(argc, argv);

@@ -7,7 +7,9 @@
 #include <time.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
+#include <cstdlib>
 #include <iostream>
 #include <map>
 #include <nlohmann/json.hpp>
@@ -46,6 +48,7 @@ struct BenchQc {
   unsigned long first_seed = 5000;
   int defect_tenths = 3;  // defective units per ten
   int truth_ranges = 0;
+  bool servo = false;
   std::string json_path;
 
   //! Unit i is defective when i % 10 < defect_tenths; the defects take turns.
@@ -88,37 +91,44 @@ struct BenchQc {
     std::vector<double> wall, cpu, sim_seconds;
     long guard_band = 0;
     nlohmann::json rows = nlohmann::json::array();
+    double load[1] = {NAN};
+    getloadavg(load, 1);
     std::cout << fmt::format("QC of a simulated lot: {} units (seeds {}..), {} in 10 defective, QC matrix of {} "
-                             "experiments, reference {}\n",
-                             units, first_seed, defect_tenths, plan.experiments.size(), reference.source);
+                             "experiments, reference {}, {} actuator; load average {:.2f} at the start\n",
+                             units, first_seed, defect_tenths, plan.experiments.size(), reference.source,
+                             servo ? "servo" : "ideal", load[0]);
     for (int i = 0; i < units; ++i) {
       const unsigned long seed = first_seed + i;
       const qc::Defect kind = KindOf(i);
-      const sim::Truth truth = qc::MakeDefective(qc::LotUnit(seed), kind, reference, seed);
+      sim::Truth truth = qc::MakeDefective(qc::LotUnit(seed), kind, reference, seed);
+      if (servo) truth.actuator.ideal = false;
       const sim::SimulatedRig rig(truth);
       sim::RigRunOptions run;
       run.seed = seed;
-      const double sim_start = ThreadSeconds();
+      const auto sim_start = std::chrono::steady_clock::now();
       daq::Session session;
       try {
         session = rig.RunMatrix(plan, run);
       } catch (const std::exception& e) {
         spdlog::warn("unit {} ({}): the rig could not run the QC matrix: {}", seed, qc::ToString(kind), e.what());
       }
-      sim_seconds.push_back(ThreadSeconds() - sim_start);
+      sim_seconds.push_back(std::chrono::duration<double>(std::chrono::steady_clock::now() - sim_start).count());
       const double before = ThreadSeconds();
       const qc::Decision d = qc::RunQc(session, truth.damper_serial, reference);
       cpu.push_back(ThreadSeconds() - before);
       wall.push_back(d.seconds);
       const std::string verdict = qc::ToString(d.verdict);
       ++confusion[qc::ToString(kind)][verdict];
-      std::string failed;
+      std::string failed, guarded;
       bool named = false;
       for (const auto& q : d.quantities) {
         if (q.status == qc::Status::kOut || q.status == qc::Status::kGuardBand) {
           failed += (failed.empty() ? "" : ", ") + q.quantity.name;
           named = named || q.quantity.name == QuantityOf(kind);
-          guard_band += q.status == qc::Status::kGuardBand;
+          if (q.status == qc::Status::kGuardBand) {
+            ++guard_band;
+            guarded += (guarded.empty() ? "" : ", ") + q.quantity.name;
+          }
         }
       }
       if (kind != qc::Defect::kNone && d.verdict == qc::Verdict::kFail && named) ++named_right[qc::ToString(kind)];
@@ -135,11 +145,12 @@ struct BenchQc {
               coverage[t.name].second += 1;
             }
       }
-      std::cout << fmt::format("  unit {:5} {:<16} {:<9} {:5.2f} s{}{}\n", seed, qc::ToString(kind), verdict,
+      std::cout << fmt::format("  unit {:5} {:<16} {:<9} {:5.2f} s{}{}{}\n", seed, qc::ToString(kind), verdict,
                                d.seconds, failed.empty() ? "" : "  out: " + failed,
+                               guarded.empty() ? "" : " (guard band: " + guarded + ")",
                                d.verdict == qc::Verdict::kUndecided && !d.reasons.empty() ? "  (" + d.reasons.front() + ")"
                                                                                            : "");
-      rows.push_back({{"seed", seed}, {"kind", qc::ToString(kind)}, {"verdict", verdict}, {"out", failed},
+      rows.push_back({{"seed", seed}, {"kind", qc::ToString(kind)}, {"verdict", verdict}, {"out", failed}, {"guard_band", guarded},
                       {"seconds", d.seconds}, {"cpu_seconds", cpu.back()}, {"fit_verdict", d.fit_verdict},
                       {"reasons", d.reasons}, {"z", z}});
     }
@@ -177,7 +188,7 @@ struct BenchQc {
     }
     std::cout << fmt::format(
         "decision time (read session to verdict: prepare, fit, quantities, decide): median {:.3f} s wall, {:.3f} s CPU "
-        "on one thread, max {:.3f} s wall (target < 1 s); rig simulation median {:.2f} s CPU per unit\n",
+        "on one thread, max {:.3f} s wall (target < 1 s); rig simulation median {:.2f} s wall per unit\n",
         median(wall), median(cpu), *std::max_element(wall.begin(), wall.end()), median(sim_seconds));
     if (!json_path.empty())
       WriteTextOutput(json_path, nlohmann::json{{"units", rows},
@@ -208,6 +219,8 @@ void RegisterBenchQc(CLI::App& bench) {
   sub->add_option("--truth-ranges", command->truth_ranges,
                   "Only draw this many good units and print the range of their true quantities (the lot reference's "
                   "bands come from it).");
+  sub->add_flag("--servo", command->servo,
+                "Drive the units through the rig's servo actuator (default: an ideal actuator, docs/qc.md).");
   sub->add_option("--json", command->json_path, "Also write the figures as JSON to this file.");
   sub->callback([command] { command->Run(); });
 }

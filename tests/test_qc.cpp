@@ -127,7 +127,9 @@ TEST(QcReference, AGoldenFitGivesItsQuantitiesWithTheDefaultBands) {
   fit.parameters.set("theta3", 9000.0);
   fit.sd.assign(fit.parameters.size(), NAN);
   fit.estimated.assign(fit.parameters.size(), false);
-  const Reference r = ReferenceFromFitJson(ident::FitToJson(fit).dump(), "golden.json");
+  nlohmann::json j = ident::FitToJson(fit);
+  j["verdict"] = "at-noise-floor";  // the summary here is made by hand, not fitted
+  const Reference r = ReferenceFromFitJson(j.dump(), "golden.json");
   EXPECT_EQ(r.kind, "golden-fit");
   EXPECT_EQ(r.model, "2dof");
   const Band* orifice = r.find("orifice_damping");
@@ -140,6 +142,8 @@ TEST(QcReference, AGoldenFitGivesItsQuantitiesWithTheDefaultBands) {
     }
   EXPECT_EQ(r.find("viscous_damping"), nullptr);  // the golden model has no such term
   EXPECT_THROW(ReferenceFromFitJson(R"({"model": "2dof"})", "g.json"), ReferenceError);
+  j["verdict"] = "above-noise-floor";  // a golden unit whose fit the model does not explain is no reference
+  EXPECT_THROW(ReferenceFromFitJson(j.dump(), "g.json"), ReferenceError);
   EXPECT_THROW(ReferenceFromFitJson(R"({"model": "2dof", "parameters": [{"index": "theta99", "value": 1}]})", "g.json"),
                ReferenceError);
 }
@@ -232,6 +236,8 @@ TEST(QcHistory, StoresEveryDecisionAndQueriesBySerialDateAndTrend) {
   EXPECT_NEAR(trends[0].slope_per_day, -1e4, 1e-6);  // 10 kPa lost a day: a slow leak
   EXPECT_DOUBLE_EQ(trends[0].mean, 6.8e5);
   EXPECT_THROW(h.Query(std::nullopt, std::string("yesterday")), std::invalid_argument);
+  EXPECT_THROW(h.Record(Decision{}, "noon"), std::invalid_argument);
+  EXPECT_EQ(h.Query().size(), 4u);  // nothing written
   {
     std::ofstream(dir.file("not.db")) << "this is no database, but it is long enough to be read as a header......\n";
   }

@@ -46,6 +46,9 @@ struct QcCommand {
     CheckOutputPath("--db", db_path, inputs);
     if (!json_path.empty() && json_path == report_path)
       throw std::invalid_argument("--json and --report name the same file " + json_path);
+    if (!time.empty() && db_path.empty()) throw std::invalid_argument("--time is the decision's time in the history: give --db too");
+    if (!time.empty() && !qc::IsUtcTime(time))
+      throw std::invalid_argument("--time '" + time + "': give a UTC time YYYY-MM-DDTHH:MM:SSZ");
     const qc::Reference ref = qc::ReadReference(reference);
     std::optional<qc::History> history;
     if (!db_path.empty()) history.emplace(db_path);

@@ -87,6 +87,10 @@ double Days(const std::string& iso) {
 
 }  // namespace
 
+bool IsUtcTime(const std::string& text) {
+  return std::regex_match(text, std::regex(R"(\d{4}-\d{2}-\d{2}T\d{2}:\d{2}:\d{2}Z)"));
+}
+
 std::string UtcNow() {
   const std::time_t t = std::time(nullptr);
   std::tm tm{};
@@ -125,6 +129,8 @@ void History::Exec(const std::string& sql) const {
 }
 
 long History::Record(const Decision& d, const std::string& time) {
+  if (!time.empty() && !IsUtcTime(time))
+    throw std::invalid_argument("the decision's time '" + time + "' is not a UTC time YYYY-MM-DDTHH:MM:SSZ");
   Exec("BEGIN IMMEDIATE");
   try {
     Statement s(db_,

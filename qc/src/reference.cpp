@@ -156,6 +156,10 @@ Reference ReferenceFromFitJson(const std::string& json_text, const std::string& 
   const nlohmann::json j = ParseJson(json_text, source);
   if (!j.contains("model") || !j["model"].is_string() || !j.contains("parameters") || !j["parameters"].is_array())
     throw ReferenceError(source + ": not an identify JSON (needs \"model\" and \"parameters\")");
+  // A golden unit's values are trusted only from a fit that explains its data.
+  if (j.contains("verdict") && j["verdict"] != "at-noise-floor")
+    throw ReferenceError(source + ": the golden unit's fit is " + j["verdict"].dump() +
+                         "; a reference needs a fit at the noise floor");
   Reference r{source, "golden-fit", j["model"].get<std::string>(), {}};
   ident::Model model = [&] {
     try {

@@ -48,7 +48,8 @@ class History {
   History& operator=(const History&) = delete;
 
   //! Stores a decision at `time` (UTC ISO 8601, "2026-12-02T04:50:00Z"; empty: now); returns its id.
-  //! One transaction: a decision is stored whole or not at all.
+  //! One transaction: a decision is stored whole or not at all. A malformed `time` throws
+  //! std::invalid_argument before anything is written.
   long Record(const Decision& decision, const std::string& time = "");
 
   //! Decisions in time order, optionally of one serial and at or after `since` (a date
@@ -64,6 +65,9 @@ class History {
 
 //! Per quantity over `entries` (time order).
 std::vector<QuantityTrend> Trends(const std::vector<HistoryEntry>& entries);
+
+//! True for a UTC time "YYYY-MM-DDTHH:MM:SSZ" (what Record stores).
+bool IsUtcTime(const std::string& text);
 
 //! The current UTC time, ISO 8601 with seconds ("2026-12-02T04:50:00Z").
 std::string UtcNow();

@@ -45,7 +45,8 @@ struct Reference {
 
 //! The reference a golden unit's identify JSON gives: its quantities as nominal values with
 //! DefaultBands(). `tolerance_overrides` (bands from a file) replace the defaults by name.
-//! Throws ReferenceError naming the file when the JSON lacks what a fit has or its model is not a damper.
+//! Throws ReferenceError naming the file when the JSON lacks what a fit has, its model is not a
+//! damper, or its verdict is not "at-noise-floor".
 Reference ReferenceFromFitJson(const std::string& json_text, const std::string& source);
 
 //! A reference file of nominal values with bands, TOML or JSON (the format is told by the first

@@ -7,6 +7,7 @@
 #include <malloc.h>
 
 #include "commands.h"
+#include "qc_commands.h"
 #include "output_files.h"
 
 int main(int argc, char** argv) {
@@ -46,10 +47,12 @@ int main(int argc, char** argv) {
   strut::tools::RegisterBenchDiscover(*app.get_subcommand("bench"));
   strut::tools::RegisterBenchUnits(*app.get_subcommand("bench"));
   strut::tools::RegisterBenchConfusion(*app.get_subcommand("bench"));
+  strut::tools::RegisterBenchQc(*app.get_subcommand("bench"));
   strut::tools::RegisterSimCommand(app);
   strut::tools::RegisterImportCommand(app);
   strut::tools::RegisterRigCommand(app);
   strut::tools::RegisterRecoverCommand(app);
+  strut::tools::RegisterQcCommand(app);
 
   try {
     app.parse(argc, argv);

@@ -59,7 +59,10 @@ bool Contains(const std::vector<std::string>& list, std::string_view name) {
   return std::find(list.begin(), list.end(), name) != list.end();
 }
 
-//! The pressure (Pa abs) at full extension and ambient temperature (the static state at q = 0).
+double Value(const ident::ParameterSet& p, int index) { return p.value(p.position_of_index(index)); }
+
+}  // namespace
+
 double ChargePressure(const ident::Model& model, const std::vector<double>& theta) {
   const int offset = model.defaults().position_of_index(12);
   const std::vector<double> x = model.StaticEquilibrium(offset >= 0 ? theta[offset] : 0.0, theta);
@@ -68,8 +71,6 @@ double ChargePressure(const ident::Model& model, const std::vector<double>& thet
   throw ident::ModelError("the model has no gas pressure");
 }
 
-//! Sets theta5 (extended pressure or pressure per temperature) so the charge pressure is p0:
-//! a few fixed-point steps (p is nearly proportional to theta5; solubility and real gas bend it).
 void SetCharge(const ident::Model& model, std::vector<double>& theta, double p0) {
   const ident::ParameterSet& d = model.defaults();
   if (const int ref = d.position_of_index(27); ref >= 0) theta[ref] = p0;  // compliance reference
@@ -80,10 +81,6 @@ void SetCharge(const ident::Model& model, std::vector<double>& theta, double p0)
     if (std::abs(p / p0 - 1.0) < 1e-12) break;
   }
 }
-
-double Value(const ident::ParameterSet& p, int index) { return p.value(p.position_of_index(index)); }
-
-}  // namespace
 
 const std::vector<DrawSpread>& DrawSpreads() {
   using K = SpreadKind;

@@ -1,0 +1,187 @@
+// strut qc: production quality control of a damper from a short QC session (docs/qc.md).
+//   strut qc SESSION.h5 --reference REF [--json OUT] [--report OUT.html] [--db FILE]
+//   strut qc plan [-o FILE] [--write-reference FILE]
+//   strut qc history --db FILE [--serial S] [--since DATE] [--json]
+#include <spdlog/spdlog.h>
+
+#include <cmath>
+#include <filesystem>
+#include <iostream>
+#include <map>
+#include <optional>
+
+#include "commands.h"
+#include "qc_commands.h"
+#include "output_files.h"
+#include "strut/qc/decision.h"
+#include "strut/qc/history.h"
+#include "strut/qc/lot.h"
+
+namespace strut::tools {
+namespace {
+
+struct QcCommand {
+  std::string session, reference, json_path, report_path, db_path, time;
+
+  //! Every error ends with exit code 2 (UNDECIDED): 1 would read as FAIL.
+  void Run() const {
+    try {
+      Decide();
+    } catch (const ExitCode&) {
+      throw;
+    } catch (const std::exception& e) {
+      spdlog::error("{}", e.what());
+      spdlog::error("UNDECIDED: QC could not run");
+      throw ExitCode(qc::ExitCodeOf(qc::Verdict::kUndecided));
+    }
+  }
+
+  void Decide() const {
+    if (session.empty()) throw std::invalid_argument("qc: give a session (strut qc SESSION.h5 --reference REF)");
+    if (reference.empty()) throw std::invalid_argument("qc: --reference REF is required (a golden unit's identify JSON or a nominal file)");
+    // Before any work: outputs writable, never an input; the history opens (or is created) now.
+    const std::vector<std::string> inputs{session, reference};
+    CheckOutputPath("--json", json_path, inputs);
+    CheckOutputPath("--report", report_path, inputs);
+    CheckOutputPath("--db", db_path, inputs);
+    if (!json_path.empty() && json_path == report_path)
+      throw std::invalid_argument("--json and --report name the same file " + json_path);
+    if (!time.empty() && db_path.empty()) throw std::invalid_argument("--time is the decision's time in the history: give --db too");
+    if (!time.empty() && !qc::IsUtcTime(time))
+      throw std::invalid_argument("--time '" + time + "': give a UTC time YYYY-MM-DDTHH:MM:SSZ");
+    const qc::Reference ref = qc::ReadReference(reference);
+    std::optional<qc::History> history;
+    if (!db_path.empty()) history.emplace(db_path);
+
+    ident::SessionFit fit;
+    const qc::Decision d = qc::RunQc(session, ref, &fit);
+    std::cout << qc::Table(d);
+    if (!json_path.empty()) WriteTextOutput(json_path, qc::ToJson(d).dump(1) + "\n");
+    if (!report_path.empty()) {
+      qc::WriteReport(d, d.fit_verdict.empty() ? nullptr : &fit, report_path);
+      spdlog::info("wrote {}", report_path);
+    }
+    if (history) {
+      const long id = history->Record(d, time);
+      spdlog::info("recorded decision {} for serial {} in {}", id, d.serial, db_path);
+    }
+    switch (d.verdict) {
+      case qc::Verdict::kPass: spdlog::info("PASS"); break;
+      case qc::Verdict::kFail: spdlog::warn("FAIL: {}", d.reasons.empty() ? "" : d.reasons.front()); break;
+      case qc::Verdict::kUndecided: spdlog::error("UNDECIDED: {}", d.reasons.empty() ? "" : d.reasons.front()); break;
+    }
+    if (d.verdict != qc::Verdict::kPass) throw ExitCode(qc::ExitCodeOf(d.verdict));
+  }
+};
+
+struct PlanCommand {
+  std::string output, reference_output;
+  void Run() const {
+    CheckOutputPath("-o", output, {});
+    CheckOutputPath("--write-reference", reference_output, {});
+    if (!output.empty() && output == reference_output)
+      throw std::invalid_argument("-o and --write-reference name the same file " + output);
+    const std::string text = qc::MatrixFileText(
+        qc::QcMatrix(),
+        "The QC matrix of strut (docs/qc.md): four experiments, about 2.5 minutes on the rig with settling.\n"
+        "Run it with `strut sim matrix --matrix FILE` (or the rig), then `strut qc SESSION.h5 --reference REF`.");
+    if (output.empty())
+      std::cout << text;
+    else
+      WriteTextOutput(output, text);
+    if (!reference_output.empty()) WriteTextOutput(reference_output, std::string(qc::LotReferenceText()));
+  }
+};
+
+struct HistoryCommand {
+  std::string db_path;
+  std::optional<std::string> serial, since;
+  bool json = false;
+  void Run() const {
+    if (!std::filesystem::exists(db_path)) throw std::invalid_argument("--db " + db_path + ": no such QC history");
+    const qc::History history(db_path);
+    const std::vector<qc::HistoryEntry> entries = history.Query(serial, since);
+    const std::vector<qc::QuantityTrend> trends = qc::Trends(entries);
+    const auto number = [](double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); };
+    if (json) {
+      nlohmann::json j{{"decisions", nlohmann::json::array()}, {"trends", nlohmann::json::array()}};
+      std::map<std::string, long> counts;
+      for (const auto& e : entries) {
+        ++counts[e.verdict];
+        nlohmann::json q = nlohmann::json::array();
+        for (const auto& x : e.quantities)
+          q.push_back({{"name", x.quantity.name}, {"unit", x.quantity.unit}, {"value", number(x.quantity.value)},
+                       {"sd", number(x.quantity.sd)}, {"nominal", number(x.nominal)}, {"lower", number(x.lower)},
+                       {"upper", number(x.upper)}, {"status", qc::ToString(x.status)}, {"meaning", x.meaning}});
+        j["decisions"].push_back({{"id", e.id}, {"serial", e.serial}, {"time", e.time}, {"session", e.session},
+                                  {"reference", e.reference}, {"model", e.model}, {"verdict", e.verdict},
+                                  {"reasons", e.reasons}, {"quantities", q}});
+      }
+      for (const auto& t : trends)
+        j["trends"].push_back({{"name", t.name}, {"unit", t.unit}, {"count", t.count}, {"mean", number(t.mean)},
+                               {"sd", number(t.sd)}, {"min", number(t.min)}, {"max", number(t.max)},
+                               {"first", number(t.first)}, {"last", number(t.last)},
+                               {"slope_per_day", number(t.slope_per_day)}, {"out_of_band", t.out_of_band}});
+      j["counts"] = counts;
+      std::cout << j.dump(1) << "\n";
+      return;
+    }
+    long pass = 0, fail = 0, undecided = 0;
+    std::cout << fmt::format("{:>5}  {:<20}  {:<20}  {:<9}  {}\n", "id", "time", "serial", "verdict", "first reason");
+    for (const auto& e : entries) {
+      pass += e.verdict == "PASS";
+      fail += e.verdict == "FAIL";
+      undecided += e.verdict == "UNDECIDED";
+      std::cout << fmt::format("{:>5}  {:<20}  {:<20}  {:<9}  {}\n", e.id, e.time, e.serial, e.verdict,
+                               e.reasons.empty() ? "" : e.reasons.front());
+    }
+    std::cout << fmt::format("{} decisions: {} PASS, {} FAIL, {} UNDECIDED\n", entries.size(), pass, fail, undecided);
+    if (trends.empty()) return;
+    std::cout << fmt::format("\ntrends per quantity:\n  {:<22} {:>5} {:>12} {:>10} {:>12} {:>12} {:>12} {:>14} {:>6}\n",
+                             "quantity", "n", "mean", "sd", "min", "max", "last", "slope per day", "out");
+    for (const auto& t : trends)
+      std::cout << fmt::format("  {:<22} {:>5} {:>12.5g} {:>10.3g} {:>12.5g} {:>12.5g} {:>12.5g} {:>14.3g} {:>6}\n",
+                               t.name, t.count, t.mean, t.sd, t.min, t.max, t.last, t.slope_per_day, t.out_of_band);
+  }
+};
+
+}  // namespace
+
+void RegisterQcCommand(CLI::App& app) {
+  auto command = std::make_shared<QcCommand>();
+  CLI::App* qc = app.add_subcommand(
+      "qc",
+      "Quality control of a production damper from a QC session: PASS, FAIL or UNDECIDED against a reference "
+      "(docs/qc.md). Exit code 0 pass, 1 fail, 2 undecided (bad data, fit not converged or not at the noise floor).");
+  qc->add_option("session", command->session, "The QC session (HDF5), from the matrix `strut qc plan` writes.")
+      ->check(CLI::ExistingFile);
+  qc->add_option("--reference", command->reference,
+                 "A golden unit's identify JSON (default bands, docs/qc.md) or a reference file of nominal values with "
+                 "bands (TOML or JSON).")
+      ->check(CLI::ExistingFile);
+  qc->add_option("--json", command->json_path, "Write the decision as JSON.");
+  qc->add_option("--report", command->report_path, "Write a self-contained HTML report.");
+  qc->add_option("--db", command->db_path, "Record the decision in this QC history (SQLite; created when missing).");
+  qc->add_option("--time", command->time, "With --db: the decision's time (UTC ISO 8601) instead of now.");
+  qc->callback([command, qc] {
+    if (qc->get_subcommands().empty()) command->Run();
+  });
+
+  auto plan = std::make_shared<PlanCommand>();
+  CLI::App* p = qc->add_subcommand("plan", "Write the QC matrix (a matrix file for `strut sim matrix --matrix`).");
+  p->add_option("-o,--output", plan->output, "Matrix file to write (default: stdout).");
+  p->add_option("--write-reference", plan->reference_output,
+                "Also write the simulated lot's reference file (nominal values and bands, TOML).");
+  p->callback([plan] { plan->Run(); });
+
+  auto history = std::make_shared<HistoryCommand>();
+  CLI::App* h = qc->add_subcommand("history", "List QC decisions from the history: a lot, a serial's past results, "
+                                              "and the trend of every quantity.");
+  h->add_option("--db", history->db_path, "The QC history (SQLite).")->required();
+  h->add_option("--serial", history->serial, "Only this serial.");
+  h->add_option("--since", history->since, "Only decisions at or after this date (YYYY-MM-DD) or UTC time.");
+  h->add_flag("--json", history->json, "Print JSON (decisions, trends, counts) instead of tables.");
+  h->callback([history] { history->Run(); });
+}
+
+}  // namespace strut::tools

@@ -18,7 +18,11 @@ void RegisterBenchDiscover(CLI::App& bench);
 void RegisterBenchUnits(CLI::App& bench);
 //! Adds `confusion` (discovery on drawn units) under the `bench` subcommand.
 void RegisterBenchConfusion(CLI::App& bench);
+//! Adds `drop` (drop prediction from shaker fits of drawn units) under the `bench` subcommand.
+void RegisterBenchDrop(CLI::App& bench);
 void RegisterSimCommand(CLI::App& app);
 void RegisterImportCommand(CLI::App& app);
+//! `predict drop`: drop-test prediction from a fit.
+void RegisterPredictCommand(CLI::App& app);
 
 }  // namespace strut::tools

@@ -40,8 +40,10 @@ int main(int argc, char** argv) {
   strut::tools::RegisterBenchDiscover(*app.get_subcommand("bench"));
   strut::tools::RegisterBenchUnits(*app.get_subcommand("bench"));
   strut::tools::RegisterBenchConfusion(*app.get_subcommand("bench"));
+  strut::tools::RegisterBenchDrop(*app.get_subcommand("bench"));
   strut::tools::RegisterSimCommand(app);
   strut::tools::RegisterImportCommand(app);
+  strut::tools::RegisterPredictCommand(app);
 
   try {
     app.parse(argc, argv);

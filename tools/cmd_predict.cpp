@@ -169,7 +169,7 @@ struct PredictDropCommand {
       plain.intervals = false;
       fitted = sim::PredictDrop(fit.model, fit.parameters.values(), *mass, *velocity, {}, Eigen::MatrixXd(), plain);
     }
-    for (const std::string& note : predicted.interval_notes) spdlog::warn("intervals: {}", note);
+    for (const std::string& note : predicted.interval_notes) spdlog::info("intervals: {}", note);
 
     std::optional<sim::DropTrace> measured_trace;
     std::optional<sim::DropFigures> measured;

@@ -53,13 +53,13 @@ const std::vector<DropFigureName>& DropFigureNames() {
   static const std::vector<DropFigureName> names = {
       {"peak_force", "N"},    {"time_of_peak_force", "s"}, {"max_stroke", "m"},
       {"time_of_max_stroke", "s"}, {"rebound", "m"},       {"peak_pressure", "Pa"},
-      {"final_stroke", "m"},  {"static_stroke", "m"},      {"time_to_static", "s"}};
+      {"final_stroke", "m"},  {"time_to_final", "s"},      {"static_stroke", "m"}, {"time_to_static", "s"}};
   return names;
 }
 
 std::vector<double> FigureValues(const DropFigures& f) {
   return {f.peak_force, f.time_of_peak_force, f.max_stroke,   f.time_of_max_stroke, f.rebound,
-          f.peak_pressure, f.final_stroke,   f.static_stroke, f.time_to_static};
+          f.peak_pressure, f.final_stroke,   f.time_to_final, f.static_stroke, f.time_to_static};
 }
 
 DropFigures MeasureDrop(const DropTrace& trace, double static_stroke, double settle_band) {
@@ -83,19 +83,16 @@ DropFigures MeasureDrop(const DropTrace& trace, double static_stroke, double set
   if (!trace.pressure.empty()) f.peak_pressure = FindPeak(trace.time, trace.pressure).value;
   f.final_stroke = trace.stroke.back();
   f.static_stroke = static_stroke;
-  if (std::isfinite(static_stroke)) {
-    const double band = settle_band * std::abs(static_stroke);
-    std::size_t last_outside = k;  // k: never outside the band
+  // The first time from which the stroke stays within the band about `target` (NaN: it leaves the
+  // band at the last sample).
+  const auto settled = [&](double target) {
+    const double band = settle_band * std::abs(target);
     for (std::size_t i = k; i-- > 0;)
-      if (std::abs(trace.stroke[i] - static_stroke) > band) {
-        last_outside = i;
-        break;
-      }
-    if (last_outside == k)
-      f.time_to_static = trace.time.front();
-    else if (last_outside + 1 < k)
-      f.time_to_static = trace.time[last_outside + 1];
-  }
+      if (std::abs(trace.stroke[i] - target) > band) return i + 1 < k ? trace.time[i + 1] : NAN;
+    return trace.time.front();
+  };
+  f.time_to_final = settled(f.final_stroke);
+  if (std::isfinite(static_stroke)) f.time_to_static = settled(static_stroke);
   return f;
 }
 

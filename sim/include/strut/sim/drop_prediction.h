@@ -35,6 +35,9 @@ struct DropFigures {
   double rebound = NAN;             //!< m, max_stroke minus the least stroke after it
   double peak_pressure = NAN;       //!< Pa absolute (NaN without pressure)
   double final_stroke = NAN;        //!< m, at the end of the record
+  //! s, from contact until the stroke stays within the settle band of final_stroke: when the
+  //! stroke has come to its end value within the record (the gas cooling, friction creeping).
+  double time_to_final = NAN;
   //! m, the static equilibrium under M g at ambient temperature: where the stroke ends once the
   //! gas has cooled (a model property; NaN for a record, which has no model).
   double static_stroke = NAN;
@@ -52,7 +55,7 @@ const std::vector<DropFigureName>& DropFigureNames();
 std::vector<double> FigureValues(const DropFigures& figures);
 
 //! The figures of a trace. `static_stroke` (m) is the reference of time_to_static (NaN: not
-//! computed); `settle_band` is relative to it. Peaks are refined between samples by a parabola
+//! computed); `settle_band` is relative to it (and to final_stroke for time_to_final). Peaks are refined between samples by a parabola
 //! through the largest sample and its neighbours. Throws std::invalid_argument on an empty trace
 //! or channels of different lengths.
 DropFigures MeasureDrop(const DropTrace& trace, double static_stroke, double settle_band);

@@ -5,7 +5,6 @@
 // --effect the truth has physics the fitted 2 dof model lacks, and each unit says which figures
 // that physics moves.
 #include <spdlog/spdlog.h>
-#include <time.h>
 
 #include <algorithm>
 #include <cmath>
@@ -15,6 +14,7 @@
 
 #include "commands.h"
 #include "output_files.h"
+#include "thread_clock.h"
 #include "strut/ident/fit_report.h"
 #include "strut/ident/session_fit.h"
 #include "strut/sim/draw.h"
@@ -23,12 +23,6 @@
 
 namespace strut::tools {
 namespace {
-
-double ThreadSeconds() {
-  timespec t{};
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
-  return t.tv_sec + 1e-9 * t.tv_nsec;
-}
 
 double Median(std::vector<double> v) {
   if (v.empty()) return NAN;

@@ -13,22 +13,16 @@
 #include <map>
 #include <nlohmann/json.hpp>
 #include <random>
-#include <time.h>
 
 #include "commands.h"
 #include "output_files.h"
+#include "thread_clock.h"
 #include "strut/ident/session_fit.h"
 #include "strut/sim/draw.h"
 #include "strut/sim/simulated_rig.h"
 
 namespace strut::tools {
 namespace {
-
-double ThreadSeconds() {
-  timespec t{};
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
-  return t.tv_sec + 1e-9 * t.tv_nsec;
-}
 
 //! Wilson 95 % interval of a fraction k / n.
 std::pair<double, double> Wilson(long k, long n) {

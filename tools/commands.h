@@ -27,5 +27,9 @@ void RegisterRigCommand(CLI::App& app);
 void RegisterRecoverCommand(CLI::App& app);
 //! Adds `recorder` (streaming recorder throughput and CPU) under the `bench` subcommand.
 void RegisterBenchRecorder(CLI::App& bench);
+//! Adds `drop` (drop prediction from shaker fits of drawn units) under the `bench` subcommand.
+void RegisterBenchDrop(CLI::App& bench);
+//! `predict drop`: drop-test prediction from a fit.
+void RegisterPredictCommand(CLI::App& app);
 
 }  // namespace strut::tools

@@ -48,11 +48,13 @@ int main(int argc, char** argv) {
   strut::tools::RegisterBenchUnits(*app.get_subcommand("bench"));
   strut::tools::RegisterBenchConfusion(*app.get_subcommand("bench"));
   strut::tools::RegisterBenchQc(*app.get_subcommand("bench"));
+  strut::tools::RegisterBenchDrop(*app.get_subcommand("bench"));
   strut::tools::RegisterSimCommand(app);
   strut::tools::RegisterImportCommand(app);
   strut::tools::RegisterRigCommand(app);
   strut::tools::RegisterRecoverCommand(app);
   strut::tools::RegisterQcCommand(app);
+  strut::tools::RegisterPredictCommand(app);
 
   try {
     app.parse(argc, argv);

@@ -18,16 +18,11 @@
 #include "qc_commands.h"
 #include "output_files.h"
 #include "strut/qc/decision.h"
+#include "thread_clock.h"
 #include "strut/qc/lot.h"
 
 namespace strut::tools {
 namespace {
-
-double ThreadSeconds() {
-  timespec t{};
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
-  return t.tv_sec + 1e-9 * t.tv_nsec;
-}
 
 //! The quantity a defect changes (the one a FAIL must name).
 const char* QuantityOf(qc::Defect d) {

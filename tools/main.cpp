@@ -6,16 +6,18 @@
 #include <exception>
 
 #include "commands.h"
+#include "option_checks.h"
 #include "output_files.h"
 
 int main(int argc, char** argv) {
   CLI::App app{"strut: shaker testing and identification of landing-gear dampers"};
   app.require_subcommand(1);
+  app.formatter(strut::tools::HelpFormatter());  // subcommands added below inherit it
   app.set_version_flag("--version", "strut 0.1.0");
   int verbosity = 0;
   bool quiet = false;
-  app.add_flag("-v,--verbose", verbosity, "More log output (-vv for debug traces)");
-  app.add_flag("-q,--quiet", quiet, "Only warnings and errors");
+  app.add_flag("-v,--verbose", verbosity, "Log more (-v: debug messages; -vv: traces too).");
+  app.add_flag("-q,--quiet", quiet, "Log only warnings and errors.");
   app.parse_complete_callback([&] {
     if (quiet) {
       spdlog::set_level(spdlog::level::warn);
@@ -46,7 +48,9 @@ int main(int argc, char** argv) {
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    return app.exit(e);
+    // --help and --version end with 0; every refused command line with 1, the exit code of an
+    // error (README "Exit codes"), not CLI11's own 100s.
+    return app.exit(e) == 0 ? 0 : 1;
   } catch (const strut::tools::ExitCode& e) {
     return e.code();
   } catch (const std::exception& e) {

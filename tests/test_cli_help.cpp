@@ -118,7 +118,8 @@ TEST(CliHelp, TheWalkFindsEveryCommand) {
     if (path == "sim drop") {
       ASSERT_GE(help.options.size(), 5u);
       bool mass = false;
-      for (const auto& o : help.options) mass = mass || (o.long_name() == "--mass" && o.description == "The dropped mass in kg.");
+      for (const auto& o : help.options)
+        mass = mass || (o.long_name() == "--mass" && o.description == "The dropped mass in kg.");
       EXPECT_TRUE(mass) << help.text;
     }
 }
@@ -137,7 +138,8 @@ TEST(CliHelp, ReadmeListsEveryCommandAndOption) {
     for (const auto& o : help.options)
       if (o.long_name() != "--help")
         EXPECT_NE(entry.find(o.long_name()), std::string::npos)
-            << "README.md, strut " << path << ": " << o.long_name() << " is missing from\n" << entry;
+            << "README.md, strut " << path << ": " << o.long_name() << " is missing from\n"
+            << entry;
   }
 }
 
@@ -203,12 +205,15 @@ TEST(CliHelp, AnOutOfRangeValueIsRefusedNamingTheOptionAndTheRange) {
            {"sim drop --mass 0 -o " + dir.file("d.h5"), "--mass: 0 is out of range; give a number > 0 kg"},
            {"sim drop --mass -3 -o " + dir.file("d.h5"), "--mass: -3 is out of range; give a number > 0 kg"},
            {"sim drop --mass heavy -o " + dir.file("d.h5"), "--mass: 'heavy' is not a number; give a number > 0 kg"},
-           {"sim drop --velocity -0.1 -o " + dir.file("d.h5"), "--velocity: -0.1 is out of range; give a number >= 0 m/s"},
+           {"sim drop --velocity -0.1 -o " + dir.file("d.h5"),
+            "--velocity: -0.1 is out of range; give a number >= 0 m/s"},
            {"sim matrix --real-time --speed 0 -o " + dir.file("m.h5"), "--speed: 0 is out of range; give a number > 0"},
            {"identify " + file + " --n 3", "--n: 3 is out of range; give a number 16 .. 100000"},
            {"discover " + file + " --threads 0", "--threads: 0 is out of range; give a number 1 .. 64"},
-           {"periodic --frequency 0 --amplitude 0.01 --static 0.1", "--frequency: 0 is out of range; give a number > 0 Hz"},
-           {"import csv " + file + " --gzip 10 -o " + dir.file("i.h5"), "--gzip: 10 is out of range; give a number 0 .. 9"},
+           {"periodic --frequency 0 --amplitude 0.01 --static 0.1",
+            "--frequency: 0 is out of range; give a number > 0 Hz"},
+           {"import csv " + file + " --gzip 10 -o " + dir.file("i.h5"),
+            "--gzip: 10 is out of range; give a number 0 .. 9"},
            {"bench units --start-off 1", "--start-off: 1 is out of range; give a number 0 .. 0.9"},
        }) {
     const auto r = test::RunStrut(c.args);

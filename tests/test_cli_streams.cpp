@@ -4,7 +4,6 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
-
 #include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
@@ -53,7 +52,8 @@ TEST(CliStreams, InfoJsonIsTheOnlyThingOnStdout) {
   const nlohmann::json j = nlohmann::json::parse(r.out);  // throws if anything else is there
   EXPECT_EQ(j["experiments"].size(), 2u);
   // A damaged file: the errors travel in the JSON (stdout), exit code 1.
-  const auto bad = test::Shell(kStrut + " info --json " + std::string(STRUT_SOURCE_DIR) + "/README.md", dir.file("bad"));
+  const auto bad =
+      test::Shell(kStrut + " info --json " + std::string(STRUT_SOURCE_DIR) + "/README.md", dir.file("bad"));
   EXPECT_EQ(bad.exit_code, 1);
   EXPECT_EQ(nlohmann::json::parse(bad.out)["valid"], false);
   // The table: data on stdout, nothing on stderr.
@@ -86,7 +86,8 @@ TEST(CliStreams, PeriodicPrintsCsvOrJsonOnStdoutAndItsLogOnStderr) {
 TEST(CliStreams, IdentifyPrintsItsReportOnStdoutAndLogsOnStderr) {
   test::TempDir dir;
   const std::string session = TwoDofSession(dir);
-  const auto r = test::Shell(kStrut + " identify " + session + " --n 200 --json " + dir.file("fit.json"), dir.file("id"));
+  const auto r =
+      test::Shell(kStrut + " identify " + session + " --n 200 --json " + dir.file("fit.json"), dir.file("id"));
   ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
   EXPECT_FALSE(HasLogLine(r.out)) << r.out;
   EXPECT_NE(r.out.find("theta4"), std::string::npos) << r.out;  // the report's parameter table

@@ -49,8 +49,8 @@ std::string List(const std::vector<std::string>& names) {
 // z = (estimate - truth) / sd. Parameters the truth does not hold (same key, another meaning in
 // the other model) show "-".
 std::string TruthTable(const ident::FitSummary& fit, const ident::ParameterSet& truth) {
-  std::string text = fmt::format("     {:<8} {:<28} {:>12}   {:<9} {:<9} {:>12} {:>7}\n", "", "parameter", "estimate", "± sd",
-                                 "unit", "truth", "z");
+  std::string text = fmt::format("     {:<8} {:<28} {:>12}   {:<9} {:<9} {:>12} {:>7}\n", "", "parameter", "estimate",
+                                 "± sd", "unit", "truth", "z");
   for (int i : fit.estimated_positions) {
     const auto& spec = fit.parameters.spec(i);
     const auto t = truth.find(spec.key());
@@ -124,7 +124,8 @@ struct DemoCommand {
     std::cout << fmt::format("1. drawn unit {} (--unit): {}, parameters scattered around the shipped truth\n", unit,
                              rig.truth().Composition());
     for (const sim::EffectSize& e : rig.truth().drawn->effects)
-      std::cout << fmt::format("   {:<20} {} = {:.4g} ({})\n", e.effect, e.parameter, e.size, e.given ? "given" : "drawn");
+      std::cout << fmt::format("   {:<20} {} = {:.4g} ({})\n", e.effect, e.parameter, e.size,
+                               e.given ? "given" : "drawn");
 
     // 2. The rig: the standard matrix, recorded as a session.
     Step(2, "the standard matrix on the simulated rig (a few seconds)");
@@ -132,8 +133,9 @@ struct DemoCommand {
     run.seed = seed;
     auto start = Clock::now();
     daq::WriteSession(session_path, rig.RunMatrix(sim::StandardMatrixPlan(), run));
-    std::cout << fmt::format("\n2. simulated rig: the 14 experiments of the standard matrix recorded to {} ({:.1f} s)\n",
-                             session_path, Seconds(start));
+    std::cout << fmt::format(
+        "\n2. simulated rig: the 14 experiments of the standard matrix recorded to {} ({:.1f} s)\n", session_path,
+        Seconds(start));
 
     // 3, 4. Identification: the paper's 1 dof and 2 dof models, starting values from the data.
     const daq::Session session = daq::ReadSession(session_path);
@@ -148,12 +150,13 @@ struct DemoCommand {
       ident::FitSummary fit =
           ident::FitPrepared(ident::PrepareFitData(session, session_path, model, options.estimator.n), model, options)
               .summary;
-      std::cout << fmt::format("\n{}. identification of {} (stroke input): {:.1f} s, {} iterations, BIC {:.6g}\n   {}\n",
-                               step, composition, Seconds(start), fit.iterations, fit.bic, fit.VerdictText());
+      std::cout << fmt::format(
+          "\n{}. identification of {} (stroke input): {:.1f} s, {} iterations, BIC {:.6g}\n   {}\n", step, composition,
+          Seconds(start), fit.iterations, fit.bic, fit.VerdictText());
       std::cout << TruthTable(fit, truth) << ChannelLines(fit);
       for (const auto& w : fit.warnings) std::cout << "     warning: " << w << "\n";
-      WriteFit(fit, folder + "/fit-" + composition, std::string("strut demo: ") + composition + " on drawn unit " +
-                                                         std::to_string(unit));
+      WriteFit(fit, folder + "/fit-" + composition,
+               std::string("strut demo: ") + composition + " on drawn unit " + std::to_string(unit));
       fits.push_back(std::move(fit));
     }
     std::cout << fmt::format("   ΔBIC (2dof - 1dof) = {:+.1f}: the 2 dof model explains the data {}.\n",
@@ -188,11 +191,13 @@ struct DemoCommand {
     for (const std::string& effect : expected) (in(found.missing, effect) ? named : missed).push_back(effect);
     for (const std::string& term : found.missing)
       if (!in(expected, term)) extra.push_back(term);
-    std::cout << fmt::format("\n6. against the truth ({}; beyond 1dof it holds {}):\n   found {}; missed {}; extra {}\n",
-                             rig.truth().Composition(), List(expected), List(named), List(missed), List(extra));
-    std::cout << fmt::format("   the discovered model {} {} the truth's composition; its parameters against the truth "
-                             "(z = (estimate - truth) / sd):\n",
-                             found.final_model, found.final_model == rig.model().composition() ? "is" : "is not");
+    std::cout << fmt::format(
+        "\n6. against the truth ({}; beyond 1dof it holds {}):\n   found {}; missed {}; extra {}\n",
+        rig.truth().Composition(), List(expected), List(named), List(missed), List(extra));
+    std::cout << fmt::format(
+        "   the discovered model {} {} the truth's composition; its parameters against the truth "
+        "(z = (estimate - truth) / sd):\n",
+        found.final_model, found.final_model == rig.model().composition() ? "is" : "is not");
     std::cout << TruthTable(found.final_fit, truth);
     std::cout << fmt::format("\n   Written to {0}/: session.h5, fit-1dof, fit-2dof and fit-discovered (.json, .html)\n",
                              folder);
@@ -211,7 +216,6 @@ void RegisterDemoCommand(CLI::App& app) {
   CLI::Option* out = sub->add_option("--out", command->out_dir,
                                      "Write the session, fits and reports into this folder. Without it a fresh folder "
                                      "is chosen (strut-demo, strut-demo-2, ...), so no run replaces another.");
-  out->capture_default_str();
   sub->add_flag("--force", command->force, "Replace the files in an --out folder that is not empty.");
   sub->add_option("--unit", command->unit,
                   "The seed of the drawn unit: the same seed gives the same damper (docs/simulated-rig.md).")

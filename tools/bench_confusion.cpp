@@ -12,6 +12,7 @@
 #include <sstream>
 
 #include "commands.h"
+#include "option_checks.h"
 #include "output_files.h"
 #include "strut/ident/discover.h"
 #include "strut/sim/draw.h"
@@ -181,12 +182,12 @@ void RegisterBenchConfusion(CLI::App& bench) {
   auto command = std::make_shared<BenchConfusion>();
   CLI::App* sub = bench.add_subcommand(
       "confusion", "Discovery on drawn units with one catalogue effect or none: right first terms, extras, false discoveries.");
-  sub->add_option("--units", command->units, "Drawn units per effect.")->check(CLI::Range(1, 10000))->capture_default_str();
+  sub->add_option("--units", command->units, "Drawn units per effect.")->check(Between(1, 10000))->capture_default_str();
   sub->add_option("--first-seed", command->first_seed, "Seed of the first unit.")->capture_default_str();
-  sub->add_option("--base", command->base, "The units' base physics and the baseline model.")
+  sub->add_option("--base", command->base, "The units' base physics and the baseline model: 1dof, 1dof+heat-exchange or 2dof.")
       ->check(CLI::IsMember({"1dof", "1dof+heat-exchange", "2dof"}))
       ->capture_default_str();
-  sub->add_option("--effects", command->effects, "Comma-separated effects, 'none' for units with nothing missing.")
+  sub->add_option("--effects", command->effects, "The effects, separated by commas; 'none' stands for units with nothing missing.")
       ->capture_default_str();
   sub->add_flag("--servo", command->servo, "Drive the damper through the servo actuator (default: an ideal actuator).");
   sub->add_option("--sizes", command->sizes,

@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 
 #include "commands.h"
+#include "option_checks.h"
 #include "strut/ident/discover.h"
 #include "strut/sim/simulated_rig.h"
 #include "strut/sim/truth.h"
@@ -56,9 +57,9 @@ struct BenchDiscover {
 
 void RegisterBenchDiscover(CLI::App& bench) {
   auto command = std::make_shared<BenchDiscover>();
-  CLI::App* sub = bench.add_subcommand("discover", "Model discovery: a full run on the standard matrix, 1 and 2 threads");
-  sub->add_option("--json", command->json_path, "Also write the figures as JSON");
-  sub->add_option("--repeats", command->repeats, "Runs per setting")->check(CLI::Range(1, 20))->capture_default_str();
+  CLI::App* sub = bench.add_subcommand("discover", "Time model discovery: a full run on the standard matrix, with 1 and 2 threads.");
+  sub->add_option("--json", command->json_path, "Also write the figures as JSON to this file.");
+  sub->add_option("--repeats", command->repeats, "Runs per setting.")->check(Between(1, 20))->capture_default_str();
   sub->callback([command] { command->Run(); });
 }
 

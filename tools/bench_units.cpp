@@ -15,6 +15,7 @@
 #include <random>
 
 #include "commands.h"
+#include "option_checks.h"
 #include "output_files.h"
 #include "thread_clock.h"
 #include "strut/ident/session_fit.h"
@@ -190,7 +191,7 @@ void RegisterBenchUnits(CLI::App& bench) {
   auto command = std::make_shared<BenchUnits>();
   CLI::App* sub = bench.add_subcommand(
       "units", "Identification of drawn units: coverage of the 95 % intervals, noise-floor verdicts, restarts from far off.");
-  sub->add_option("--units", command->units, "Number of drawn units.")->check(CLI::Range(1, 100000))->capture_default_str();
+  sub->add_option("--units", command->units, "The number of drawn units.")->check(Between(1, 100000))->capture_default_str();
   sub->add_option("--first-seed", command->first_seed, "Seed of the first unit (the others follow).")->capture_default_str();
   sub->add_option("--base", command->base, "The units' physics and the fitted model: 1dof, 1dof+heat-exchange or 2dof.")
       ->check(CLI::IsMember({"1dof", "1dof+heat-exchange", "2dof"}))
@@ -199,7 +200,7 @@ void RegisterBenchUnits(CLI::App& bench) {
   sub->add_flag("--shipped-calibration", command->shipped_calibration,
                 "Keep the shipped transducers' zero and gain errors (default: perfect calibration).");
   sub->add_option("--start-off", command->start_off, "Largest relative offset of the restart in every parameter.")
-      ->check(CLI::Range(0.0, 0.9))
+      ->check(Between(0.0, 0.9))
       ->capture_default_str();
   sub->add_option("--effect", command->effects,
                   "An extra effect the units have and the fitted model lacks (repeat for several): the coverage of the "

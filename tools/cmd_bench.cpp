@@ -13,6 +13,7 @@
 #include <time.h>
 
 #include "commands.h"
+#include "option_checks.h"
 #include "strut/ident/estimator.h"
 #include "strut/ident/experiment_data.h"
 #include "strut/ident/oscillator.h"
@@ -979,68 +980,74 @@ struct BenchSilverbox {
 };
 
 void RegisterBenchCommand(CLI::App& app) {
-  CLI::App* bench = app.add_subcommand("bench", "Benchmarks: figures and ratios measured side by side");
+  CLI::App* bench = app.add_subcommand("bench", "Run a benchmark: figures and ratios measured side by side, printed (and with --json written as JSON).");
   bench->require_subcommand(1);
   auto periodic = std::make_shared<BenchPeriodic>();
-  CLI::App* sub = bench->add_subcommand("periodic", "Periodic solver: cold/warm, growth with n, accuracy vs cost");
-  sub->add_option("--json", periodic->json_path, "Also write the figures as JSON");
-  sub->add_flag("--quick", periodic->quick, "Fewer repeats (for a smoke run)");
+  CLI::App* sub = bench->add_subcommand("periodic", "Time the periodic solver: cold and warm solves, growth with n, accuracy against cost.");
+  sub->add_option("--json", periodic->json_path, "Also write the figures as JSON to this file.");
+  sub->add_flag("--quick", periodic->quick, "Run fewer repeats (a smoke run).");
   sub->callback([periodic] { periodic->Run(); });
 
   auto identify = std::make_shared<BenchIdentify>();
   CLI::App* id = bench->add_subcommand(
-      "identify", "Estimator: fit time of the standard matrix, interval coverage, periodic vs transient predictions");
-  id->add_option("--json", identify->json_path, "Also write the figures as JSON");
-  id->add_flag("--quick", identify->quick, "Fewer repeats and realisations, a two-experiment transient fit (smoke run)");
-  id->add_option("--realisations", identify->realisations, "Noise realisations for the coverage (default 200, quick 20)")
-      ->check(CLI::Range(2, 100000));
+      "identify", "Measure the estimator: fit time on the standard matrix, interval coverage, periodic against transient predictions.");
+  id->add_option("--json", identify->json_path, "Also write the figures as JSON to this file.");
+  id->add_flag("--quick", identify->quick, "Run fewer repeats and realisations and a two-experiment transient fit (a smoke run).");
+  id->add_option("--realisations", identify->realisations, "Noise realisations for the coverage (default 200; with --quick 20).")
+      ->check(Between(2, 100000));
   id->add_option("--transient-experiments", identify->transient_experiments,
-                 "Labels of the experiments for the transient comparison, e.g. dehij (default: all; quick: hi)");
-  id->add_option("--sections", identify->sections, "Which figures: 1 fit time, 2 coverage, 3 transient (e.g. 13)")
+                 "The labels of the experiments in the transient comparison, e.g. dehij (default: all; with --quick: hi).");
+  id->add_option("--sections", identify->sections, "Which figures to measure: 1 fit time, 2 coverage, 3 transient; e.g. 13 for the first and third.")
       ->capture_default_str();
-  id->add_flag("--transient-force", identify->transient_force, "Also compare with force input (slow)");
+  id->add_flag("--transient-force", identify->transient_force, "Also compare with force input (slow).");
   id->add_option("--coverage-stroke-noise", identify->coverage_stroke_noise,
-                 "Stroke sensor noise (m) of the coverage realisations; default the simulated rig's (0: an exact input)");
+                 "The stroke sensor's noise in m in the coverage realisations (default: the simulated rig's; 0: an exact input).")
+      ->check(NonNegative("m"));
   id->add_option("--transient-start", identify->transient_off,
-                 "Start of the transient comparison: the estimated parameters this fraction too large (0: the truth)")
+                 "The start of the transient comparison: the estimated parameters this fraction too large (0: the truth).")
+      ->check(NonNegative())
       ->capture_default_str();
-  id->add_option("--transient-rtol", identify->transient_rtol, "IDA/IDAS relative tolerance of the transient fit")
+  id->add_option("--transient-rtol", identify->transient_rtol, "The IDA/IDAS relative tolerance of the transient fit.")
+      ->check(Positive())
       ->capture_default_str();
   id->add_option("--transient-atol", identify->transient_atol,
-                 "IDA/IDAS absolute tolerances as a multiple of each unknown's scale")
+                 "The IDA/IDAS absolute tolerances as a multiple of each unknown's scale.")
+      ->check(Positive())
       ->capture_default_str();
   id->add_option("--transient-steady", identify->transient_steady,
-                 "Steady when the change between periods (extrapolated) is below this fraction of each unknown's peak")
+                 "The transient is steady when the change between periods (extrapolated) is below this fraction of each unknown's peak.")
+      ->check(Positive())
       ->capture_default_str();
   id->add_option("--transient-sensitivity", identify->transient_sensitivity,
-                 "Sensitivities periodic when their change is below this fraction of their peak")
+                 "The sensitivities are periodic when their change is below this fraction of their peak.")
+      ->check(Positive())
       ->capture_default_str();
   id->callback([identify] { identify->Run(); });
 
   auto simulated = std::make_shared<BenchSim>();
   CLI::App* sim_bench = bench->add_subcommand(
-      "sim", "Simulated rig: simulated seconds per wall second, standard matrix with settling, every effect on");
-  sim_bench->add_option("--json", simulated->json_path, "Also write the figures as JSON");
-  sim_bench->add_option("--truth", simulated->truth_path, "Truth file (default: the built-in one)")->check(CLI::ExistingFile);
+      "sim", "Time the simulated rig: simulated seconds per wall second on the standard matrix with settling, every effect on.");
+  sim_bench->add_option("--json", simulated->json_path, "Also write the figures as JSON to this file.");
+  sim_bench->add_option("--truth", simulated->truth_path, "Read the truth from this TOML file (default: the built-in one).")->check(CLI::ExistingFile);
   sim_bench->callback([simulated] { simulated->Run(); });
 
   auto silverbox = std::make_shared<BenchSilverbox>();
   CLI::App* sb = bench->add_subcommand(
-      "silverbox", "Silverbox benchmark from the raw files: periodic fit, validation, arrow test (classic split)");
-  sb->add_option("--data", silverbox->data_dir, "Directory with SNLS80mV.mat (or .csv)")->required()->check(CLI::ExistingDirectory);
-  sb->add_option("--json", silverbox->json_path, "Also write the figures as JSON");
-  sb->add_option("--report", silverbox->report_path, "Write a self-contained HTML report");
+      "silverbox", "Run the Silverbox benchmark from its raw files: periodic fit, validation, arrow test (classic split; docs/silverbox.md).");
+  sb->add_option("--data", silverbox->data_dir, "The directory holding SNLS80mV.mat (or SNLS80mV.csv).")->required()->check(CLI::ExistingDirectory);
+  sb->add_option("--json", silverbox->json_path, "Also write the figures as JSON to this file.");
+  sb->add_option("--report", silverbox->report_path, "Write a self-contained HTML report to this file.");
   sb->add_option("--model", silverbox->models,
                  "Candidate composition(s); the lowest validation RMS is tested (default: linear, Duffing, Duffing "
-                 "with quadratic stiffness, Duffing with an output offset)");
-  sb->add_option("--refine", silverbox->refine, "Periodic-solver grid points per sample")
-      ->check(CLI::Range(1, 64))
+                 "with quadratic stiffness, Duffing with an output offset).");
+  sb->add_option("--refine", silverbox->refine, "Periodic-solver grid points per sample.")
+      ->check(Between(1, 64))
       ->capture_default_str();
-  sb->add_option("--substeps", silverbox->substeps, "RK4 steps per sample in the arrow simulation")
-      ->check(CLI::Range(1, 256))
+  sb->add_option("--substeps", silverbox->substeps, "RK4 steps per sample in the arrow simulation.")
+      ->check(Between(1, 256))
       ->capture_default_str();
-  sb->add_option("--threads", silverbox->threads, "Estimator threads (0: one per core)")->capture_default_str();
-  sb->add_flag("--no-check", silverbox->no_check, "Skip the IDA cross-check of the arrow simulation");
+  sb->add_option("--threads", silverbox->threads, "Estimator threads (0: one per core).")->check(Between(0, 256))->capture_default_str();
+  sb->add_flag("--no-check", silverbox->no_check, "Skip the IDA cross-check of the arrow simulation.");
   sb->callback([silverbox] { silverbox->Run(); });
 
   RegisterBenchAcquisition(*bench);

@@ -1,57 +1,148 @@
-// strut demo: the main job on the simulated rig. Runs the standard test matrix on the simulated
-// rig (actuator, sensors, a damper with every extra effect of the default truth), records the
-// session, identifies the paper's 1 dof and 2 dof models, lets discovery name what they leave
-// out, and writes the fits (JSON) and reports (HTML).
+// strut demo: the main job on the simulated rig, on a unit nobody has characterised. Draws a
+// damper with realistic scatter (sim::DrawUnit, a fixed documented seed, so the demo is
+// reproducible) that holds 2 dof physics and two catalogue effects, runs the standard test matrix
+// on it, records the session, identifies the paper's 1 dof and 2 dof models, lets discovery name
+// what 1 dof leaves out, and holds everything found against the truth it simulated.
+// Progress goes to the log (stderr), one line per step; results to stdout.
+#include <fmt/format.h>
 #include <fmt/ranges.h>
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <filesystem>
-#include <fstream>
 #include <iostream>
 
 #include "commands.h"
+#include "option_checks.h"
+#include "output_files.h"
 #include "strut/daq/session.h"
+#include "strut/ident/discover.h"
 #include "strut/ident/estimator.h"
 #include "strut/ident/fit_report.h"
 #include "strut/ident/session_fit.h"
-#include "strut/rig/test_matrix.h"
-#include "strut/ident/discover.h"
+#include "strut/sim/draw.h"
 #include "strut/sim/simulated_rig.h"
 #include "strut/sim/truth.h"
 
 namespace strut::tools {
 namespace {
 
+namespace fs = std::filesystem;
+using Clock = std::chrono::steady_clock;
+
+//! The unit the demo draws unless --unit says otherwise (docs/demo.md): a 2dof damper with
+//! oil compressibility and Stribeck friction, its parameters scattered around the shipped truth.
+constexpr std::uint64_t kDemoUnitSeed = 12;
+constexpr int kSteps = 6;
+
+double Seconds(Clock::time_point since) { return std::chrono::duration<double>(Clock::now() - since).count(); }
+
+void Step(int step, const std::string& what) { spdlog::info("demo step {} of {}: {}", step, kSteps, what); }
+
+std::string List(const std::vector<std::string>& names) {
+  return names.empty() ? std::string("none") : fmt::format("{}", fmt::join(names, ", "));
+}
+
+// The fitted parameters against the truth the rig simulated: estimate ± sd, truth, and
+// z = (estimate - truth) / sd. Parameters the truth does not hold (same key, another meaning in
+// the other model) show "-".
+std::string TruthTable(const ident::FitSummary& fit, const ident::ParameterSet& truth) {
+  std::string text = fmt::format("     {:<8} {:<28} {:>12}   {:<9} {:<9} {:>12} {:>7}\n", "", "parameter", "estimate",
+                                 "± sd", "unit", "truth", "z");
+  for (int i : fit.estimated_positions) {
+    const auto& spec = fit.parameters.spec(i);
+    const auto t = truth.find(spec.key());
+    const bool comparable = t && truth.spec(*t).name == spec.name;
+    const double z = comparable ? (fit.parameters.value(i) - truth.value(*t)) / fit.sd[i] : NAN;
+    text += fmt::format("     {:<8} {:<28} {:>12.6g} ± {:<9.2g} {:<9} {:>12} {:>7}\n", spec.key(), spec.name,
+                        fit.parameters.value(i), fit.sd[i], spec.unit,
+                        comparable ? fmt::format("{:.6g}", truth.value(*t)) : std::string("-"),
+                        std::isfinite(z) ? fmt::format("{:+.1f}", z) : std::string("-"));
+  }
+  return text;
+}
+
+std::string ChannelLines(const ident::FitSummary& fit) {
+  std::string text;
+  for (const auto& c : fit.channels)
+    text += fmt::format("     {:<9} residual rms {:9.4g}, residual over noise variance {:.2f} (1 at the noise floor)\n",
+                        c.name, c.rms, c.noise_ratio);
+  return text;
+}
+
 struct DemoCommand {
   std::string out_dir = "strut-demo";
-  unsigned seed = 1;
+  bool out_given = false;
+  bool force = false;
+  std::uint64_t unit = kDemoUnitSeed;
+  unsigned long seed = 1;
+  int threads = 2;
+
+  // The folder this run writes to. Without --out a fresh one (strut-demo, strut-demo-2, ...), so a
+  // run never replaces an earlier one; an --out folder that already holds files is refused
+  // unless --force, as every command refuses to replace a session.
+  std::string OutputFolder() const {
+    std::error_code ec;
+    if (!out_given) {
+      for (int k = 1;; ++k) {
+        const std::string candidate = k == 1 ? out_dir : fmt::format("{}-{}", out_dir, k);
+        if (!fs::exists(candidate, ec)) return candidate;
+      }
+    }
+    if (fs::exists(out_dir, ec) && !fs::is_directory(out_dir, ec))
+      throw std::invalid_argument(fmt::format("--out {}: exists and is not a folder", out_dir));
+    if (fs::is_directory(out_dir, ec) && !fs::is_empty(out_dir, ec) && !force)
+      throw std::invalid_argument(fmt::format(
+          "--out {}: the folder is not empty (an earlier demo?); choose another folder, leave --out away for a fresh "
+          "one, or add --force to replace its files",
+          out_dir));
+    return out_dir;
+  }
+
+  void WriteFit(const ident::FitSummary& fit, const std::string& stem, const std::string& title) const {
+    WriteTextOutput(stem + ".json", ident::FitToJson(fit).dump(1) + "\n");
+    ident::WriteFitReport(fit, stem + ".html", title);
+    spdlog::info("wrote {}.html", stem);
+  }
 
   void Run() const {
-    using Clock = std::chrono::steady_clock;
-    std::filesystem::create_directories(out_dir);
-    const std::string session_path = out_dir + "/session.h5";
+    const std::string folder = OutputFolder();
+    fs::create_directories(folder);
+    const std::string session_path = folder + "/session.h5";
+    CheckOutputPath("--out", session_path, {}, force);
 
-    // 1. The rig: the standard matrix on the simulated rig, default truth (every effect on).
-    // Progress goes to the log (stderr) as each step starts; results to stdout.
-    spdlog::info("demo step 1 of 3: the standard matrix on the simulated rig (a few seconds)");
-    const sim::SimulatedRig rig(sim::DefaultTruth());
+    // 1. A unit nobody has characterised: 2 dof physics plus two catalogue effects, every
+    // parameter scattered around the shipped truth (docs/simulated-rig.md, Drawn units).
+    Step(1, fmt::format("drawing unit {} (2dof + oil-compressibility + stribeck-friction)", unit));
+    sim::UnitDraw draw;
+    draw.base = "2dof";
+    draw.effects = {{"oil-compressibility", std::nullopt}, {"stribeck-friction", std::nullopt}};
+    const sim::SimulatedRig rig(sim::DrawUnit(draw, unit));
+    const ident::ParameterSet truth = rig.truth().Parameters(rig.model());
+    std::cout << fmt::format("1. drawn unit {} (--unit): {}, parameters scattered around the shipped truth\n", unit,
+                             rig.truth().Composition());
+    for (const sim::EffectSize& e : rig.truth().drawn->effects)
+      std::cout << fmt::format("   {:<20} {} = {:.4g} ({})\n", e.effect, e.parameter, e.size,
+                               e.given ? "given" : "drawn");
+
+    // 2. The rig: the standard matrix, recorded as a session.
+    Step(2, "the standard matrix on the simulated rig (a few seconds)");
     sim::RigRunOptions run;
     run.seed = seed;
     auto start = Clock::now();
     daq::WriteSession(session_path, rig.RunMatrix(sim::StandardMatrixPlan(), run));
-    const ident::ParameterSet truth = rig.truth().Parameters(rig.model());
-    std::cout << fmt::format("1. simulated rig ({}): 14 experiments of the standard matrix recorded to {} ({:.1f} s)\n",
-                             rig.truth().Composition(), session_path,
-                             std::chrono::duration<double>(Clock::now() - start).count());
+    std::cout << fmt::format(
+        "\n2. simulated rig: the 14 experiments of the standard matrix recorded to {} ({:.1f} s)\n", session_path,
+        Seconds(start));
 
-    // 2. Identification: the paper's 1 dof and 2 dof models, starting values from the data.
+    // 3, 4. Identification: the paper's 1 dof and 2 dof models, starting values from the data.
     const daq::Session session = daq::ReadSession(session_path);
-    std::cout << "2. identification (stroke input; every parameter the data determine):\n";
     std::vector<ident::FitSummary> fits;
     for (const char* composition : {"1dof", "2dof"}) {
-      spdlog::info("demo step 2 of 3: identifying the {} model (every parameter the data determine)", composition);
+      const int step = static_cast<int>(fits.size()) + 3;
+      Step(step, fmt::format("identifying the {} model (every parameter the data determine)", composition));
       ident::SessionFitOptions options;
       options.composition = composition;
       const ident::Model model = ident::Model::Build(composition, options.causality);
@@ -59,54 +150,57 @@ struct DemoCommand {
       ident::FitSummary fit =
           ident::FitPrepared(ident::PrepareFitData(session, session_path, model, options.estimator.n), model, options)
               .summary;
-      const double seconds = std::chrono::duration<double>(Clock::now() - start).count();
-      std::cout << fmt::format("\n   {} fitted in {:.2f} s, {} iterations, BIC {:.6g}\n   {}\n", composition, seconds,
-                               fit.iterations, fit.bic, fit.VerdictText());
-      for (int i : fit.estimated_positions) {
-        const auto& spec = fit.parameters.spec(i);
-        const auto t = truth.find(spec.key());
-        const bool comparable = t && truth.spec(*t).name == spec.name;
-        std::cout << fmt::format("     {:<8} {:<26} {:>12.6g} ± {:<9.2g} {:<6} truth {}\n", spec.key(), spec.name,
-                                 fit.parameters.value(i), fit.sd[i], spec.unit,
-                                 comparable ? fmt::format("{:.6g}", truth.value(*t)) : std::string("-"));
-      }
-      for (const auto& c : fit.channels)
-        std::cout << fmt::format("     {:<9} residual rms {:9.4g}, {:6.1f} x the noise floor\n", c.name, c.rms,
-                                 c.noise_ratio);
+      std::cout << fmt::format(
+          "\n{}. identification of {} (stroke input): {:.1f} s, {} iterations, BIC {:.6g}\n   {}\n", step, composition,
+          Seconds(start), fit.iterations, fit.bic, fit.VerdictText());
+      std::cout << TruthTable(fit, truth) << ChannelLines(fit);
       for (const auto& w : fit.warnings) std::cout << "     warning: " << w << "\n";
-      const std::string stem = out_dir + "/fit-" + composition;
-      std::ofstream(stem + ".json") << ident::FitToJson(fit).dump(1) << "\n";
-      ident::WriteFitReport(fit, stem + ".html", std::string("strut demo: ") + composition + " on the simulated rig");
+      WriteFit(fit, folder + "/fit-" + composition,
+               std::string("strut demo: ") + composition + " on drawn unit " + std::to_string(unit));
       fits.push_back(std::move(fit));
     }
-    std::cout << fmt::format("\n   the 2 dof model explains the data {} (BIC {:.6g} against {:.6g} for 1 dof).\n",
-                             fits[1].bic < fits[0].bic ? "better" : "no better", fits[1].bic, fits[0].bic);
+    std::cout << fmt::format("   ΔBIC (2dof - 1dof) = {:+.1f}: the 2 dof model explains the data {}.\n",
+                             fits[1].bic - fits[0].bic, fits[1].bic < fits[0].bic ? "better" : "no better");
 
-    // 3. Discovery from 1 dof: what physics do the recordings show beyond it?
-    spdlog::info("demo step 3 of 3: discovery from 1dof (up to a minute: every round refits every candidate)");
-    std::cout << "\n3. discovery from 1dof (the truth has every effect of the catalogue):\n";
+    // 5. Discovery from 1 dof: what physics do the recordings show beyond it?
+    Step(5, "discovery from 1dof (up to a minute: every round refits every candidate)");
     start = Clock::now();
     ident::SessionFitOptions baseline;
     baseline.composition = "1dof";
+    const ident::Model baseline_model = ident::Model::Build("1dof", baseline.causality);
+    ident::DiscoverOptions discover;
+    discover.threads = threads;
     const ident::DiscoveryResult found = ident::Discover(
-        ident::PrepareFitData(session, session_path, ident::Model::Build("1dof", baseline.causality), baseline.estimator.n),
-        baseline, {});
-    for (const auto& step : found.steps)
-      std::cout << fmt::format("   + {:<20} ΔBIC {:+11.1f}   {}\n", step.term, step.delta_bic, step.evidence);
-    std::cout << fmt::format("   {} ({:.1f} s)\n", found.conclusion,
-                             std::chrono::duration<double>(Clock::now() - start).count());
-    // Against the truth the rig simulated: what discovery named, missed, or added that is not there.
-    std::vector<std::string> named, missed, extra;
+        ident::PrepareFitData(session, session_path, baseline_model, baseline.estimator.n), baseline, discover);
+    std::cout << fmt::format("\n5. discovery from 1dof ({:.1f} s):\n", Seconds(start));
+    for (const auto& s : found.steps)
+      std::cout << fmt::format("   + {:<20} ΔBIC {:+11.1f}   {}\n", s.term, s.delta_bic, s.evidence);
+    std::cout << "   " << found.conclusion << "\n";
+    WriteFit(found.final_fit, folder + "/fit-discovered",
+             "strut demo: " + found.final_model + " found by discovery on drawn unit " + std::to_string(unit));
+
+    // 6. Against the truth the rig simulated: the terms the unit holds beyond the baseline, and
+    // what discovery named of them, missed, or added that is not there.
+    Step(6, "comparing with the truth the rig simulated");
+    std::vector<std::string> expected, named, missed, extra;
     const auto in = [](const std::vector<std::string>& list, const std::string& name) {
       return std::find(list.begin(), list.end(), name) != list.end();
     };
-    for (const std::string& effect : rig.truth().effects) (in(found.missing, effect) ? named : missed).push_back(effect);
+    for (const std::string& effect : rig.truth().effects)
+      if (!baseline_model.has_term(effect)) expected.push_back(effect);
+    for (const std::string& effect : expected) (in(found.missing, effect) ? named : missed).push_back(effect);
     for (const std::string& term : found.missing)
-      if (!in(rig.truth().effects, term)) extra.push_back(term);
-    const auto list = [](const std::vector<std::string>& v) { return v.empty() ? std::string("none") : fmt::format("{}", fmt::join(v, ", ")); };
-    std::cout << fmt::format("   against the simulated truth: found {}; missed {}; extra {}\n", list(named), list(missed),
-                             list(extra));
-    std::cout << fmt::format("\n   Fits: {0}/fit-*.json, reports: {0}/fit-*.html, session: {1}\n", out_dir, session_path);
+      if (!in(expected, term)) extra.push_back(term);
+    std::cout << fmt::format(
+        "\n6. against the truth ({}; beyond 1dof it holds {}):\n   found {}; missed {}; extra {}\n",
+        rig.truth().Composition(), List(expected), List(named), List(missed), List(extra));
+    std::cout << fmt::format(
+        "   the discovered model {} {} the truth's composition; its parameters against the truth "
+        "(z = (estimate - truth) / sd):\n",
+        found.final_model, found.final_model == rig.model().composition() ? "is" : "is not");
+    std::cout << TruthTable(found.final_fit, truth);
+    std::cout << fmt::format("\n   Written to {0}/: session.h5, fit-1dof, fit-2dof and fit-discovered (.json, .html)\n",
+                             folder);
   }
 };
 
@@ -114,10 +208,27 @@ struct DemoCommand {
 
 void RegisterDemoCommand(CLI::App& app) {
   auto command = std::make_shared<DemoCommand>();
-  CLI::App* sub = app.add_subcommand("demo", "Run the main job on the simulated rig: record the standard matrix, identify");
-  sub->add_option("--out", command->out_dir, "Directory for the session, fits and reports")->capture_default_str();
-  sub->add_option("--seed", command->seed, "Noise seed of the simulated rig")->capture_default_str();
-  sub->callback([command] { command->Run(); });
+  CLI::App* sub = app.add_subcommand(
+      "demo",
+      "Run the main job on the simulated rig: draw a unit (2 dof physics plus oil compressibility and Stribeck "
+      "friction), record the standard matrix, identify the 1 dof and 2 dof models, discover what 1 dof leaves out, "
+      "and compare everything with the drawn truth (docs/demo.md).");
+  CLI::Option* out = sub->add_option("--out", command->out_dir,
+                                     "Write the session, fits and reports into this folder. Without it a fresh folder "
+                                     "is chosen (strut-demo, strut-demo-2, ...), so no run replaces another.");
+  sub->add_flag("--force", command->force, "Replace the files in an --out folder that is not empty.");
+  sub->add_option("--unit", command->unit,
+                  "The seed of the drawn unit: the same seed gives the same damper (docs/simulated-rig.md).")
+      ->capture_default_str();
+  sub->add_option("--seed", command->seed, "The seed of the rig's noise: the same seed gives the same session.")
+      ->capture_default_str();
+  sub->add_option("--threads", command->threads, "Run this many candidate refits of discovery in parallel.")
+      ->check(Between(1, 64))
+      ->capture_default_str();
+  sub->callback([command, out] {
+    command->out_given = out->count() > 0;
+    command->Run();
+  });
 }
 
 }  // namespace strut::tools

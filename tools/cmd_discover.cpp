@@ -6,6 +6,7 @@
 
 #include "commands.h"
 #include "model_options.h"
+#include "option_checks.h"
 #include "output_files.h"
 #include "strut/daq/session.h"
 #include "strut/ident/discover.h"
@@ -83,7 +84,7 @@ struct DiscoverCommand {
     ident::DiscoverOptions options;
     options.threads = threads;
     const ident::DiscoveryResult result = ident::Discover(data, fit, options);
-    // The conclusion was logged (stderr); stdout carries it once, as data.
+    // The conclusion and the steps are the data (stdout); the library logs only its progress (stderr).
     std::cout << result.conclusion << "\n";
     for (const auto& s : result.steps)
       std::cout << fmt::format("  + {:<20} ΔBIC {:+.1f}  {}\n", s.term, s.delta_bic, s.evidence);
@@ -100,14 +101,14 @@ void RegisterDiscoverCommand(CLI::App& app) {
       "discover",
       "Find the physics a model leaves out: fit the baseline with every parameter the data can determine, locate "
       "the mismatch, add the catalogue term that explains it (BIC and cross-validation), and show the fit improve.");
-  sub->add_option("sessions", command->sessions, "Session files (HDF5).")->required()->check(CLI::ExistingFile);
+  sub->add_option("sessions", command->sessions, "Session files (HDF5) to fit together.")->required()->check(CLI::ExistingFile);
   command->model.Add(*sub);
   command->model.AddExclude(*sub);
   sub->add_option("--json", command->json_path, "Write the findings as JSON to this file.");
   sub->add_option("--report", command->report_path, "Write a self-contained HTML report to this file.");
-  sub->add_option("--n", command->n, "Grid points per period.")->check(CLI::Range(16, 100000))->capture_default_str();
-  sub->add_option("--threads", command->threads, "Candidate refits run in parallel.")
-      ->check(CLI::Range(1, 64))
+  sub->add_option("--n", command->n, "Grid points per period of the periodic solver.")->check(Between(16, 100000))->capture_default_str();
+  sub->add_option("--threads", command->threads, "Run this many candidate refits in parallel.")
+      ->check(Between(1, 64))
       ->capture_default_str();
   sub->callback([command] { command->Run(); });
 }

@@ -8,6 +8,7 @@
 
 #include "commands.h"
 #include "model_options.h"
+#include "option_checks.h"
 #include "output_files.h"
 #include "strut/ident/fit_report.h"
 #include "strut/ident/session_fit.h"
@@ -90,7 +91,7 @@ void RegisterIdentifyCommand(CLI::App& app) {
       "identify",
       "Estimate the damper model's parameters from recorded sessions (periodic equilibria, all experiments at once). "
       "Exit code 0: converged at the noise floor; 3: converged but above the noise floor; 2: not converged; 1: error.");
-  sub->add_option("sessions", command->sessions, "Session files (HDF5).")->required()->check(CLI::ExistingFile);
+  sub->add_option("sessions", command->sessions, "Session files (HDF5) to fit together.")->required()->check(CLI::ExistingFile);
   command->model.Add(*sub);
   sub->add_option("--estimate", command->estimate,
                   "Parameters to estimate: a list such as theta4,theta6,theta16, or 'paper' for the paper's set. "
@@ -98,7 +99,7 @@ void RegisterIdentifyCommand(CLI::App& app) {
   command->model.AddExclude(*sub);
   sub->add_option("--json", command->json_path, "Write the fit as JSON to this file.");
   sub->add_option("--report", command->report_path, "Write a self-contained HTML report to this file.");
-  sub->add_option("--n", command->n, "Grid points per period.")->check(CLI::Range(16, 100000))->capture_default_str();
+  sub->add_option("--n", command->n, "Grid points per period of the periodic solver.")->check(Between(16, 100000))->capture_default_str();
   sub->add_option("--scheme", command->scheme, "Difference scheme: backward2, central2, central4 or spectral.")
       ->check(CLI::IsMember({"backward2", "central2", "central4", "spectral"}))
       ->capture_default_str();
@@ -109,9 +110,9 @@ void RegisterIdentifyCommand(CLI::App& app) {
       ->capture_default_str();
   sub->add_option("--input-harmonics", command->input_harmonics,
                   "Highest harmonic of the input estimated (capped below the record's Nyquist).")
-      ->check(CLI::Range(0, 100000))
+      ->check(Between(0, 100000))
       ->capture_default_str();
-  sub->add_flag("--no-progress", command->no_progress, "Do not show the progress line.");
+  sub->add_flag("--no-progress", command->no_progress, "Do not show the progress line (it is shown only when stderr is a terminal).");
   sub->callback([command] { command->Run(); });
 }
 

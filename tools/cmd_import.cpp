@@ -6,6 +6,7 @@
 #include <iostream>
 
 #include "commands.h"
+#include "option_checks.h"
 #include "output_files.h"
 #include "strut/daq/session.h"
 #include "strut/ident/import.h"
@@ -75,34 +76,34 @@ void AddFormat(CLI::App& parent, const std::string& format, const std::string& h
   auto command = std::make_shared<ImportCommand>();
   command->format = format;
   CLI::App* sub = parent.add_subcommand(format, help);
-  sub->add_option("file", command->file, "The measured record")->required()->check(CLI::ExistingFile);
+  sub->add_option("file", command->file, "The measured record to import.")->required()->check(CLI::ExistingFile);
   sub->add_option("-o,--out", command->out, "Session file to write (HDF5).")->required();
   sub->add_flag("--force", command->force, "Replace an existing session file at the output path.");
-  sub->add_option("--preset", command->preset, "Column mapping, rate and segmentation of a known record")
+  sub->add_option("--preset", command->preset, "Use the column mapping, sample rate and segmentation of a known record.")
       ->check(CLI::IsMember({"silverbox"}));
-  sub->add_option("--column", command->columns, "CHANNEL=COLUMN[:UNITS[:SCALE]], e.g. u=V1:V (repeatable)");
-  sub->add_option("--sample-rate", command->sample_rate, "Sample rate, Hz");
-  sub->add_option("--input", command->input, "The channel that excites the system (stored as 'excitation')");
+  sub->add_option("--column", command->columns, "Map a column to a channel: CHANNEL=COLUMN[:UNITS[:SCALE]], e.g. u=V1:V. Repeat for several channels.");
+  sub->add_option("--sample-rate", command->sample_rate, "The sample rate in Hz.")->check(Positive("Hz"));
+  sub->add_option("--input", command->input, "The channel that excites the system (stored as the session's 'excitation').");
   sub->add_option("--periodic", command->periodic,
                   "Periodic experiments: prefix=ms,start=40986,period=8192[,periods=1][,count=10][,stride=8692]"
-                  "[,waveform=multisine][,group=G] (0-based samples; repeatable)");
-  sub->add_option("--record", command->records, "A free record LABEL=START:END (0-based, END excluded; repeatable)");
+                  "[,waveform=multisine][,group=G], in 0-based samples. Repeat for several series.");
+  sub->add_option("--record", command->records, "A free record LABEL=START:END in 0-based samples, END excluded. Repeat for several records.");
   if (format == "mat")
-    sub->add_option("--variables", command->variables, "MAT variables to read (default: the mapped columns)")
+    sub->add_option("--variables", command->variables, "The MAT variables to read (default: the mapped columns).")
         ->delimiter(',');
-  sub->add_option("--serial", command->serial, "The unit under test (damper_serial)");
-  sub->add_option("--rig", command->rig, "Where the record comes from");
-  sub->add_option("--gzip", command->gzip, "Compression level 0..9")->check(CLI::Range(0, 9))->capture_default_str();
+  sub->add_option("--serial", command->serial, "The unit under test, stored as damper_serial.");
+  sub->add_option("--rig", command->rig, "Where the record comes from, stored as rig.");
+  sub->add_option("--gzip", command->gzip, "The HDF5 gzip compression level.")->check(Between(0, 9))->capture_default_str();
   sub->callback([command] { command->Run(); });
 }
 
 }  // namespace
 
 void RegisterImportCommand(CLI::App& app) {
-  CLI::App* import = app.add_subcommand("import", "Measured records (CSV, MAT) into session files (generic profile)");
+  CLI::App* import = app.add_subcommand("import", "Import measured records (CSV, MAT) into session files of the generic profile (docs/session-files.md).");
   import->require_subcommand(1);
-  AddFormat(*import, "csv", "Import a CSV file (header line of column names)");
-  AddFormat(*import, "mat", "Import a MATLAB MAT file (libmatio)");
+  AddFormat(*import, "csv", "Import a CSV file whose first line names the columns.");
+  AddFormat(*import, "mat", "Import a MATLAB MAT file (read with libmatio).");
 }
 
 }  // namespace strut::tools

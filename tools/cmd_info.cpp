@@ -168,10 +168,10 @@ void RunInfo(const InfoOptions& options) {
 void RegisterInfoCommand(CLI::App& app) {
   auto options = std::make_shared<InfoOptions>();
   CLI::App* info =
-      app.add_subcommand("info", "Validate a session file and list its attributes and experiments");
-  info->add_option("SESSION", options->path, "Session file (HDF5, damper-session format)")
+      app.add_subcommand("info", "Validate a session file and list its attributes and experiments (a table, or JSON with --json).");
+  info->add_option("SESSION", options->path, "The session file (HDF5, damper-session format).")
       ->required();
-  info->add_flag("--json", options->json, "Print one JSON object (SI units) instead of a table");
+  info->add_flag("--json", options->json, "Print one JSON object (SI units) instead of a table; errors go into it too.");
   info->callback([options] { RunInfo(*options); });
 }
 

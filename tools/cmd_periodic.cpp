@@ -8,6 +8,7 @@
 
 #include "commands.h"
 #include "model_options.h"
+#include "option_checks.h"
 #include "strut/daq/session.h"
 #include "strut/ident/periodic.h"
 
@@ -159,22 +160,22 @@ struct PeriodicCommand {
 
 void RegisterPeriodicCommand(CLI::App& app) {
   auto command = std::make_shared<PeriodicCommand>();
-  CLI::App* sub = app.add_subcommand("periodic", "Compute one period of the periodic equilibrium state of a model");
+  CLI::App* sub = app.add_subcommand("periodic", "Compute one period of a model's periodic equilibrium state under a sine input (or a recorded one) and print it as CSV or JSON.");
   command->model.Add(*sub);
-  auto* f = sub->add_option("--frequency", command->frequency, "Excitation frequency (Hz)")->capture_default_str();
+  auto* f = sub->add_option("--frequency", command->frequency, "The excitation frequency in Hz.")->check(Positive("Hz"))->capture_default_str();
   auto* a = sub->add_option("--amplitude", command->amplitude,
-                            "Input amplitude: m with --input stroke, N with --input force");
+                            "The input's amplitude: in m with --input stroke, in N with --input force. It must be positive.");
   auto* s = sub->add_option("--static", command->static_value,
-                            "Input mean: static position (m) or static force (N)");
-  sub->add_option("--from", command->from, "Use the period-averaged measured input of SESSION:EXPERIMENT")
+                            "The input's mean: the static position in m (within the damper's stroke) with --input stroke, the static force in N (positive: compression) with --input force.");
+  sub->add_option("--from", command->from, "Drive the model with the period-averaged measured input of experiment EXPERIMENT in session file SESSION (SESSION:EXPERIMENT) instead of a sine.")
       ->excludes(f)
       ->excludes(a)
       ->excludes(s);
-  sub->add_option("--n", command->n, "Grid points per period")->check(CLI::Range(4, 1000000))->capture_default_str();
-  sub->add_option("--scheme", command->scheme, "backward2, central2, central4 or spectral")
+  sub->add_option("--n", command->n, "Grid points per period (at least 8 for the difference schemes, 4 for spectral).")->check(Between(4, 1000000))->capture_default_str();
+  sub->add_option("--scheme", command->scheme, "The difference scheme: backward2, central2, central4 or spectral (docs/periodic-solver.md).")
       ->check(CLI::IsMember({"backward2", "central2", "central4", "spectral"}))
       ->capture_default_str();
-  sub->add_option("--json", command->json_path, "Write JSON to this file ('-' for stdout) instead of a CSV table");
+  sub->add_option("--json", command->json_path, "Write the state as JSON to this file ('-' for stdout) instead of printing a CSV table.");
   sub->callback([command] { command->Run(); });
 }
 

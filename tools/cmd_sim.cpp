@@ -10,6 +10,7 @@
 #include <iostream>
 
 #include "commands.h"
+#include "option_checks.h"
 #include "output_files.h"
 #include "strut/daq/session.h"
 #include "strut/sim/draw.h"
@@ -29,24 +30,24 @@ struct TruthOptions {
   CLI::Option* effect_option = nullptr;
 
   void Add(CLI::App& command, bool with_actuator = false) {
-    command.add_option("--truth", truth_path, "Truth file (TOML; default: the built-in F-16-nose-like lab damper)")
+    command.add_option("--truth", truth_path, "Read the truth the rig simulates from this TOML file (default: the built-in F-16-nose-like lab damper; docs/simulated-rig.md).")
         ->check(CLI::ExistingFile);
     if (with_actuator)
-      command.add_flag("--ideal-actuator", ideal_actuator, "The stroke follows the set-point exactly (no servo loop)");
+      command.add_flag("--ideal-actuator", ideal_actuator, "Use an ideal actuator: the stroke follows the set-point exactly (no servo loop).");
     command.add_option("--draw", draw_seed,
                        "Simulate a unit drawn with realistic scatter around the truth (the --truth file or the "
                        "built-in one) from this seed; the same seed gives the same unit (docs/simulated-rig.md, "
-                       "Drawn units)");
+                       "Drawn units).");
     base_option = command.add_option("--base", base,
                                      "With --draw: the base physics of the unit, 1dof (polytropic gas), "
-                                     "1dof+heat-exchange or 2dof (heat exchange and gas solubility)")
+                                     "1dof+heat-exchange or 2dof (heat exchange and gas solubility).")
                       ->check(CLI::IsMember({"1dof", "1dof+heat-exchange", "2dof"}))
                       ->capture_default_str();
     effect_option = command.add_option("--effect", effects,
                                        "With --draw: an extra effect the unit has, NAME or NAME=SIZE (the value of "
                                        "its sizing parameter, SI; without it the size is drawn): "
                                        "oil-compressibility, viscous-damping, stribeck-friction, end-stop, real-gas. "
-                                       "Repeat the option for several effects");
+                                       "Repeat the option for several effects.");
   }
   sim::Truth Load() const {
     if (!draw_seed && (base_option->count() > 0 || effect_option->count() > 0))
@@ -84,11 +85,11 @@ struct RunOptions {
   double speed = 1.0;
 
   void Add(CLI::App& command) {
-    command.add_option("--seed", seed, "Seed of noise, start phases and faults (same seed, same session)")
+    command.add_option("--seed", seed, "The seed of the noise, start phases and faults: the same seed gives the same session.")
         ->capture_default_str();
-    command.add_flag("--real-time", real_time, "Pace the simulation to the wall clock (as a real rig delivers samples)");
-    command.add_option("--speed", speed, "With --real-time: simulated seconds per wall second")
-        ->check(CLI::PositiveNumber)
+    command.add_flag("--real-time", real_time, "Pace the simulation to the wall clock, as a real rig delivers samples.");
+    command.add_option("--speed", speed, "With --real-time: simulated seconds per wall second.")
+        ->check(Positive())
         ->capture_default_str();
   }
   sim::RigRunOptions Get() const {
@@ -144,7 +145,7 @@ struct SimMatrixCommand {
                                r.ida_steps, r.wall_seconds * 1e3);
     }
     for (const sim::PeriodicRunReport& r : reports)
-      if (!r.interlock.empty()) std::cout << fmt::format("{}: aborted by the interlock: {}\n", r.label, r.interlock);
+      if (!r.interlock.empty()) spdlog::warn("experiment {}: aborted by the interlock: {}", r.label, r.interlock);
     const double wall = Seconds(start);
     std::cout << fmt::format("{} experiments, {:.1f} s simulated in {:.2f} s ({:.0f} simulated s per wall s); wrote {}\n",
                              reports.size(), simulated, wall, simulated / wall, output);
@@ -188,10 +189,8 @@ struct SimTruthCommand {
 
   void Run() const {
     if (!write_path.empty()) {
-      std::ofstream out(write_path);
-      out << sim::DefaultTruthText();
-      if (!out) throw std::runtime_error("cannot write " + write_path);
-      std::cout << "wrote the built-in default truth to " << write_path << "\n";
+      CheckOutputPath("--write-default", write_path, {truth.truth_path});
+      WriteTextOutput(write_path, std::string(sim::DefaultTruthText()));
       return;
     }
     const sim::SimulatedRig rig(truth.Load());
@@ -232,38 +231,38 @@ struct SimTruthCommand {
 }  // namespace
 
 void RegisterSimCommand(CLI::App& app) {
-  CLI::App* sim_app = app.add_subcommand("sim", "Simulated rig: test matrices and drop tests written as sessions");
+  CLI::App* sim_app = app.add_subcommand("sim", "Run the simulated rig: test matrices and drop tests written as session files, and the truth it simulates.");
   sim_app->require_subcommand(1);
 
   auto matrix = std::make_shared<SimMatrixCommand>();
-  CLI::App* m = sim_app->add_subcommand("matrix", "Run a test matrix (default: the 14 standard experiments)");
+  CLI::App* m = sim_app->add_subcommand("matrix", "Run a test matrix (by default the 14 standard experiments) on the simulated rig and write the session.");
   matrix->truth.Add(*m, true);
   matrix->run.Add(*m);
-  m->add_option("--matrix", matrix->matrix_path, "Matrix file (TOML, docs/simulated-rig.md)")->check(CLI::ExistingFile);
+  m->add_option("--matrix", matrix->matrix_path, "Read the test matrix from this TOML file (docs/simulated-rig.md).")->check(CLI::ExistingFile);
   m->add_option("-o,--output", matrix->output, "Session file to write (HDF5).")->required();
   m->add_flag("--force", matrix->force, "Replace an existing session file at the output path.");
   m->callback([matrix] { matrix->Run(); });
 
   auto drop = std::make_shared<SimDropCommand>();
-  CLI::App* d = sim_app->add_subcommand("drop", "Drop a mass onto the fully extended damper");
+  CLI::App* d = sim_app->add_subcommand("drop", "Drop a mass onto the fully extended damper and write the record as a session.");
   drop->truth.Add(*d);
   drop->run.Add(*d);
-  d->add_option("--mass", drop->drop.mass, "Dropped mass, kg")->check(CLI::PositiveNumber)->capture_default_str();
-  d->add_option("--velocity", drop->drop.impact_velocity, "Stroke velocity at contact, m/s")
-      ->check(CLI::NonNegativeNumber)
+  d->add_option("--mass", drop->drop.mass, "The dropped mass in kg.")->check(Positive("kg"))->capture_default_str();
+  d->add_option("--velocity", drop->drop.impact_velocity, "The stroke velocity at contact in m/s.")
+      ->check(NonNegative("m/s"))
       ->capture_default_str();
-  d->add_option("--duration", drop->drop.duration, "Record length from contact, s")
-      ->check(CLI::Range(1e-3, 3600.0))
+  d->add_option("--duration", drop->drop.duration, "The record's length from contact in s.")
+      ->check(Between(1e-3, 3600.0, "s"))
       ->capture_default_str();
-  d->add_option("--label", drop->drop.label, "Experiment label")->capture_default_str();
+  d->add_option("--label", drop->drop.label, "The experiment's label in the session.")->capture_default_str();
   d->add_option("-o,--output", drop->output, "Session file to write (HDF5).")->required();
   d->add_flag("--force", drop->force, "Replace an existing session file at the output path.");
   d->callback([drop] { drop->Run(); });
 
   auto truth = std::make_shared<SimTruthCommand>();
-  CLI::App* t = sim_app->add_subcommand("truth", "Show the truth the rig simulates, or write out the default");
+  CLI::App* t = sim_app->add_subcommand("truth", "Show the truth the rig simulates (a drawn unit's too), or write out the built-in default.");
   truth->truth.Add(*t);
-  t->add_option("--write-default", truth->write_path, "Write the built-in default truth file here and stop");
+  t->add_option("--write-default", truth->write_path, "Write the built-in default truth file to this path and stop.");
   t->callback([truth] { truth->Run(); });
 }
 

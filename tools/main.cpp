@@ -7,6 +7,7 @@
 #include <malloc.h>
 
 #include "commands.h"
+#include "option_checks.h"
 #include "qc_commands.h"
 #include "output_files.h"
 
@@ -18,11 +19,12 @@ int main(int argc, char** argv) {
   mallopt(M_TRIM_THRESHOLD, 1024 * 1024 * 1024);
   CLI::App app{"strut: shaker testing and identification of landing-gear dampers"};
   app.require_subcommand(1);
+  app.formatter(strut::tools::HelpFormatter());  // subcommands added below inherit it
   app.set_version_flag("--version", "strut 0.1.0");
   int verbosity = 0;
   bool quiet = false;
-  app.add_flag("-v,--verbose", verbosity, "More log output (-vv for debug traces)");
-  app.add_flag("-q,--quiet", quiet, "Only warnings and errors");
+  app.add_flag("-v,--verbose", verbosity, "Log more (-v: debug messages; -vv: traces too).");
+  app.add_flag("-q,--quiet", quiet, "Log only warnings and errors.");
   app.parse_complete_callback([&] {
     if (quiet) {
       spdlog::set_level(spdlog::level::warn);
@@ -59,7 +61,9 @@ int main(int argc, char** argv) {
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    return app.exit(e);
+    // --help and --version end with 0; every refused command line with 1, the exit code of an
+    // error (README "Exit codes"), not CLI11's own 100s.
+    return app.exit(e) == 0 ? 0 : 1;
   } catch (const strut::tools::ExitCode& e) {
     return e.code();
   } catch (const std::exception& e) {

@@ -1,17 +1,47 @@
 #include "model_options.h"
 
+#include <fmt/format.h>
+#include <fmt/ranges.h>
+
+#include <algorithm>
+
 namespace strut::tools {
+namespace {
+
+// A base builds alone; a term needs a base (Model::Build refuses it).
+bool IsBase(const std::string& name) {
+  try {
+    ident::Model::Build(name, ident::Causality::kStrokeInput);
+    return true;
+  } catch (const std::exception&) {
+    return false;
+  }
+}
+
+// The --model help lists the bases and terms of the catalogue itself, so it cannot fall behind.
+std::string ModelHelp() {
+  std::vector<std::string> bases, terms;
+  for (const std::string& name : ident::Model::Catalogue()) (IsBase(name) ? bases : terms).push_back(name);
+  return fmt::format(
+      "The model: BASE[+TERM...], where BASE is one of {} and each TERM one of {} (docs/models.md). A composition "
+      "that equals a base is that base: 1dof+heat-exchange+gas-solubility is 2dof.",
+      fmt::join(bases, ", "), fmt::join(terms, ", "));
+}
+
+}  // namespace
 
 void ModelOptions::Add(CLI::App& command) {
-  command.add_option("--model", composition, "Model: BASE[+term...], BASE 1dof or 2dof (e.g. 1dof+heat-exchange)")
-      ->capture_default_str();
+  command.add_option("--model", composition, ModelHelp())->capture_default_str();
   command.add_option("--input", input,
                      "Causality: stroke (the measured stroke drives the model; force and pressure are outputs) or "
                      "force (the paper's choice; stroke and pressure are outputs).")
       ->check(CLI::IsMember({"force", "stroke"}))
       ->capture_default_str();
-  command.add_option("--set", assignments, "Parameter values: NAME=VALUE[,NAME=VALUE...] (NAME: theta4 or gas_area)");
-  command.add_option("--params", params_file, "Parameter file (docs/parameters.md)")->check(CLI::ExistingFile);
+  command.add_option("--set", assignments,
+                     "Parameter values NAME=VALUE[,NAME=VALUE...], NAME by index or name (theta4 or gas_area); they "
+                     "apply after --params. A value outside the parameter's physical range is refused.");
+  command.add_option("--params", params_file, "Read parameter values from this file (docs/parameters.md).")
+      ->check(CLI::ExistingFile);
 }
 
 ident::Model ModelOptions::BuildModel() const {

@@ -396,7 +396,10 @@ DiscoveryResult Discover(const FitData& data, const SessionFitOptions& fit_optio
                          : fmt::format(" Stopped after {} terms; the strongest feature left: ", options.max_terms)) +
                   result.unexplained.front().detail + ".");
   }
-  say(result.conclusion);
+  // The conclusion is the result, which the caller prints as data (stdout); logging it as well
+  // showed it twice on a terminal.
+  spdlog::debug("{}", result.conclusion);
+  if (progress) progress(result.conclusion);
   return result;
 }
 

@@ -20,6 +20,7 @@
 #include "strut/sim/draw.h"
 #include "strut/sim/drop_prediction.h"
 #include "strut/sim/simulated_rig.h"
+#include "option_checks.h"
 
 namespace strut::tools {
 namespace {
@@ -179,13 +180,13 @@ void RegisterBenchDrop(CLI::App& bench) {
   CLI::App* sub = bench.add_subcommand(
       "drop", "Drop prediction from shaker fits of drawn units: errors against the truth's drop, interval coverage, "
               "prediction time.");
-  sub->add_option("--units", command->units, "Number of drawn units.")->check(CLI::Range(1, 10000))->capture_default_str();
+  sub->add_option("--units", command->units, "Number of drawn units.")->check(Between(1, 10000))->capture_default_str();
   sub->add_option("--first-seed", command->first_seed, "Seed of the first unit (the others follow).")->capture_default_str();
-  sub->add_option("--mass", command->mass, "Dropped mass, kg.")->check(CLI::PositiveNumber)->capture_default_str();
+  sub->add_option("--mass", command->mass, "Dropped mass, kg.")->check(Positive("kg"))->capture_default_str();
   sub->add_option("--velocity", command->velocity, "Stroke velocity at contact, m/s.")
-      ->check(CLI::NonNegativeNumber)
+      ->check(NonNegative())
       ->capture_default_str();
-  sub->add_option("--duration", command->duration, "Seconds from contact.")->check(CLI::Range(0.1, 3600.0))->capture_default_str();
+  sub->add_option("--duration", command->duration, "Seconds from contact.")->check(Between(0.1, 3600.0))->capture_default_str();
   sub->add_option("--effect", command->effects,
                   "An effect the truth has and the fitted 2dof model lacks (drawn size): oil-compressibility, "
                   "viscous-damping, stribeck-friction, end-stop, real-gas; repeatable.");

@@ -20,6 +20,7 @@
 #include "strut/qc/decision.h"
 #include "thread_clock.h"
 #include "strut/qc/lot.h"
+#include "option_checks.h"
 
 namespace strut::tools {
 namespace {
@@ -206,10 +207,10 @@ void RegisterBenchQc(CLI::App& bench) {
   CLI::App* sub = bench.add_subcommand(
       "qc", "The QC lot study: drawn units, some defective, each through the QC matrix and decided; confusion matrix "
             "and decision time (docs/qc.md).");
-  sub->add_option("--units", command->units, "Units in the lot.")->check(CLI::Range(1, 100000))->capture_default_str();
+  sub->add_option("--units", command->units, "Units in the lot.")->check(Between(1, 100000))->capture_default_str();
   sub->add_option("--first-seed", command->first_seed, "Seed of the first unit (the others follow).")->capture_default_str();
   sub->add_option("--defects", command->defect_tenths, "Defective units per ten (the defect kinds take turns).")
-      ->check(CLI::Range(0, 10))
+      ->check(Between(0, 10))
       ->capture_default_str();
   sub->add_option("--truth-ranges", command->truth_ranges,
                   "Only draw this many good units and print the range of their true quantities (the lot reference's "

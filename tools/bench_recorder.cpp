@@ -18,6 +18,7 @@
 
 #include "commands.h"
 #include "strut/daq/recorder.h"
+#include "option_checks.h"
 
 namespace strut::tools {
 namespace {
@@ -237,17 +238,17 @@ void RegisterBenchRecorder(CLI::App& bench) {
   auto command = std::make_shared<BenchRecorder>();
   CLI::App* sub = bench.add_subcommand(
       "recorder", "Streaming recorder: throughput as a ratio to raw sequential writes, CPU per sample");
-  sub->add_option("--seconds", command->seconds, "Seconds of data")->check(CLI::Range(0.01, 3600.0))->capture_default_str();
-  sub->add_option("--rate", command->rate, "Sample rate, Hz")->check(CLI::Range(1.0, 1e7))->capture_default_str();
-  sub->add_option("--channels", command->channels, "SI channels (each with raw counts)")
-      ->check(CLI::Range(3, 64))
+  sub->add_option("--seconds", command->seconds, "Seconds of data.")->check(Between(0.01, 3600.0))->capture_default_str();
+  sub->add_option("--rate", command->rate, "Sample rate, Hz.")->check(Between(1.0, 1e7))->capture_default_str();
+  sub->add_option("--channels", command->channels, "SI channels (each with raw counts).")
+      ->check(Between(3, 64))
       ->capture_default_str();
-  sub->add_option("--block-ms", command->block_ms, "Block length handed over per Append, ms")
-      ->check(CLI::Range(0.01, 10000.0))
+  sub->add_option("--block-ms", command->block_ms, "Block length handed over per Append, ms.")
+      ->check(Between(0.01, 10000.0))
       ->capture_default_str();
-  sub->add_option("--repeats", command->repeats, "Runs of each (medians are printed)")->check(CLI::Range(1, 100))->capture_default_str();
-  sub->add_option("--dir", command->dir, "Directory on the disk to measure (default: the temp directory)");
-  sub->add_option("--json", command->json_path, "Also write the figures as JSON");
+  sub->add_option("--repeats", command->repeats, "Runs of each (medians are printed).")->check(Between(1, 100))->capture_default_str();
+  sub->add_option("--dir", command->dir, "Directory on the disk to measure (default: the temp directory).");
+  sub->add_option("--json", command->json_path, "Also write the figures as JSON.");
   sub->callback([command] { command->Run(); });
 }
 

@@ -17,6 +17,7 @@
 #include "strut/ident/html_report.h"
 #include "strut/sim/drop_prediction.h"
 #include "strut/sim/recorded_truth.h"
+#include "option_checks.h"
 
 namespace strut::tools {
 namespace {
@@ -305,11 +306,11 @@ void RegisterPredictCommand(CLI::App& app) {
               "with a recorded drop (docs/drop-prediction.md)");
   sub->add_option("--fit", command->fit_path, "The fit's JSON (strut identify --json).")->required()->check(CLI::ExistingFile);
   sub->add_option("--mass", command->mass, "Dropped mass, kg (default with --compare: the record's).")
-      ->check(CLI::PositiveNumber);
+      ->check(Positive("kg"));
   sub->add_option("--velocity", command->velocity, "Stroke velocity at contact, m/s (default with --compare: the record's).")
-      ->check(CLI::NonNegativeNumber);
+      ->check(NonNegative("m/s"));
   sub->add_option("--duration", command->duration, "Seconds simulated from contact (default 30, or the record's length).")
-      ->check(CLI::Range(1e-3, 3600.0));
+      ->check(Between(1e-3, 3600.0, "s"));
   sub->add_option("--compare", command->compare_path, "A recorded drop (session HDF5) to compare with.")
       ->check(CLI::ExistingFile);
   sub->add_option("--experiment", command->experiment_label, "The drop experiment's label when the session has several.");
@@ -318,11 +319,11 @@ void RegisterPredictCommand(CLI::App& app) {
   sub->add_option("--json", command->json_path, "Write the figures as JSON to this file.");
   sub->add_option("--report", command->report_path, "Write a self-contained HTML report to this file.");
   sub->add_option("--rate", command->options.output_rate, "Samples per second of the predicted trace.")
-      ->check(CLI::Range(1.0, 1e6))
+      ->check(Between(1.0, 1e6, "Hz"))
       ->capture_default_str();
   sub->add_option("--settle-band", command->options.settle_band,
                   "time_to_static: the stroke within this fraction of the static stroke.")
-      ->check(CLI::Range(1e-6, 0.5))
+      ->check(Between(1e-6, 0.5))
       ->capture_default_str();
   sub->add_flag("--no-intervals", command->no_intervals, "Skip the intervals (one transient run instead of 1 + 2 per parameter).");
   sub->callback([command] { command->Run(); });

@@ -10,6 +10,7 @@
 #include "output_files.h"
 #include "strut/daq/recorder.h"
 #include "strut/daq/session.h"
+#include "option_checks.h"
 
 namespace strut::tools {
 namespace {
@@ -76,13 +77,13 @@ void RegisterRecoverCommand(CLI::App& app) {
   auto command = std::make_shared<RecoverCommand>();
   CLI::App* sub = app.add_subcommand(
       "recover", "Turn the journal of a recording cut off mid-run into a session file (experiment in progress: aborted)");
-  sub->add_option("file", command->file, "The journal (SESSION.h5.journal), or the session's name SESSION.h5")
+  sub->add_option("file", command->file, "The journal (SESSION.h5.journal), or the session's name SESSION.h5.")
       ->required();
-  sub->add_option("-o,--out", command->out, "Session file to write (default: the journal's name without .journal)");
+  sub->add_option("-o,--out", command->out, "Session file to write (default: the journal's name without .journal).");
   sub->add_flag("--force", command->force, "Replace an existing file at the output path.");
   sub->add_flag("--delete-journal", command->delete_journal,
                 "Delete the journal once the session is written and passes the contract check.");
-  sub->add_option("--gzip", command->gzip, "Compression level 0..9")->check(CLI::Range(0, 9))->capture_default_str();
+  sub->add_option("--gzip", command->gzip, "Compression level 0..9.")->check(Between(0, 9))->capture_default_str();
   sub->callback([command] { command->Run(); });
 }
 

@@ -11,6 +11,7 @@
 
 #include "commands.h"
 #include "strut/daq/modbus_controller.h"
+#include "option_checks.h"
 
 namespace strut::tools {
 namespace {
@@ -105,11 +106,11 @@ void RegisterRigCommand(CLI::App& app) {
   auto options = std::make_shared<ControllerStatusOptions>();
   CLI::App* status = rig->add_subcommand(
       "controller-status", "Read the actuator controller over Modbus TCP and print its status and set-point");
-  status->add_option("--modbus", options->modbus, "Controller endpoint, HOST:PORT or modbus-tcp://HOST:PORT")
+  status->add_option("--modbus", options->modbus, "Controller endpoint, HOST:PORT or modbus-tcp://HOST:PORT.")
       ->required();
-  status->add_option("--timeout", options->timeout_ms, "Response timeout, ms (also the connect timeout)")
-      ->check(CLI::Range(1, 60000));
-  status->add_flag("--json", options->json, "Print JSON instead of text");
+  status->add_option("--timeout", options->timeout_ms, "Response timeout, ms (also the connect timeout).")
+      ->check(Between(1, 60000));
+  status->add_flag("--json", options->json, "Print JSON instead of text.");
   status->callback([options] { RunControllerStatus(*options); });
 }
 

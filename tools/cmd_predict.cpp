@@ -322,7 +322,7 @@ void RegisterPredictCommand(CLI::App& app) {
       ->check(Between(1.0, 1e6, "Hz"))
       ->capture_default_str();
   sub->add_option("--settle-band", command->options.settle_band,
-                  "time_to_static: the stroke within this fraction of the static stroke.")
+                  "The band that counts as static for time_to_static: the stroke within this fraction of the static stroke.")
       ->check(Between(1e-6, 0.5))
       ->capture_default_str();
   sub->add_flag("--no-intervals", command->no_intervals, "Skip the intervals (one transient run instead of 1 + 2 per parameter).");

@@ -2,6 +2,8 @@
 // state the model cannot have (ident::PhysicalViolation) is not passed off as a solution.
 #include <gtest/gtest.h>
 
+#include <fstream>
+#include <iterator>
 #include <string>
 
 #include "strut/ident/periodic.h"
@@ -32,6 +34,28 @@ TEST(PeriodicCli, StrokeOutsideTheDamperIsRefusedBeforeSolving) {
   EXPECT_EQ(shifted.exit_code, 0) << shifted.output;
   const auto low = test::RunStrut("periodic --model 2dof --input stroke --frequency 0.5 --amplitude 0.03 --static 0.02 --n 100");
   EXPECT_EQ(low.exit_code, 1) << low.output;
+}
+
+TEST(PeriodicCli, JsonOutputNeverReplacesItsParameterFileOrGoesNowhere) {
+  const test::TempDir dir;
+  const std::string params = dir.file("unit.txt");
+  { std::ofstream(params) << "theta16 = 3\n"; }
+  const auto onto_input = test::RunStrut("periodic --model 2dof --frequency 1 --amplitude 0.02 --static 0.133 --n 100 --params " +
+                                         params + " --json " + params);
+  EXPECT_NE(onto_input.exit_code, 0);
+  EXPECT_NE(onto_input.output.find("--json"), std::string::npos) << onto_input.output;
+  std::ifstream in(params);
+  const std::string kept((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  EXPECT_EQ(kept, "theta16 = 3\n");  // the parameter file is intact
+  const auto nowhere = test::RunStrut("periodic --model 2dof --frequency 1 --amplitude 0.02 --static 0.133 --n 100 --json " +
+                                      dir.file("missing/state.json"));
+  EXPECT_NE(nowhere.exit_code, 0);
+  EXPECT_EQ(nowhere.output.find("Newton"), std::string::npos) << nowhere.output;  // refused before solving
+  const auto written = test::RunStrut("periodic --model 2dof --frequency 1 --amplitude 0.02 --static 0.133 --n 100 --json " +
+                                      dir.file("state.json"));
+  EXPECT_EQ(written.exit_code, 0) << written.output;
+  std::ifstream state(dir.file("state.json"));
+  EXPECT_TRUE(state.good());
 }
 
 TEST(PeriodicCli, OtherOptionsOutsideTheirRange) {

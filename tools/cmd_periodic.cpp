@@ -9,6 +9,7 @@
 #include "commands.h"
 #include "model_options.h"
 #include "option_checks.h"
+#include "output_files.h"
 #include "strut/daq/session.h"
 #include "strut/ident/periodic.h"
 
@@ -80,6 +81,13 @@ struct PeriodicCommand {
   }
 
   void Run() const {
+    // The output is checked before the work: never one of the inputs, and its folder must exist.
+    if (json_path != "-") {
+      std::vector<std::string> inputs;
+      if (!model.params_file.empty()) inputs.push_back(model.params_file);
+      if (const auto colon = from.rfind(':'); colon != std::string::npos) inputs.push_back(from.substr(0, colon));
+      CheckOutputPath("--json", json_path, inputs);
+    }
     const ident::Model m = model.BuildModel();
     const ident::ParameterSet parameters = model.Parameters(m);
     Validate(m, parameters);
@@ -149,10 +157,7 @@ struct PeriodicCommand {
       std::cout << j.dump(1) << "\n";
       return;
     }
-    std::ofstream out(json_path);
-    out << j.dump(1) << "\n";
-    if (!out) throw std::runtime_error("cannot write " + json_path);
-    spdlog::info("wrote {}", json_path);
+    WriteTextOutput(json_path, j.dump(1) + "\n");
   }
 };
 

@@ -469,20 +469,14 @@ void ModbusController::SetWatchdog(std::chrono::milliseconds timeout) {
 }
 
 std::vector<std::uint16_t> ModbusController::ReadHoldingRegisters(std::uint16_t address, std::uint16_t count) {
-  const std::string operation = "read";
-  if (count < 1 || count > MODBUS_MAX_READ_REGISTERS)
-    throw DeviceError(DeviceError::Kind::kInvalidValue, Describe(), operation, "", 0,
-                      "count " + std::to_string(count) + " is not in 1..125");
-  std::vector<std::uint16_t> values(count);
-  Submit(operation, [&](Connection& c) {
-    c.Ensure();
-    if (modbus_read_registers(c.ctx(), address, count, values.data()) != count)
-      c.Fail(operation, Range("holding", address, count), errno);
-  });
-  return values;
+  return ReadRegisters(false, address, count);
 }
 
 std::vector<std::uint16_t> ModbusController::ReadInputRegisters(std::uint16_t address, std::uint16_t count) {
+  return ReadRegisters(true, address, count);
+}
+
+std::vector<std::uint16_t> ModbusController::ReadRegisters(bool input, std::uint16_t address, std::uint16_t count) {
   const std::string operation = "read";
   if (count < 1 || count > MODBUS_MAX_READ_REGISTERS)
     throw DeviceError(DeviceError::Kind::kInvalidValue, Describe(), operation, "", 0,
@@ -490,8 +484,9 @@ std::vector<std::uint16_t> ModbusController::ReadInputRegisters(std::uint16_t ad
   std::vector<std::uint16_t> values(count);
   Submit(operation, [&](Connection& c) {
     c.Ensure();
-    if (modbus_read_input_registers(c.ctx(), address, count, values.data()) != count)
-      c.Fail(operation, Range("input", address, count), errno);
+    const int read = input ? modbus_read_input_registers(c.ctx(), address, count, values.data())
+                           : modbus_read_registers(c.ctx(), address, count, values.data());
+    if (read != count) c.Fail(operation, Range(input ? "input" : "holding", address, count), errno);
   });
   return values;
 }

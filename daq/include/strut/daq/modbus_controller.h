@@ -92,6 +92,8 @@ class ModbusController final : public ActuatorController {
   const ModbusControllerOptions& options() const { return options_; }
 
  private:
+  //! Holding (input false) or input registers, as the two public reads ask.
+  std::vector<std::uint16_t> ReadRegisters(bool input, std::uint16_t address, std::uint16_t count);
   class Connection;
   using Job = std::function<void(Connection&)>;
   //! Runs `job` on the I/O thread and waits for it (rethrowing its DeviceError).

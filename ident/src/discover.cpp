@@ -232,7 +232,23 @@ DiscoveryResult Discover(const FitData& data, const SessionFitOptions& fit_optio
       for (const auto& [key, value] : CandidateStartingValues(term, previous, &log)) start.set(key, value);
       for (const std::string& line : log) spdlog::debug("candidate {}: {}", term, line);
     }
-    return Estimator(model, estimator).Fit(data.experiments, start, choices, data.issues);
+    const Estimator fitter(model, estimator);
+    FitSummary fit = fitter.Fit(data.experiments, start, choices, data.issues);
+    if (fit.converged) return fit;
+    // A candidate can stall on its way from the current fit's values when that fit is itself far off
+    // (an unconverged baseline beside a plain end stop): go on from where it stalled (fresh
+    // sensitivities and damping), and else fit from the data's own starting values as `strut
+    // identify` does. The converged fit with the higher likelihood is kept.
+    std::vector<FitSummary> tries;
+    if (fit.IsSolutionUsable()) tries.push_back(fitter.Fit(data.experiments, fit.parameters, choices, data.issues));
+    SessionFitOptions own = fit_options;
+    own.composition = composition;
+    tries.push_back(FitPrepared(data, model, own).summary);
+    for (const FitSummary& t : tries)
+      if (t.converged && (!fit.converged || t.loglik > fit.loglik)) fit = t;
+    spdlog::debug("candidate {}: stalled from the current fit; {}", term,
+                  fit.converged ? "converged on a second try" : "not converged on a second try either");
+    return fit;
   };
   const auto worst_ratio = [](const std::map<std::string, double>& ratio) {
     double worst = 0.0;

@@ -234,16 +234,19 @@ DiscoveryResult Discover(const FitData& data, const SessionFitOptions& fit_optio
     }
     const Estimator fitter(model, estimator);
     FitSummary fit = fitter.Fit(data.experiments, start, choices, data.issues);
-    if (fit.converged) return fit;
+    // Only a stalled candidate that already explains something (its BIC below the current one by the
+    // threshold) is worth the second try: the others would be refused anyway.
+    if (fit.converged || !fit.IsSolutionUsable() || !(fit.bic - previous.bic < -options.bic_threshold)) return fit;
     // A candidate can stall on its way from the current fit's values when that fit is itself far off
     // (an unconverged baseline beside a plain end stop): go on from where it stalled (fresh
     // sensitivities and damping), and else fit from the data's own starting values as `strut
     // identify` does. The converged fit with the higher likelihood is kept.
-    std::vector<FitSummary> tries;
-    if (fit.IsSolutionUsable()) tries.push_back(fitter.Fit(data.experiments, fit.parameters, choices, data.issues));
-    SessionFitOptions own = fit_options;
-    own.composition = composition;
-    tries.push_back(FitPrepared(data, model, own).summary);
+    std::vector<FitSummary> tries{fitter.Fit(data.experiments, fit.parameters, choices, data.issues)};
+    if (!tries.front().converged) {
+      SessionFitOptions own = fit_options;
+      own.composition = composition;
+      tries.push_back(FitPrepared(data, model, own).summary);
+    }
     for (const FitSummary& t : tries)
       if (t.converged && (!fit.converged || t.loglik > fit.loglik)) fit = t;
     spdlog::debug("candidate {}: stalled from the current fit; {}", term,

@@ -100,7 +100,7 @@ struct BenchConfusion {
           if (study && !study->via_draw) {
             // Its own stream, so the size does not move the unit's other drawn quantities.
             std::mt19937_64 engine(seed * 7919 + 17);
-            const double v = static_cast<double>(engine() >> 11) * 0x1.0p-53;
+            const double v = sim::UnitUniform(engine());
             size = study->log ? study->low * std::pow(study->high / study->low, v) : study->low + (study->high - study->low) * v;
           }
           draw.effects.push_back({effect, size});

@@ -14,7 +14,7 @@
 
 #include "commands.h"
 #include "output_files.h"
-#include "thread_clock.h"
+#include "bench_support.h"
 #include "strut/ident/fit_report.h"
 #include "strut/ident/session_fit.h"
 #include "strut/sim/draw.h"

@@ -18,7 +18,7 @@
 #include "qc_commands.h"
 #include "output_files.h"
 #include "strut/qc/decision.h"
-#include "thread_clock.h"
+#include "bench_support.h"
 #include "strut/qc/lot.h"
 #include "option_checks.h"
 

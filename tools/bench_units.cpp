@@ -17,21 +17,13 @@
 #include "commands.h"
 #include "option_checks.h"
 #include "output_files.h"
-#include "thread_clock.h"
+#include "bench_support.h"
 #include "strut/ident/session_fit.h"
 #include "strut/sim/draw.h"
 #include "strut/sim/simulated_rig.h"
 
 namespace strut::tools {
 namespace {
-
-//! Wilson 95 % interval of a fraction k / n.
-std::pair<double, double> Wilson(long k, long n) {
-  if (n == 0) return {NAN, NAN};
-  const double z = 1.959964, p = static_cast<double>(k) / n, d = 1 + z * z / n;
-  const double centre = (p + z * z / (2.0 * n)) / d, half = z * std::sqrt(p * (1 - p) / n + z * z / (4.0 * n * n)) / d;
-  return {centre - half, centre + half};
-}
 
 struct BenchUnits {
   int units = 50;

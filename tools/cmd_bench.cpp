@@ -24,6 +24,7 @@
 #include "strut/sim/simulated_rig.h"
 #include "strut/sim/transient.h"
 #include "strut/sim/transient_predictor.h"
+#include "bench_support.h"
 
 namespace strut::tools {
 namespace {
@@ -431,14 +432,6 @@ TimedFit TimeFit(const ident::Model& model, const std::vector<ident::ExperimentD
   out.cpu_ms = Quantile(cpu, 0.5);
   out.runs = repeats;
   return out;
-}
-
-//! Wilson score interval (95 %) of a binomial fraction k / N.
-std::pair<double, double> Wilson(long k, long total) {
-  const double z = 1.959963984540054, p = static_cast<double>(k) / total, nn = static_cast<double>(total);
-  const double centre = (p + z * z / (2 * nn)) / (1 + z * z / nn);
-  const double half = z / (1 + z * z / nn) * std::sqrt(p * (1 - p) / nn + z * z / (4 * nn * nn));
-  return {centre - half, centre + half};
 }
 
 //! Central 95 % range of k / N for k ~ Binomial(N, p): the 2.5 % and 97.5 % quantiles.

@@ -7,6 +7,7 @@
 #include <stdexcept>
 
 #include "strut/qc/quantities.h"
+#include "strut/sim/draw.h"
 
 namespace strut::qc {
 namespace {
@@ -147,7 +148,7 @@ sim::Truth MakeDefective(const sim::Truth& unit, Defect defect, const Reference&
   std::mt19937_64 rng(seed ^ 0x9e3779b97f4a7c15ULL);
   // strut's own uniform from the raw engine output, portable like DrawUnit's.
   const auto uniform = [&](double lo, double hi) {
-    return lo + (hi - lo) * (static_cast<double>(rng() >> 11) * 0x1.0p-53);
+    return lo + (hi - lo) * sim::UnitUniform(rng());
   };
   const auto charge = [&](double p0) { sim::SetCharge(model, theta, p0); };
   switch (defect) {

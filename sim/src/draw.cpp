@@ -34,7 +34,7 @@ const std::vector<std::string> kExtraEffects = {"viscous-damping", "stribeck-fri
 class Draws {
  public:
   explicit Draws(std::uint64_t seed) : engine_(seed) {}
-  double Uniform() { return static_cast<double>(engine_() >> 11) * 0x1.0p-53; }  // [0, 1)
+  double Uniform() { return UnitUniform(engine_()); }  // [0, 1)
   double Normal() {  // Box-Muller, two uniforms per value
     const double u1 = 1.0 - Uniform(), u2 = Uniform();
     return std::sqrt(-2.0 * std::log(u1)) * std::cos(2.0 * std::numbers::pi * u2);

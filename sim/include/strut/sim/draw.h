@@ -21,6 +21,10 @@ enum class SpreadKind {
   kNormalOffset,      //!< x0 + N(0, sd = low), clipped to x0 +- high
 };
 
+//! A number in [0, 1) from 64 random bits (the top 53): portable, where the standard library's
+//! distributions are not, so a seed gives the same draw with every compiler.
+inline double UnitUniform(std::uint64_t bits) { return static_cast<double>(bits >> 11) * 0x1.0p-53; }
+
 //! One row of the spreads table: a quantity drawn for every unit (or for every unit with the
 //! effect, for an effect's size).
 struct DrawSpread {

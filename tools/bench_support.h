@@ -1,0 +1,28 @@
+// What the benchmarks share: one thread's CPU time (they run on a shared machine) and the
+// Wilson interval of the fractions they report.
+#pragma once
+
+#include <time.h>
+
+#include <cmath>
+#include <utility>
+
+namespace strut::tools {
+
+//! CPU seconds used by this thread so far (CLOCK_THREAD_CPUTIME_ID).
+inline double ThreadSeconds() {
+  timespec t{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+  return t.tv_sec + 1e-9 * t.tv_nsec;
+}
+
+//! Wilson score interval (95 %) of a binomial fraction k / total; NaN for no trials.
+inline std::pair<double, double> Wilson(long k, long total) {
+  if (total <= 0) return {NAN, NAN};
+  const double z = 1.959963984540054, p = static_cast<double>(k) / total, nn = static_cast<double>(total);
+  const double centre = (p + z * z / (2 * nn)) / (1 + z * z / nn);
+  const double half = z / (1 + z * z / nn) * std::sqrt(p * (1 - p) / nn + z * z / (4 * nn * nn));
+  return {centre - half, centre + half};
+}
+
+}  // namespace strut::tools

@@ -230,7 +230,7 @@ TEST(CanAcquisitionUdp, ReadBeforeStartIsAnError) {
   try {
     acquisition.Read(10ms);
     FAIL() << "no error";
-  } catch (const AcquisitionError& e) {
+  } catch (const DeviceError& e) {
     EXPECT_NE(std::string(e.what()).find("udp:127.0.0.1:"), std::string::npos) << e.what();
     EXPECT_NE(std::string(e.what()).find("before Start"), std::string::npos) << e.what();
   }
@@ -242,10 +242,11 @@ TEST(CanTransport, SocketCanCannotBeOpenedHereAndSaysWhy) {
   try {
     SocketCanTransport t("can0");
     FAIL() << "can0 opened";
-  } catch (const AcquisitionError& e) {
-    EXPECT_EQ(std::string(e.what()).rfind("cannot open can0: ", 0), 0u) << e.what();
+  } catch (const DeviceError& e) {
+    EXPECT_EQ(std::string(e.what()).rfind("can0: open: ", 0), 0u) << e.what();
+    EXPECT_EQ(e.kind(), DeviceError::Kind::kConnection);
   }
-  EXPECT_THROW(OpenCanTransport("can:can0", true), AcquisitionError);
+  EXPECT_THROW(OpenCanTransport("can:can0", true), DeviceError);
 }
 
 TEST(CanTransport, SpecsAreParsedAndBadOnesNamed) {
@@ -256,7 +257,7 @@ TEST(CanTransport, SpecsAreParsedAndBadOnesNamed) {
     try {
       OpenCanTransport(bad, true);
       ADD_FAILURE() << bad << " accepted";
-    } catch (const AcquisitionError& e) {
+    } catch (const DeviceError& e) {
       EXPECT_NE(std::string(e.what()).find(bad), std::string::npos) << e.what();
     }
   }

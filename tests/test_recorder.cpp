@@ -172,6 +172,69 @@ TEST(Recorder, RoundTripGivesBackEverySampleEventAndCalibration) {
   EXPECT_EQ(s.find_metadata("truth")->number("theta1"), 1.5);
 }
 
+TEST(Recorder, AnAcquiredStreamIsRecordedWithItsCountsIndicesAndQuality) {
+  // A stream of three channels at 100 Hz; the recorder keeps a slice of each acquired block.
+  StreamDescription stream{"udp:test module 1", 100.0,
+                           {{"stroke", "m", Calibration::FromRange16(-0.05, 0.35)},
+                            {"force", "N", Calibration::FromRange16(-5e4, 5e4)},
+                            {"pressure", "Pa", Calibration::FromRange16(0.0, 2e7)}}};
+  Experiment header;
+  header.label = "a";
+  header.frequency = 1.0;
+  header.amplitude = 0.01;
+  header.static_position = 0.15;
+  header.periods = 1;
+  const ExperimentDescriptor d = AcquiredExperiment(header, stream);
+  EXPECT_EQ(d.header.sample_rate, 100.0);
+  ASSERT_EQ(d.header.channels.size(), 3u);
+  EXPECT_EQ(d.header.channels[2].reference, "gauge");
+  EXPECT_EQ(d.header.channels[0].reference, "");
+  ASSERT_EQ(d.raw.size(), 3u);
+  EXPECT_EQ(d.raw[2].calibration.gain, stream.channels[2].calibration.gain);
+
+  // Blocks of 30 sample sets from index 20 on; the second one flagged with a bus error.
+  const auto acquired = [&](std::uint64_t first, std::uint32_t flags) {
+    AcquiredBlock b;
+    b.first_index = first;
+    b.quality.flags = flags;
+    b.counts.assign(3, {});
+    b.values.assign(3, {});
+    for (std::uint64_t i = first; i < first + 30; ++i) {
+      b.time_ns.push_back(1'000'000'000 + static_cast<std::int64_t>(i) * 10'000'000);
+      for (int c = 0; c < 3; ++c) {
+        const auto counts = static_cast<std::int32_t>(i * 100) - 5000 * c;
+        b.counts[c].push_back(counts);
+        b.values[c].push_back(stream.channels[c].calibration.ToSi(counts));
+      }
+    }
+    return b;
+  };
+  const AcquiredBlock first = acquired(20, 0), second = acquired(50, Quality::kBusErrors);
+  EXPECT_TRUE(RecordedBlock(first, 40).monotonic_ns.empty());
+  TempDir dir;
+  const std::string path = dir.file("acquired.h5");
+  {
+    Recorder r = Recorder::Open(path, Metadata());
+    r.BeginExperiment(d);
+    r.Append(RecordedBlock(first, 10));          // indices 30..49
+    r.Append(RecordedBlock(second, 0, 70));     // 50..79 (end clipped to the block)
+    r.Append(RecordedBlock(acquired(80, 0), 0, 10));  // 80..89
+    r.EndExperiment(EndStatus::kAborted);
+    r.Close();
+  }
+  const Experiment e = ReadSession(path).experiment("a");
+  ASSERT_EQ(e.sample_count(), 60u);
+  for (std::size_t k = 0; k < 60; ++k) {
+    const std::uint64_t index = 30 + k;
+    ASSERT_EQ(e.channel("sequence").samples[k], static_cast<double>(index)) << k;
+    ASSERT_EQ(e.channel("pressure_counts").samples[k], static_cast<double>(index * 100) - 10000) << k;
+    ASSERT_EQ(e.channel("pressure").samples[k],
+              stream.channels[2].calibration.ToSi(static_cast<std::int32_t>(index * 100) - 10000)) << k;
+    ASSERT_EQ(e.channel("status").samples[k], index >= 50 && index < 80 ? double{Quality::kBusErrors} : 0.0) << k;
+    ASSERT_NEAR(e.time[k], k * 0.01, 1e-12) << k;
+  }
+}
+
 TEST(Recorder, RefusesToOverwriteASessionOrAJournalUnlessForced) {
   TempDir dir;
   const std::string path = dir.file("run.h5");

@@ -58,7 +58,7 @@ struct BenchRecorder {
   std::vector<daq::SampleBlock> Blocks() const {
     const auto total = static_cast<std::size_t>(std::llround(seconds * rate));
     const auto per_block = std::max<std::size_t>(1, static_cast<std::size_t>(std::llround(block_ms * 1e-3 * rate)));
-    const daq::RawCalibration calibration{1e-5, 0.0, -0.327, 0.327};
+    const daq::Calibration calibration{1e-5, 0.0, -0.327, 0.327};
     std::vector<daq::SampleBlock> blocks;
     const std::int64_t start = 1'000'000'000;
     for (std::size_t first = 0; first < total; first += per_block) {

@@ -2,6 +2,8 @@
 // and strut's decoder and AcquisitionModule. docs/can-acquisition.md.
 #include "strut/daq/can_acquisition.h"
 
+#include "strut/daq/device_error.h"
+
 #include <fmt/format.h>
 #include <linux/can/error.h>
 
@@ -533,7 +535,9 @@ void CanAcquisition::Start() {
 void CanAcquisition::Stop() { running_ = false; }
 
 AcquiredBlock CanAcquisition::Read(std::chrono::nanoseconds timeout) {
-  if (!running_) throw AcquisitionError(description_.source + ": Read before Start or after Stop");
+  if (!running_)
+    throw DeviceError(DeviceError::Kind::kInvalidValue, description_.source, "read", "", 0,
+                      "Read before Start or after Stop");
   const std::int64_t deadline = MonotonicNs() + timeout.count();
   AcquiredBlock block;
   const auto finish = [&] {

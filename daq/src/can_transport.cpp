@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "strut/daq/acquisition.h"
+#include "strut/daq/device_error.h"
 
 namespace strut::daq {
 namespace {
@@ -49,7 +50,7 @@ bool WaitFor(int socket, short events, std::chrono::steady_clock::time_point dea
     const int r = ppoll(&p, 1, &ts, nullptr);
     if (r > 0) return true;
     if (r == 0) return false;
-    if (errno != EINTR) throw AcquisitionError(fmt::format("cannot {} {}: poll: {}", what, name, Errno(errno)));
+    if (errno != EINTR) throw DeviceError(DeviceError::Kind::kConnection, name, what, "", errno, "poll: " + Errno(errno));
   }
 }
 
@@ -76,7 +77,7 @@ std::size_t ReceiveFrames(int socket, const std::string& name, std::span<CanFram
     if (errno == EAGAIN || errno == EWOULDBLOCK || errno == EINTR) return 0;
     // A datagram socket reports an earlier ICMP error here once; the socket itself is fine.
     if (errno == ECONNREFUSED) return 0;
-    throw AcquisitionError(fmt::format("cannot receive from {}: {}", name, Errno(errno)));
+    throw DeviceError(DeviceError::Kind::kConnection, name, "receive", "", errno, Errno(errno));
   }
   std::size_t stored = 0;
   for (int i = 0; i < got; ++i) {
@@ -120,11 +121,12 @@ void SendFrames(int socket, const std::string& name, std::span<const CanFrame> f
     }
     if (r < 0 && errno == ECONNREFUSED) continue;  // no listener yet (UDP): like a module on a bus, send on
     if (r < 0 && errno != EAGAIN && errno != EWOULDBLOCK && errno != ENOBUFS && errno != EINTR)
-      throw AcquisitionError(fmt::format("cannot send to {}: {}", name, Errno(errno)));
+      throw DeviceError(DeviceError::Kind::kConnection, name, "send", "", errno, Errno(errno));
     // A full queue (ENOBUFS is how CAN_RAW says it): wait for room, bounded by the deadline.
     if (!WaitFor(socket, POLLOUT, deadline, name, "send to") || std::chrono::steady_clock::now() > deadline)
-      throw AcquisitionError(fmt::format("cannot send to {}: no room in the send queue within {} ms", name,
-                                         std::chrono::duration_cast<std::chrono::milliseconds>(timeout).count()));
+      throw DeviceError(DeviceError::Kind::kTimeout, name, "send", "", 0,
+                        fmt::format("no room in the send queue within {} ms",
+                                    std::chrono::duration_cast<std::chrono::milliseconds>(timeout).count()));
   }
 }
 
@@ -163,16 +165,21 @@ std::optional<CanFrame> CanFrame::FromBytes(std::span<const std::uint8_t> bytes)
 
 SocketCanTransport::SocketCanTransport(const std::string& interface, bool fd_frames) : name_(interface) {
   const auto fail = [&](const std::string& why) {
+    const int error = errno;
     if (socket_ >= 0) close(socket_);
     socket_ = -1;
-    throw AcquisitionError(fmt::format("cannot open {}: {}", interface, why));
+    throw DeviceError(DeviceError::Kind::kConnection, interface, "open", "", error, why);
   };
   if (interface.empty() || interface.size() >= IFNAMSIZ)
-    throw AcquisitionError(fmt::format("cannot open CAN interface '{}': not an interface name", interface));
+    throw DeviceError(DeviceError::Kind::kInvalidValue, fmt::format("CAN interface '{}'", interface), "open", "", 0,
+                      "not an interface name");
   socket_ = socket(PF_CAN, SOCK_RAW | SOCK_CLOEXEC, CAN_RAW);
   if (socket_ < 0) fail(fmt::format("{} (is the kernel's AF_CAN/can-raw support loaded?)", Errno(errno)));
   const unsigned index = if_nametoindex(interface.c_str());
-  if (index == 0) fail("no such network interface");
+  if (index == 0) {
+    errno = ENODEV;
+    fail("no such network interface");
+  }
   const can_err_mask_t errors = CAN_ERR_MASK;  // every error class: bus-off, passive, protocol, ...
   if (setsockopt(socket_, SOL_CAN_RAW, CAN_RAW_ERR_FILTER, &errors, sizeof errors) < 0)
     fail(fmt::format("CAN_RAW_ERR_FILTER: {}", Errno(errno)));
@@ -197,7 +204,7 @@ void SocketCanTransport::SetFilter(std::span<const canid_t> extended_ids) {
   for (const canid_t id : extended_ids) filters.push_back({id | CAN_EFF_FLAG, CAN_EFF_FLAG | CAN_RTR_FLAG | CAN_EFF_MASK});
   if (setsockopt(socket_, SOL_CAN_RAW, CAN_RAW_FILTER, filters.empty() ? nullptr : filters.data(),
                  static_cast<socklen_t>(filters.size() * sizeof(can_filter))) < 0)
-    throw AcquisitionError(fmt::format("cannot set the CAN_RAW_FILTER of {}: {}", name_, Errno(errno)));
+    throw DeviceError(DeviceError::Kind::kConnection, name_, "set", "CAN_RAW_FILTER", errno, Errno(errno));
 }
 
 void SocketCanTransport::Send(std::span<const CanFrame> frames, std::chrono::nanoseconds timeout) {
@@ -221,7 +228,7 @@ sockaddr_in Resolve(const std::string& host, std::uint16_t port, const std::stri
   hints.ai_socktype = SOCK_DGRAM;
   addrinfo* found = nullptr;
   const int r = getaddrinfo(host.c_str(), nullptr, &hints, &found);
-  if (r != 0 || !found) throw AcquisitionError(fmt::format("cannot open {}: host {}: {}", name, host, gai_strerror(r)));
+  if (r != 0 || !found) throw DeviceError(DeviceError::Kind::kConnection, name, "open", "host " + host, 0, gai_strerror(r));
   sockaddr_in address{};
   std::memcpy(&address, found->ai_addr, sizeof address);
   freeaddrinfo(found);
@@ -231,7 +238,7 @@ sockaddr_in Resolve(const std::string& host, std::uint16_t port, const std::stri
 
 int UdpSocket(const std::string& name) {
   const int s = socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC, 0);
-  if (s < 0) throw AcquisitionError(fmt::format("cannot open {}: {}", name, Errno(errno)));
+  if (s < 0) throw DeviceError(DeviceError::Kind::kConnection, name, "open", "", errno, Errno(errno));
   return s;
 }
 
@@ -246,7 +253,7 @@ std::unique_ptr<UdpCanTransport> UdpCanTransport::Listen(const std::string& host
   setsockopt(s, SOL_SOCKET, SO_RCVBUF, &receive_buffer, sizeof receive_buffer);
   EnableDropCounter(s);
   if (bind(s, reinterpret_cast<const sockaddr*>(&address), sizeof address) < 0)
-    throw AcquisitionError(fmt::format("cannot open {}: bind: {}", name, Errno(errno)));
+    throw DeviceError(DeviceError::Kind::kConnection, name, "open", "", errno, "bind: " + Errno(errno));
   if (port == 0) t->name_ = fmt::format("udp:{}:{}", host, t->local_port());
   return t;
 }
@@ -259,7 +266,7 @@ std::unique_ptr<UdpCanTransport> UdpCanTransport::Connect(const std::string& hos
   const int buffer = 4 << 20;
   setsockopt(s, SOL_SOCKET, SO_SNDBUF, &buffer, sizeof buffer);
   if (connect(s, reinterpret_cast<const sockaddr*>(&address), sizeof address) < 0)
-    throw AcquisitionError(fmt::format("cannot open {}: connect: {}", name, Errno(errno)));
+    throw DeviceError(DeviceError::Kind::kConnection, name, "open", "", errno, "connect: " + Errno(errno));
   return t;
 }
 
@@ -300,8 +307,8 @@ std::unique_ptr<CanTransport> OpenCanTransport(const std::string& spec, bool lis
       }
     }
   }
-  throw AcquisitionError(
-      fmt::format("CAN transport '{}': expected can:IFACE (SocketCAN) or udp:HOST:PORT (CAN frames over UDP)", spec));
+  throw DeviceError(DeviceError::Kind::kInvalidValue, fmt::format("CAN transport '{}'", spec), "open", "", 0,
+                    "expected can:IFACE (SocketCAN) or udp:HOST:PORT (CAN frames over UDP)");
 }
 
 }  // namespace strut::daq

@@ -566,4 +566,33 @@ RecorderStats Recorder::stats() const {
 const std::string& Recorder::session_path() const { return impl_->session_path; }
 const std::string& Recorder::journal_path() const { return impl_->journal_path; }
 
+ExperimentDescriptor AcquiredExperiment(Experiment header, const StreamDescription& stream,
+                                        std::string_view pressure_reference) {
+  ExperimentDescriptor d;
+  if (header.sample_rate == 0.0) header.sample_rate = stream.sample_rate;
+  header.channels.clear();
+  for (const ChannelDescriptor& c : stream.channels) {
+    header.channels.push_back(
+        {c.name, c.unit, c.name == "pressure" ? std::string(pressure_reference) : std::string(), {}});
+    d.raw.push_back({c.name, c.calibration});
+  }
+  d.header = std::move(header);
+  d.sequence = true;
+  d.status = true;
+  return d;
+}
+
+SampleBlock RecordedBlock(const AcquiredBlock& block, std::size_t begin, std::size_t end) {
+  end = std::min(end, block.size());
+  SampleBlock b;
+  if (begin >= end) return b;
+  const auto first = static_cast<std::ptrdiff_t>(begin), last = static_cast<std::ptrdiff_t>(end);
+  b.monotonic_ns.assign(block.time_ns.begin() + first, block.time_ns.begin() + last);
+  for (const auto& v : block.values) b.values.emplace_back(v.begin() + first, v.begin() + last);
+  for (const auto& c : block.counts) b.counts.emplace_back(c.begin() + first, c.begin() + last);
+  for (std::size_t i = begin; i < end; ++i) b.sequence.push_back(block.first_index + i);
+  b.status.assign(end - begin, block.quality.flags);
+  return b;
+}
+
 }  // namespace strut::daq

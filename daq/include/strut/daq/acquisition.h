@@ -11,25 +11,21 @@
 // - Bus-off, error-passive and a device fault mark the block invalid (Quality::valid() false);
 //   the samples are still delivered, so nothing is lost, only marked.
 // - A frozen stream (no frame within `stale_after`) gives blocks with kStale and no samples.
-// - Errors that end the stream (the transport cannot be opened or fails) throw AcquisitionError.
+// - Errors that end the stream (the transport cannot be opened or fails) throw daq::DeviceError,
+//   the one error type of the device drivers, naming the source and the errno text.
 #pragma once
 
 #include <chrono>
 #include <cstdint>
 #include <limits>
-#include <stdexcept>
 #include <string>
 #include <string_view>
 #include <vector>
 
+#include "strut/daq/device_error.h"
+
 namespace strut::daq {
 
-//! An error that ends the stream: the transport cannot be opened, or a read or write failed.
-//! what() names the source ("udp:127.0.0.1:5000", "can0") and the errno text.
-class AcquisitionError : public std::runtime_error {
- public:
-  using std::runtime_error::runtime_error;
-};
 
 //! Raw ADC counts to SI: value = offset + gain * counts, calibrated over [range_min, range_max]
 //! (in SI). After openDAQ's post-scaling: the counts travel, the SI value is derived.
@@ -164,7 +160,7 @@ class AcquisitionModule {
   virtual const StreamDescription& description() const = 0;
   //! Starts a stream: counters to zero, indices from 0, whatever was queued before is discarded.
   virtual void Start() = 0;
-  //! Stops the stream; Read afterwards throws AcquisitionError.
+  //! Stops the stream; Read afterwards throws DeviceError.
   virtual void Stop() = 0;
   //! Waits at most `timeout` and returns what arrived: a full block (the module's block size),
   //! a shorter one when the quality changes, a gap occurs or the timeout passes, or an empty

@@ -45,18 +45,18 @@ class CanTransport {
   //! For messages: "can0", "udp:127.0.0.1:5000".
   virtual const std::string& name() const = 0;
   //! Sends the frames in order, waiting at most `timeout` for room in the send queue.
-  //! Throws AcquisitionError naming the transport on failure or timeout.
+  //! Throws DeviceError naming the transport on failure or timeout.
   virtual void Send(std::span<const CanFrame> frames, std::chrono::nanoseconds timeout) = 0;
   //! Waits at most `timeout` for frames and returns how many were stored at the front of
   //! `frames` (0 on timeout). Returns as soon as at least one frame is there. Throws
-  //! AcquisitionError naming the transport when the socket fails.
+  //! DeviceError naming the transport when the socket fails.
   virtual std::size_t Receive(std::span<CanFrame> frames, std::chrono::nanoseconds timeout) = 0;
   //! Discards what is queued for reception (Start of a new stream).
   virtual void Flush() = 0;
   virtual CanTransportCounters counters() const = 0;
 };
 
-//! A CAN_RAW socket bound to an interface. Throws AcquisitionError "cannot open can0: ..." when
+//! A CAN_RAW socket bound to an interface. Throws DeviceError "can0: open: ..." when
 //! the socket cannot be created or bound (no AF_CAN in the kernel, no such interface).
 class SocketCanTransport : public CanTransport {
  public:
@@ -110,7 +110,7 @@ class UdpCanTransport : public CanTransport {
 };
 
 //! A transport from a spec: "can:IFACE" (SocketCAN) or "udp:HOST:PORT" (listening when
-//! `listen`, else sending). Throws AcquisitionError naming the spec when it is not one of these.
+//! `listen`, else sending). Throws DeviceError naming the spec when it is not one of these.
 std::unique_ptr<CanTransport> OpenCanTransport(const std::string& spec, bool listen, bool fd_frames = true);
 
 }  // namespace strut::daq

@@ -17,6 +17,7 @@
 #include <string_view>
 #include <vector>
 
+#include "strut/daq/acquisition.h"
 #include "strut/daq/session.h"
 
 namespace strut::daq {
@@ -28,22 +29,10 @@ class RecorderError : public SessionError {
   using SessionError::SessionError;
 };
 
-//! Raw ADC counts to SI: value = offset + gain * counts. range_min..range_max is the SI span of
-//! the transducer (what full scale means), kept so a reader can tell a clipped signal.
-//! The same four numbers as the acquisition module's calibration (wt-can's daq::Calibration);
-//! once both are merged this becomes an alias of that one.
-struct RawCalibration {
-  double gain = 1.0;       //!< SI units per count
-  double offset = 0.0;     //!< SI value at zero counts
-  double range_min = 0.0;  //!< SI
-  double range_max = 0.0;  //!< SI
-  double ToSi(std::int32_t counts) const { return offset + gain * static_cast<double>(counts); }
-};
-
 //! A channel whose raw counts are stored beside its SI samples (as `<channel>_counts`).
 struct RawChannel {
   std::string channel;  //!< name of a channel of the experiment
-  RawCalibration calibration;
+  Calibration calibration;  //!< counts to SI; range_min..range_max is the transducer's full scale
 };
 
 //! Session-wide metadata, written once at Open.
@@ -80,6 +69,20 @@ struct SampleBlock {
   std::vector<std::uint32_t> status;             //!< when the descriptor says so
   std::size_t size() const { return monotonic_ns.size(); }
 };
+
+//! The descriptor of an experiment recorded from an acquisition stream: `header` (label, kind,
+//! attributes; its channels are replaced) gets the stream's channels in the stream's order, with
+//! their names and units, `pressure_reference` ("gauge" or "absolute") for a channel named
+//! "pressure", and sample_rate the stream's unless set. Every channel keeps its raw counts and
+//! calibration; the sequence index and the quality word are kept per sample.
+ExperimentDescriptor AcquiredExperiment(Experiment header, const StreamDescription& stream,
+                                        std::string_view pressure_reference = "gauge");
+
+//! The recorder's block for the sample sets [begin, end) of an acquired block (end clipped to its
+//! size): timestamps, SI values and counts as they came, the sample set's index since Start as
+//! its sequence and the block's Quality flags as its status. For AcquiredExperiment descriptors.
+SampleBlock RecordedBlock(const AcquiredBlock& block, std::size_t begin = 0,
+                          std::size_t end = static_cast<std::size_t>(-1));
 
 //! How an experiment ended. kNotSteady: recorded in full but the response never settled
 //! (stored as status "complete" with recording_end = "not-steady").

@@ -27,7 +27,7 @@ class CanModule {
   CanModule(std::unique_ptr<daq::CanTransport> transport, const SensorSet& sensors, double sample_rate, bool fd = false,
             std::uint8_t module = 1);
   //! Sends the block's readings. Throws std::invalid_argument naming the experiment when its
-  //! sample rate is not the stream's; daq::AcquisitionError when the transport fails.
+  //! sample rate is not the stream's; daq::DeviceError when the transport fails.
   void Send(const SampleBlock& block);
   //! Sends the sets still queued (a partly filled CAN FD frame waits for its remaining sets).
   void Flush() { sender_.Flush(); }

@@ -554,7 +554,9 @@ NormalEquations FitProblem::Linearise(const std::vector<double>& theta, const st
     std::vector<Eigen::MatrixXd> weights;
     if (with_input) weights.assign(s.solution.channels.size(), Eigen::MatrixXd::Zero(n, l));
     NuisanceBlock block;
+    std::vector<Eigen::MatrixXd> channel_information;  // J_c^T W J_c per channel (lower triangle)
     if (with_estimate) {
+      channel_information.assign(nc, Eigen::MatrixXd());
       const Eigen::Index k = s.estimate->xi.size();
       block.information = Eigen::MatrixXd::Identity(k, k);
       block.coupling = Eigen::MatrixXd::Zero(l, k);
@@ -564,29 +566,33 @@ NormalEquations FitProblem::Linearise(const std::vector<double>& theta, const st
       if (!s.channel_fitted[b]) continue;
       const Eigen::MatrixXd& j = s.sensitivities_at_phases[b];
       const Eigen::VectorXd r = s.Residual(channels_[b], output_row_[b]);
-      hs[a].noalias() += j.transpose() * j / variance[b];
-      eq.experiment_gradient[a].noalias() += j.transpose() * r / variance[b];
+      const double w = 1.0 / variance[b];
+      hs[a].noalias() += w * (j.transpose() * j);  // the weight folds into the product (no temporary)
+      eq.experiment_gradient[a].noalias() += w * (j.transpose() * r);
       if (with_input)
         for (int k = 0; k < l; ++k) weights[output_row_[b]].col(k) += s.ToGrid(j.col(k), n) / variance[b];
       if (with_estimate) {
         const Eigen::MatrixXd& jc = s.estimate->sensitivities_at_phases[b];
-        block.information.selfadjointView<Eigen::Lower>().rankUpdate(jc.transpose(), 1.0 / variance[b]);
-        block.coupling.noalias() += j.transpose() * jc / variance[b];
-        block.gradient.noalias() += jc.transpose() * r / variance[b];
+        Eigen::MatrixXd& g = channel_information[b];
+        g.setZero(jc.cols(), jc.cols());
+        g.selfadjointView<Eigen::Lower>().rankUpdate(jc.transpose(), w);
+        block.information.triangularView<Eigen::Lower>() += g;
+        block.coupling.noalias() += w * (j.transpose() * jc);
+        block.gradient.noalias() += w * (jc.transpose() * r);
       }
     }
     if (with_estimate) {
       Eigen::MatrixXd full = block.information.selfadjointView<Eigen::Lower>();
       block.information = std::move(full);
       // The residual degrees of freedom the estimate takes per channel: E[r^T W r] at the truth is
-      // count - tr(A^-1 J_c^T W J_c) (linearised; A includes the prior).
+      // count - tr(A^-1 J_c^T W J_c) (linearised; A includes the prior). Formed from the small
+      // k x k products, not from the phases (L^-1 J_c^T costs the phase count times k^2).
       const Eigen::LLT<Eigen::MatrixXd> llt(block.information);
       s.estimate->dof.assign(nc, 0.0);
       for (int b = 0; b < nc; ++b) {
         if (!s.channel_fitted[b]) continue;
-        const Eigen::MatrixXd& jc = s.estimate->sensitivities_at_phases[b];
-        const Eigen::MatrixXd l_inv_jt = llt.matrixL().solve(jc.transpose());  // L^-1 J_c^T
-        s.estimate->dof[b] = l_inv_jt.squaredNorm() / variance[b];
+        const Eigen::MatrixXd g = channel_information[b].selfadjointView<Eigen::Lower>();
+        s.estimate->dof[b] = llt.solve(g).trace();
       }
       eq.inputs[a] = std::move(block);
     }

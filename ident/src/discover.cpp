@@ -175,8 +175,7 @@ double CrossValidatedNoiseRatio(const FitData& data, const Model& model, const F
     if (fit.estimated[i] && fit.parameters.spec(i).prior_sd > 0) choices[i].prior_sd = fit.parameters.spec(i).prior_sd;
   }
   const std::vector<ParameterChoice> fixed(fit.parameters.size());
-  double sum = 0.0;
-  long n = 0;
+  std::vector<double> held_ratios;  // one per held-out experiment, all channels pooled
   // Folds interleave the experiments (a, e, i, m; b, f, j, n; ...), so no fold takes a whole
   // static-position group or frequency away and the refit need not extrapolate.
   for (int k = 0; k < folds; ++k) {
@@ -188,19 +187,29 @@ double CrossValidatedNoiseRatio(const FitData& data, const Model& model, const F
       const FitSummary predicted = Estimator(model, estimator).Fit(held, refit.parameters, fixed, data.issues);
       for (const ExperimentFit& e : predicted.experiments) {
         if (!e.converged) return NAN;
+        double sum = 0.0;
+        long n = 0;
         for (const auto& [channel, r] : e.residual) {
           const double variance = e.noise_variance.at(channel);
           if (!(variance > 0)) continue;
           sum += r.squaredNorm() / variance;
           n += r.size();
         }
+        if (n > 0) held_ratios.push_back(sum / n);
       }
     } catch (const std::exception& e) {
       spdlog::debug("cross-validation fold {} of {}: {}", k + 1, model.composition(), e.what());
       return NAN;
     }
   }
-  return n > 0 ? sum / n : NAN;
+  if (held_ratios.empty()) return NAN;
+  // The median over the held-out experiments: an effect that only one experiment shows (an end
+  // stop that only the deepest low-position experiment reaches) cannot be learnt without that
+  // experiment, and its one wild prediction must not outweigh the others, which it fits well.
+  const auto middle = held_ratios.begin() + static_cast<std::ptrdiff_t>(held_ratios.size() / 2);
+  std::nth_element(held_ratios.begin(), middle, held_ratios.end());
+  if (held_ratios.size() % 2 == 1) return *middle;
+  return 0.5 * (*middle + *std::max_element(held_ratios.begin(), middle));
 }
 
 DiscoveryResult Discover(const FitData& data, const SessionFitOptions& fit_options, const DiscoverOptions& options,

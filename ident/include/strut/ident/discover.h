@@ -81,8 +81,10 @@ std::vector<Finding> LocateMismatch(const FitSummary& fit);
 
 //! The held-out noise ratio of a composition under K-fold cross-validation: for each fold, the model
 //! refitted (from `fit`'s values, the same parameters estimated) without the fold's experiments
-//! predicts them; the result pools their residuals over the noise of the averaged data, all channels
-//! and folds. NaN when a refit or a prediction has no solution.
+//! predicts them. Each held-out experiment's residuals over the noise of the averaged data, all
+//! channels pooled, give its noise ratio; the result is the median of those over all experiments
+//! (robust to the one experiment that alone shows an effect). NaN when a refit or a prediction has
+//! no solution.
 double CrossValidatedNoiseRatio(const FitData& data, const Model& model, const FitSummary& fit,
                                 const EstimatorOptions& estimator, int folds);
 

@@ -486,6 +486,10 @@ std::optional<std::string> SimulatedController::Apply(const daq::SetPoint& set_p
     program_ = CommandProgram::Move(boundary_, from, set_point.static_position, set_point.static_rate);
   }
   set_point_ = set_point;
+  spdlog::info("simulated controller: set-point at t = {:.3f} s: static {}, amplitude {} at {:g} Hz, ramp {} cycles, "
+               "static rate {:.3g} mm/s",
+               boundary_, Mm(set_point.static_position), Mm(set_point.amplitude), set_point.frequency,
+               set_point.ramp_cycles, set_point.static_rate * 1e3);
   return std::nullopt;
 }
 
@@ -542,6 +546,7 @@ std::optional<std::string> SimulatedController::Execute(ControllerCommand comman
       if (state_ == ControllerState::kFaulted) state_ = ControllerState::kDisarmed;
       break;
   }
+  spdlog::info("simulated controller: {} at t = {:.3f} s: {}", name, b, daq::ToString(state_));
   return std::nullopt;
 }
 

@@ -1,0 +1,129 @@
+// The simulated rig behind the real protocols (rig_server.h).
+#include "strut/sim/rig_server.h"
+
+#include <spdlog/spdlog.h>
+
+#include <chrono>
+#include <cmath>
+#include <fmt/format.h>
+#include <stdexcept>
+
+namespace strut::sim {
+
+bool RigServerOptions::IsValid(std::string* error) const {
+  const auto fail = [&](const std::string& m) {
+    if (error) *error = m;
+    return false;
+  };
+  std::string why;
+  if (!modbus.IsValid(&why)) return fail("modbus: " + why);
+  if (!std::isfinite(speed) || speed <= 0 || speed > 1e4)
+    return fail(fmt::format("speed must be in (0, 10000] simulated seconds per wall second, got {}", speed));
+  if (can_module > 63) return fail(fmt::format("can_module must be 0..63, got {}", can_module));
+  if (!controller.IsValid(&why)) return fail("controller: " + why);
+  return true;
+}
+
+namespace {
+RigServerOptions Checked(RigServerOptions options) {
+  std::string error;
+  if (!options.IsValid(&error)) throw std::invalid_argument("simulated rig server: " + error);
+  return options;
+}
+}  // namespace
+
+RigServer::RigServer(Truth truth, RigServerOptions options, std::unique_ptr<daq::CanTransport> can)
+    : options_(Checked(std::move(options))), controller_(std::move(truth), options_.controller) {
+  if (!can) can = daq::OpenCanTransport(options_.can, /*listen=*/false, options_.can_fd);
+  module_ = std::make_unique<CanModule>(std::move(can), controller_.truth().sensors, controller_.sample_rate(),
+                                        options_.can_fd, options_.can_module);
+  modbus_ = std::make_unique<daq::ModbusControllerServer>(controller_, options_.modbus);
+  ClockOptions clock;
+  clock.mode = ClockMode::kRealTime;
+  clock.speed = options_.speed;
+  // The clock sleeps on the condition variable, so Stop() wakes the pacing thread at once.
+  clock_ = std::make_unique<SimulationClock>(clock, SimulationClock::Now{}, [this](SimulationClock::TimePoint until) {
+    std::unique_lock lock(mutex_);
+    wake_.wait_until(lock, until, [this] { return stop_; });
+  });
+}
+
+RigServer::~RigServer() { Stop(); }
+
+void RigServer::Start() {
+  std::lock_guard lock(mutex_);
+  if (thread_.joinable() || stop_) return;
+  thread_ = std::thread([this] { Loop(); });
+}
+
+void RigServer::Stop() {
+  {
+    std::lock_guard lock(mutex_);
+    stop_ = true;
+  }
+  wake_.notify_all();
+  if (thread_.joinable()) thread_.join();
+  modbus_->Stop();
+}
+
+void RigServer::StopController() { modbus_->Stop(); }
+
+void RigServer::Loop() {
+  // Simulated time t is due at wall time start + (t - t_start) / speed.
+  const double t_start = controller_.time();
+  {
+    std::lock_guard lock(mutex_);
+    started_at_ = std::chrono::steady_clock::now();
+  }
+  clock_->Start();
+  const SampleSink sink = [this](const SampleBlock& block) {
+    if (frozen_) return;
+    module_->Send(block);
+    sets_sent_ += block.stroke.size();
+  };
+  double next_warning = 0.0;
+  for (;;) {
+    const double next = controller_.time() + controller_.chunk_seconds();
+    const double late = clock_->WaitUntil(next - t_start);
+    {
+      std::lock_guard lock(mutex_);
+      if (stop_) break;
+      max_lateness_ = std::max(max_lateness_, late);
+    }
+    if (late > 1.0 && clock_->Elapsed() >= next_warning) {
+      const SimulatedControllerStats s = controller_.stats();
+      spdlog::warn("simulated rig: {:.1f} s behind the wall clock at speed {:g}: the plant computes {:.0f} simulated "
+                   "seconds per CPU second; lower --speed",
+                   late, options_.speed, s.cpu_seconds > 0 ? s.simulated_seconds / s.cpu_seconds : 0.0);
+      next_warning = clock_->Elapsed() + 10.0;
+    }
+    try {
+      controller_.Advance(next, sink);
+    } catch (const std::exception& e) {
+      spdlog::error("simulated rig: the stream stops: {}", e.what());
+      std::lock_guard lock(mutex_);
+      error_ = e.what();
+      break;
+    }
+  }
+}
+
+RigServerStats RigServer::stats() const {
+  RigServerStats s;
+  const SimulatedControllerStats c = controller_.stats();
+  s.simulated_seconds = c.simulated_seconds;
+  s.compute_seconds = c.cpu_seconds;
+  s.sets_sent = sets_sent_.load();
+  s.modbus_requests = modbus_->requests();
+  std::lock_guard lock(mutex_);
+  if (started_at_) s.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - *started_at_).count();
+  s.max_lateness = max_lateness_;
+  return s;
+}
+
+std::optional<std::string> RigServer::error() const {
+  std::lock_guard lock(mutex_);
+  return error_;
+}
+
+}  // namespace strut::sim

@@ -30,12 +30,32 @@ RigServerOptions Checked(RigServerOptions options) {
   if (!options.IsValid(&error)) throw std::invalid_argument("simulated rig server: " + error);
   return options;
 }
+//! The module's transport with a gate: while frozen, frames are dropped on the way out, so the
+//! module goes on numbering its sample sets and the receiver sees a stale stream, then a gap.
+class GatedTransport final : public daq::CanTransport {
+ public:
+  GatedTransport(std::unique_ptr<daq::CanTransport> inner, const std::atomic<bool>& frozen)
+      : inner_(std::move(inner)), frozen_(frozen) {}
+  const std::string& name() const override { return inner_->name(); }
+  void Send(std::span<const daq::CanFrame> frames, std::chrono::nanoseconds timeout) override {
+    if (!frozen_) inner_->Send(frames, timeout);
+  }
+  std::size_t Receive(std::span<daq::CanFrame> frames, std::chrono::nanoseconds timeout) override {
+    return inner_->Receive(frames, timeout);
+  }
+  void Flush() override { inner_->Flush(); }
+  daq::CanTransportCounters counters() const override { return inner_->counters(); }
+
+ private:
+  std::unique_ptr<daq::CanTransport> inner_;
+  const std::atomic<bool>& frozen_;
+};
 }  // namespace
 
 RigServer::RigServer(Truth truth, RigServerOptions options, std::unique_ptr<daq::CanTransport> can)
     : options_(Checked(std::move(options))), controller_(std::move(truth), options_.controller) {
   if (!can) can = daq::OpenCanTransport(options_.can, /*listen=*/false, options_.can_fd);
-  module_ = std::make_unique<CanModule>(std::move(can), controller_.truth().sensors, controller_.sample_rate(),
+  module_ = std::make_unique<CanModule>(std::make_unique<GatedTransport>(std::move(can), frozen_), controller_.truth().sensors, controller_.sample_rate(),
                                         options_.can_fd, options_.can_module);
   modbus_ = std::make_unique<daq::ModbusControllerServer>(controller_, options_.modbus);
   ClockOptions clock;
@@ -77,9 +97,8 @@ void RigServer::Loop() {
   }
   clock_->Start();
   const SampleSink sink = [this](const SampleBlock& block) {
-    if (frozen_) return;
     module_->Send(block);
-    sets_sent_ += block.stroke.size();
+    if (!frozen_) sets_sent_ += block.stroke.size();
   };
   double next_warning = 0.0;
   for (;;) {

@@ -421,9 +421,18 @@ double SimulatedController::Advance(double to_time, const SampleSink& sink) {
         if (trip) trip_time = t;
       }
       if (trip) {
+        // Up to the trip the samples are those the controller judged (a recomputation agrees to
+        // IDA's tolerance, which can move a reading by an ADC count).
+        const Chunk first = std::move(chunk);
         plant.state = saved;
         chunk = Chunk{};
         Integrate(plant, program, trip_time, chunk);
+        const auto upto = static_cast<std::ptrdiff_t>(std::lround((trip_time - first.readings.start_time) * rate_)) + 1;
+        for (auto [to, from] : {std::pair{&chunk.readings.stroke, &first.readings.stroke},
+                                {&chunk.readings.force, &first.readings.force},
+                                {&chunk.readings.pressure, &first.readings.pressure}, {&chunk.stroke, &first.stroke},
+                                {&chunk.force, &first.force}, {&chunk.pressure, &first.pressure}})
+          std::copy(from->begin(), from->begin() + upto, to->begin());
       }
     } catch (const std::exception& e) {
       std::lock_guard lock(mutex_);

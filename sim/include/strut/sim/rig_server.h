@@ -81,8 +81,8 @@ class RigServer {
   //! Fault injection (tests, demonstrations). The controller goes away: the Modbus server closes
   //! every connection and the listening socket; the plant and the stream go on.
   void StopController();
-  //! The module stops sending (frozen) or sends again; the plant goes on either way, so the
-  //! samples of a frozen stretch are lost, as they would be on a real bus.
+  //! The module's frames stop reaching the bus (frozen) or reach it again; the plant and the
+  //! module's sample numbering go on, so the receiver sees a stale stream, then a sequence gap.
   void FreezeStream(bool frozen) { frozen_ = frozen; }
 
  private:
@@ -90,9 +90,9 @@ class RigServer {
 
   RigServerOptions options_;
   SimulatedController controller_;
+  std::atomic<bool> frozen_{false};
   std::unique_ptr<CanModule> module_;
   std::unique_ptr<daq::ModbusControllerServer> modbus_;
-  std::atomic<bool> frozen_{false};
   std::atomic<std::uint64_t> sets_sent_{0};
 
   mutable std::mutex mutex_;

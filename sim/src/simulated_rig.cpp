@@ -206,7 +206,7 @@ daq::Session SimulatedRig::RunMatrix(const MatrixPlan& plan, const RigRunOptions
 
 daq::Experiment SimulatedRig::RunPeriodic(const rig::MatrixEntry& entry, double sample_rate, long periods,
                                           std::mt19937_64& rng, PeriodicRunReport* report_out, SimulationClock* clock,
-                                          const SampleSink& sink) const {
+                                          const SampleSink& sink, std::optional<double> start_phase) const {
   const auto wall_start = Clock::now();
   const AcquisitionOptions& acq = truth_.acquisition;
   const double f = entry.frequency, period = 1.0 / f;
@@ -221,7 +221,7 @@ daq::Experiment SimulatedRig::RunPeriodic(const rig::MatrixEntry& entry, double 
 
   PeriodicRunReport report;
   report.label = entry.label;
-  report.start_phase = std::uniform_real_distribution<double>(0.0, kTwoPi)(rng);
+  report.start_phase = start_phase ? *start_phase : std::uniform_real_distribution<double>(0.0, kTwoPi)(rng);
   const SineSetPoint set_point{f, entry.static_position, entry.amplitude, report.start_phase};
 
   // The LVDT's own calibration sits between the loop (which controls the reading y) and the

@@ -15,6 +15,7 @@
 
 #include "strut/daq/can_acquisition.h"
 #include "strut/daq/modbus_controller.h"
+#include "strut/daq/recorder.h"
 #include "strut/sim/can_module.h"
 #include "strut/sim/clock.h"
 #include "strut/sim/simulated_controller.h"
@@ -70,8 +71,11 @@ class RigServer {
 
   //! The controller's endpoint (with the port actually bound).
   daq::ModbusEndpoint modbus_endpoint() const { return modbus_->endpoint(); }
-  //! What a daq::CanAcquisition needs to receive the stream (layout, rate, channels).
-  daq::CanAcquisitionOptions ReceiverOptions() const { return module_->ReceiverOptions(); }
+  //! What a daq::CanAcquisition needs to receive the stream (layout, channels, and the rate on the
+  //! wall clock: speed x the simulated sample rate, which the receiver's timing checks need).
+  daq::CanAcquisitionOptions ReceiverOptions() const;
+  //! The stream's sample rate in simulated time (the truth's), Hz: the rate a recording states.
+  double simulated_sample_rate() const { return controller_.sample_rate(); }
   SimulatedController& controller() { return controller_; }
   const RigServerOptions& options() const { return options_; }
   RigServerStats stats() const;
@@ -104,5 +108,10 @@ class RigServer {
   std::optional<std::chrono::steady_clock::time_point> started_at_;
   std::thread thread_;
 };
+
+//! A block of an accelerated stream put on the simulated clock: every timestamp t becomes
+//! origin + (t - origin) * speed, so that its steps are 1 / simulated_sample_rate() as a recorder
+//! stating that rate requires (speed 1 leaves the block as it is).
+void ToSimulatedTime(daq::SampleBlock& block, std::int64_t origin_ns, double speed);
 
 }  // namespace strut::sim

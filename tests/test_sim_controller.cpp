@@ -37,6 +37,11 @@ TEST(CommandProgram, SineRampsInAndOutOverWholeCyclesWithConsistentRates) {
     EXPECT_NEAR(a.rate, (p.At(t + h).value - p.At(t - h).value) / (2 * h), 1e-6) << t;
     EXPECT_NEAR(a.accel, (p.At(t + h).rate - p.At(t - h).rate) / (2 * h), 1e-3) << t;
   }
+  // Amplitude 0 at frequency 0 (a valid set-point) holds the mean and stops at once.
+  CommandProgram hold = CommandProgram::Sine(0.0, 0.1, 0.0, 0.0, 2);
+  EXPECT_DOUBLE_EQ(hold.At(3.0).value, 0.1);
+  hold.stop_at = hold.NextCycleBoundary(3.0);
+  EXPECT_DOUBLE_EQ(hold.End(), 3.0);
   const CommandProgram move = CommandProgram::Move(0.0, 0.01, 0.05, 0.02);
   EXPECT_DOUBLE_EQ(move.End(), 2.0);
   EXPECT_DOUBLE_EQ(move.At(1.0).value, 0.03);

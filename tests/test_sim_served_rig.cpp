@@ -62,13 +62,13 @@ struct Loopback {
   std::unique_ptr<daq::CanAcquisition> acquisition;
   std::vector<daq::AcquiredBlock> blocks;  //!< what Pump read while nobody consumed it
 
-  explicit Loopback(double initial_stroke, double speed = 10.0, unsigned long seed = 1) {
+  explicit Loopback(double initial_stroke, double speed = 10.0, bool fd = false) {
     auto receiver = daq::UdpCanTransport::Listen("127.0.0.1", 0);
     RigServerOptions o;
+    o.can_fd = fd;
     o.can = fmt::format("udp:127.0.0.1:{}", receiver->local_port());
     o.speed = speed;
     o.controller.initial_stroke = initial_stroke;
-    o.controller.seed = seed;
     server = std::make_unique<RigServer>(DefaultTruth(), o);
     acquisition = std::make_unique<daq::CanAcquisition>(std::move(receiver), server->ReceiverOptions());
     acquisition->Start();
@@ -311,6 +311,20 @@ TEST(ServedRig, FrozenStreamGivesStaleBlocksThenAGapWhenItFlowsAgain) {
   EXPECT_TRUE(resumed->quality.has(Quality::kSequenceGap)) << resumed->quality.ToString();
   EXPECT_GT(resumed->lost_before, 20u);  // the frozen stretch's sample sets, 0.25 s at speed 10 and more
   EXPECT_GT(rig.acquisition->stats().stale_periods, 0u);
+}
+
+TEST(ServedRig, StreamsCanFdFramesWithoutLoss) {
+  Loopback rig(0.05, 10.0, /*fd=*/true);
+  EXPECT_TRUE(rig.acquisition->description().sample_rate > 0);
+  ASSERT_FALSE(rig.WaitFor([](const auto&) { return false; }, 500ms));
+  std::size_t sets = 0;
+  for (const auto& b : rig.blocks) {
+    EXPECT_TRUE(b.quality.valid()) << b.quality.ToString();
+    sets += b.size();
+  }
+  EXPECT_GT(sets, 500u);  // 0.5 s at 2000 sets per wall second, less the start
+  EXPECT_EQ(rig.acquisition->stats().lost_sample_sets, 0u);
+  EXPECT_EQ(rig.acquisition->stats().corrupt_frames, 0u);
 }
 
 TEST(ServedRig, ChangingTheSineWhileRunningIsAModbusExceptionWithTheReason) {

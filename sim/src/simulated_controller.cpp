@@ -78,6 +78,7 @@ CommandProgram CommandProgram::Sine(double start, double mean, double amplitude,
 
 double CommandProgram::Envelope(double t) const {
   if (kind != Kind::kSine || t <= start) return 0.0;
+  if (frequency <= 0) return t < stop_at ? 1.0 : 0.0;  // a sine of frequency 0 holds the mean
   const auto ramp_in = [&](double x) {
     return ramp_cycles == 0 ? 1.0 : std::min(1.0, (x - start) * frequency / ramp_cycles);
   };
@@ -124,7 +125,7 @@ double CommandProgram::End() const {
       return start + std::abs(to - from) / rate;
     case Kind::kSine:
       if (!std::isfinite(stop_at)) return INFINITY;
-      return stop_at + (ramp_cycles == 0 ? 0.0 : ramp_cycles / frequency);
+      return stop_at + (ramp_cycles == 0 || frequency <= 0 ? 0.0 : ramp_cycles / frequency);
   }
   return start;
 }

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <fmt/format.h>
 #include <numbers>
+#include <optional>
 #include <stdexcept>
 #include <unsupported/Eigen/FFT>
 
@@ -206,6 +207,64 @@ InputSample FourierSignal::At(double t) const {
 
 // ---------------------------------------------------------------------------------------------
 
+namespace {
+//! Coefficients of the derivative of a Chebyshev series (in x), the usual backward recurrence.
+std::vector<double> ChebyshevDerivative(const std::vector<double>& c) {
+  const int n = static_cast<int>(c.size()) - 1;
+  std::vector<double> d(std::max(1, n), 0.0);
+  if (n == 0) return d;
+  for (int k = n - 1; k >= 0; --k) d[k] = (k + 2 <= n - 1 ? d[k + 2] : 0.0) + 2.0 * (k + 1) * c[k + 1];
+  d[0] *= 0.5;
+  return d;
+}
+
+//! Sum c_k T_k(x) by Clenshaw's recurrence.
+double Clenshaw(const std::vector<double>& c, double x) {
+  double b1 = 0.0, b2 = 0.0;
+  for (int k = static_cast<int>(c.size()) - 1; k >= 1; --k) {
+    const double b0 = 2.0 * x * b1 - b2 + c[k];
+    b2 = b1;
+    b1 = b0;
+  }
+  return x * b1 - b2 + c[0];
+}
+}  // namespace
+
+ChebyshevSignal ChebyshevSignal::Fit(const std::function<double(double)>& f, double start, double end, int degree) {
+  if (!(end > start) || !std::isfinite(start) || !std::isfinite(end) || degree < 1 || degree > 256)
+    throw std::invalid_argument(
+        fmt::format("Chebyshev signal: needs start < end and a degree 1..256, got [{}, {}] and {}", start, end, degree));
+  ChebyshevSignal s;
+  s.start_ = start;
+  s.end_ = end;
+  const int n = degree + 1;
+  std::vector<double> values(n);
+  for (int j = 0; j < n; ++j) {
+    const double x = std::cos(std::numbers::pi * (j + 0.5) / n);
+    values[j] = f(0.5 * (start + end) + 0.5 * (end - start) * x);
+    if (!std::isfinite(values[j]))
+      throw std::invalid_argument(fmt::format("Chebyshev signal: the function is not finite at node {}", j));
+  }
+  // c_k = 2/n sum_j f(x_j) cos(pi k (j + 1/2) / n); c_0 halved.
+  s.c_.assign(n, 0.0);
+  for (int k = 0; k < n; ++k) {
+    double sum = 0.0;
+    for (int j = 0; j < n; ++j) sum += values[j] * std::cos(std::numbers::pi * k * (j + 0.5) / n);
+    s.c_[k] = (k == 0 ? 1.0 : 2.0) * sum / n;
+  }
+  s.d1_ = ChebyshevDerivative(s.c_);
+  s.d2_ = ChebyshevDerivative(s.d1_);
+  return s;
+}
+
+InputSample ChebyshevSignal::At(double t) const {
+  const double scale = 2.0 / (end_ - start_);
+  const double x = (2.0 * t - start_ - end_) / (end_ - start_);
+  return {Clenshaw(c_, x), Clenshaw(d1_, x) * scale, Clenshaw(d2_, x) * scale * scale};
+}
+
+// ---------------------------------------------------------------------------------------------
+
 void ActuatorStats::Merge(const ActuatorStats& other) {
   max_tracking_error = std::max(max_tracking_error, other.max_tracking_error);
   max_valve_opening = std::max(max_valve_opening, other.max_valve_opening);
@@ -222,9 +281,14 @@ ServoActuator::ServoActuator(ActuatorOptions options) : options_(options) {
 
 void ServoActuator::Rates(const State& s, const InputSample& r, const InputSample& load, double* y_rate,
                           double* spool_rate, double* y_accel) const {
+  const double u = (kv_ * (r.value - s.stroke) + options_.feedforward * r.rate) / options_.max_velocity;
+  ValveRates(s, Saturate(u), load, y_rate, spool_rate, y_accel);
+}
+
+void ServoActuator::ValveRates(const State& s, double spool_target, const InputSample& load, double* y_rate,
+                               double* spool_rate, double* y_accel) const {
   const ActuatorOptions& o = options_;
-  const double u = (kv_ * (r.value - s.stroke) + o.feedforward * r.rate) / o.max_velocity;
-  const double xd = wv_ * (Saturate(u) - s.spool);
+  const double xd = wv_ * (spool_target - s.spool);
   // Valve flow factor: the load pressure opposes flow into the loaded chamber (x > 0 compresses
   // the damper against a compression-positive load) and helps the other way.
   const double f = load.value / o.stall_force, fd = load.rate / o.stall_force;
@@ -250,13 +314,28 @@ ServoActuator::State ServoActuator::SettledState(const SineSetPoint& set_point, 
 
 StrokeTrajectory ServoActuator::Run(const SineSetPoint& set_point, const PeriodicLoad& load, double t0,
                                     double duration, State& state, ActuatorStats* stats) const {
+  return Run([&set_point](double t) { return set_point.At(t); }, [&load](double t) { return load.At(t); }, t0,
+             duration, state, stats);
+}
+
+StrokeTrajectory ServoActuator::Run(const Signal& command, const Signal& load, double t0, double duration,
+                                    State& state, ActuatorStats* stats, double valve_closed_from) const {
   const double h = 1.0 / options_.control_rate;
   const long steps = std::max<long>(1, std::lround(duration / h));
   const double step = duration / steps > 0 ? duration / steps : h;
+  // The first knot at or after valve_closed_from: the loop is open from there on.
+  const double closed_knot = std::ceil((valve_closed_from - t0) / step - 1e-9);
+  const auto closed = [&](long k) { return static_cast<double>(k) >= closed_knot; };
   std::vector<double> y(steps + 1), yd(steps + 1), ydd(steps + 1);
   if (options_.ideal) {
+    // Without a loop the stroke is the command; a closed valve holds it where it was.
+    std::optional<InputSample> held;
     for (long k = 0; k <= steps; ++k) {
-      const InputSample r = set_point.At(t0 + k * step);
+      InputSample r = command(t0 + k * step);
+      if (closed(k)) {
+        if (!held) held = InputSample{k == 0 ? state.stroke : y[k - 1], 0.0, 0.0};
+        r = *held;
+      }
       y[k] = r.value, yd[k] = r.rate, ydd[k] = r.accel;
     }
     state.stroke = y.back();
@@ -264,29 +343,37 @@ StrokeTrajectory ServoActuator::Run(const SineSetPoint& set_point, const Periodi
   }
   ActuatorStats local;
   long saturated = 0;
+  // Rates on step k's interval: the loop closed on the command, or the valve closing.
+  const auto rates = [&](long k, double t, const State& s, double* v, double* xd, double* a) {
+    const InputSample f = load(t);
+    if (closed(k))
+      ValveRates(s, 0.0, f, v, xd, a);
+    else
+      Rates(s, command(t), f, v, xd, a);
+  };
   const auto record = [&](long k, double t, const State& s) {
-    const InputSample r = set_point.At(t), f = load.At(t);
     double xd = 0.0;
-    Rates(s, r, f, &yd[k], &xd, &ydd[k]);
+    rates(k, t, s, &yd[k], &xd, &ydd[k]);
     y[k] = s.stroke;
-    local.max_tracking_error = std::max(local.max_tracking_error, std::abs(r.value - s.stroke));
+    if (!closed(k))
+      local.max_tracking_error = std::max(local.max_tracking_error, std::abs(command(t).value - s.stroke));
     local.max_valve_opening = std::max(local.max_valve_opening, std::abs(s.spool));
-    local.max_load_fraction = std::max(local.max_load_fraction, std::abs(f.value) / options_.stall_force);
+    local.max_load_fraction = std::max(local.max_load_fraction, std::abs(load(t).value) / options_.stall_force);
     if (std::abs(s.spool) > 0.95) ++saturated;
   };
-  const auto derivative = [&](double t, const State& s) {
+  const auto derivative = [&](long k, double t, const State& s) {
     double v = 0.0, xd = 0.0, a = 0.0;
-    Rates(s, set_point.At(t), load.At(t), &v, &xd, &a);
+    rates(k, t, s, &v, &xd, &a);
     return State{v, xd};
   };
   State s = state;
   record(0, t0, s);
   for (long k = 0; k < steps; ++k) {
     const double t = t0 + k * step;
-    const State k1 = derivative(t, s);
-    const State k2 = derivative(t + 0.5 * step, {s.stroke + 0.5 * step * k1.stroke, s.spool + 0.5 * step * k1.spool});
-    const State k3 = derivative(t + 0.5 * step, {s.stroke + 0.5 * step * k2.stroke, s.spool + 0.5 * step * k2.spool});
-    const State k4 = derivative(t + step, {s.stroke + step * k3.stroke, s.spool + step * k3.spool});
+    const State k1 = derivative(k, t, s);
+    const State k2 = derivative(k, t + 0.5 * step, {s.stroke + 0.5 * step * k1.stroke, s.spool + 0.5 * step * k1.spool});
+    const State k3 = derivative(k, t + 0.5 * step, {s.stroke + 0.5 * step * k2.stroke, s.spool + 0.5 * step * k2.spool});
+    const State k4 = derivative(k, t + step, {s.stroke + step * k3.stroke, s.spool + step * k3.spool});
     s.stroke += step / 6.0 * (k1.stroke + 2 * k2.stroke + 2 * k3.stroke + k4.stroke);
     s.spool += step / 6.0 * (k1.spool + 2 * k2.spool + 2 * k3.spool + k4.spool);
     record(k + 1, t0 + (k + 1) * step, s);

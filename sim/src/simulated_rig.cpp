@@ -12,6 +12,7 @@
 #include <toml++/toml.h>
 
 #include "strut/ident/periodic.h"
+#include "rig_acquisition.h"
 #include "strut/sim/recorded_truth.h"
 
 namespace strut::sim {
@@ -62,42 +63,6 @@ void Emit(const SampleSink& sink, SimulationClock* clock, SampleBlock block, dou
     sink(part);
   }
 }
-
-//! The three sensor channels of one experiment, with the faults that apply to it.
-struct Acquisition {
-  SensorChannel stroke, force, pressure;
-  std::vector<FaultSpec> stroke_faults, force_faults, pressure_faults;
-  double pressure_reference;
-
-  Acquisition(const Truth& truth, const std::string& label)
-      : stroke(truth.sensors.stroke), force(truth.sensors.force), pressure(truth.sensors.pressure),
-        pressure_reference(truth.acquisition.gauge_pressure ? daq::kGaugeReferencePa : 0.0) {
-    for (const FaultSpec& f : truth.faults) {
-      if (f.Applies(label, "stroke")) stroke_faults.push_back(f);
-      if (f.Applies(label, "force")) force_faults.push_back(f);
-      if (f.Applies(label, "pressure")) pressure_faults.push_back(f);
-    }
-  }
-  //! Readings of a block: stroke as an ideal LVDT reads it (q + theta12), force, absolute pressure.
-  SampleBlock Acquire(const std::string& label, const std::vector<double>& stroke_values,
-                      const std::vector<double>& force_values, const std::vector<double>& pressure_values,
-                      double rate, double start_time, bool recording, std::mt19937_64& rng) {
-    SampleBlock b;
-    b.experiment = label;
-    b.start_time = start_time;
-    b.sample_rate = rate;
-    b.recording = recording;
-    b.stroke = stroke.Acquire(stroke_values, rate, start_time, stroke_faults, rng);
-    b.force = force.Acquire(force_values, rate, start_time, force_faults, rng);
-    std::vector<double> p(pressure_values);
-    for (double& v : p) v -= pressure_reference;
-    b.pressure = pressure.Acquire(p, rate, start_time, pressure_faults, rng);
-    return b;
-  }
-  daq::Channel PressureChannel(std::vector<double> samples, bool gauge) const {
-    return daq::Channel{"pressure", "Pa", gauge ? "gauge" : "absolute", std::move(samples)};
-  }
-};
 
 }  // namespace
 
@@ -241,7 +206,7 @@ daq::Session SimulatedRig::RunMatrix(const MatrixPlan& plan, const RigRunOptions
 
 daq::Experiment SimulatedRig::RunPeriodic(const rig::MatrixEntry& entry, double sample_rate, long periods,
                                           std::mt19937_64& rng, PeriodicRunReport* report_out, SimulationClock* clock,
-                                          const SampleSink& sink) const {
+                                          const SampleSink& sink, std::optional<double> start_phase) const {
   const auto wall_start = Clock::now();
   const AcquisitionOptions& acq = truth_.acquisition;
   const double f = entry.frequency, period = 1.0 / f;
@@ -256,16 +221,12 @@ daq::Experiment SimulatedRig::RunPeriodic(const rig::MatrixEntry& entry, double 
 
   PeriodicRunReport report;
   report.label = entry.label;
-  report.start_phase = std::uniform_real_distribution<double>(0.0, kTwoPi)(rng);
+  report.start_phase = start_phase ? *start_phase : std::uniform_real_distribution<double>(0.0, kTwoPi)(rng);
   const SineSetPoint set_point{f, entry.static_position, entry.amplitude, report.start_phase};
 
   // The LVDT's own calibration sits between the loop (which controls the reading y) and the
   // damper (whose measured stroke is q + theta12): u = (y - offset) / (1 + gain_error).
-  const SensorOptions& lvdt = truth_.sensors.stroke;
-  const double lvdt_scale = 1.0 / (1.0 + lvdt.gain_error), lvdt_offset = lvdt.offset;
-  const auto model_input = [&](const InputSample& y) {
-    return InputSample{(y.value - lvdt_offset) * lvdt_scale, y.rate * lvdt_scale, y.accel * lvdt_scale};
-  };
+  const LvdtInverse model_input(truth_.sensors.stroke);
 
   const ServoActuator actuator(truth_.actuator);
   TransientOptions transient_options;

@@ -12,6 +12,7 @@
 // The damper sees the actual stroke (stroke-input causality); the load is the axle force.
 #pragma once
 
+#include <cmath>
 #include <functional>
 #include <span>
 #include <string>
@@ -118,6 +119,25 @@ class FourierSignal {
   double c3_ = 0.0, c4_ = 0.0, c5_ = 0.0;  //!< trend c3 s^3 + c4 s^4 + c5 s^5, s = (t - start) / period
 };
 
+//! A smooth signal on one stretch [start, end]: the Chebyshev interpolant of a function at the
+//! Chebyshev points of that stretch, with exact derivatives of the polynomial. The simulated
+//! controller hands the actual stroke of each chunk to the damper this way: a polynomial has no
+//! knots and, unlike a Fourier series of a stretch that does not repeat, no ringing at the ends.
+class ChebyshevSignal {
+ public:
+  ChebyshevSignal() = default;
+  //! The interpolant of degree `degree` (1..256) through f at the Chebyshev points of the first
+  //! kind. Throws std::invalid_argument for an empty stretch, a bad degree or a non-finite value.
+  static ChebyshevSignal Fit(const std::function<double(double)>& f, double start, double end, int degree);
+  //! Value, rate and acceleration at t (extrapolates outside [start, end]).
+  InputSample At(double t) const;
+  int degree() const { return static_cast<int>(c_.size()) - 1; }
+
+ private:
+  double start_ = 0.0, end_ = 1.0;
+  std::vector<double> c_, d1_, d2_;  //!< coefficients of the value, its first and second derivative (in x)
+};
+
 //! What the limit detectors saw over a run (an MTS-style "indicate").
 struct ActuatorStats {
   double max_tracking_error = 0.0;  //!< max |r - y|, m
@@ -149,11 +169,24 @@ class ServoActuator {
   StrokeTrajectory Run(const SineSetPoint& set_point, const PeriodicLoad& load, double t0, double duration,
                        State& state, ActuatorStats* stats = nullptr) const;
 
+  //! A signal of absolute time: value and rate (the loop uses no acceleration).
+  using Signal = std::function<InputSample(double t)>;
+  //! As above for any command r(t) and load F(t) (the simulated controller's ramps and sines).
+  //! From `valve_closed_from` on (rounded up to a control step) the hydraulics are off: the spool
+  //! closes at the valve bandwidth whatever the command, and the locked oil holds the piston where
+  //! it stops (the ideal actuator holds the command's value at that time).
+  StrokeTrajectory Run(const Signal& command, const Signal& load, double t0, double duration, State& state,
+                       ActuatorStats* stats = nullptr, double valve_closed_from = INFINITY) const;
+
   //! y' and y'' for a state, set-point sample and load sample (exposed for tests).
   void Rates(const State& s, const InputSample& r, const InputSample& load, double* y_rate, double* spool_rate,
              double* y_accel) const;
 
  private:
+  //! y' and y'' with the spool driven towards `spool_target` (sat(u) with the loop closed, 0 with
+  //! the valve closed).
+  void ValveRates(const State& s, double spool_target, const InputSample& load, double* y_rate, double* spool_rate,
+                  double* y_accel) const;
   ActuatorOptions options_;
   double kv_ = 0.0, wv_ = 0.0;
 };

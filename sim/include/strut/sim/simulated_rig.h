@@ -114,10 +114,11 @@ class SimulatedRig {
   daq::Session RunMatrix(const MatrixPlan& plan, const RigRunOptions& options = {},
                          std::vector<PeriodicRunReport>* reports = nullptr) const;
   //! One periodic experiment, from the settled periodic-solver state through settling to the
-  //! record. `clock` and `sink` may be null/empty.
+  //! record. `clock` and `sink` may be null/empty. `start_phase` (rad, of the set-point at the
+  //! first sample) is drawn from `rng` unless given (a comparison at the same sampling phases).
   daq::Experiment RunPeriodic(const rig::MatrixEntry& entry, double sample_rate, long periods, std::mt19937_64& rng,
                               PeriodicRunReport* report = nullptr, SimulationClock* clock = nullptr,
-                              const SampleSink& sink = {}) const;
+                              const SampleSink& sink = {}, std::optional<double> start_phase = std::nullopt) const;
 
   //! A drop test as a session of one experiment.
   daq::Session RunDropSession(const DropSpec& drop, const RigRunOptions& options = {},

@@ -364,17 +364,28 @@ struct MatrixRunner::Impl {
 
   // ---- the controller
 
+  // A command to the controller. A refusal ends the experiment at once; a lost connection or a
+  // timeout is retried for controller_grace (a reconnect), then the controller is lost.
   template <typename F>
   void Call(const char* what, F&& call) {
-    try {
-      call();
-    } catch (const daq::DeviceError& e) {
-      const bool refused =
-          e.kind() == daq::DeviceError::Kind::kRefused || e.kind() == daq::DeviceError::Kind::kInvalidValue;
-      if (!refused) controller_lost = true;
-      throw Interrupt{Trip{refused ? "controller-refused" : "controller-lost",
-                           refused ? SafetyAction::kStop : SafetyAction::kInterlock, Now(),
-                           fmt::format("{}: {}", what, e.what())}};
+    const std::int64_t deadline = Now() + Ns(options.controller_grace);
+    for (;;) {
+      try {
+        call();
+        return;
+      } catch (const daq::DeviceError& e) {
+        const bool refused =
+            e.kind() == daq::DeviceError::Kind::kRefused || e.kind() == daq::DeviceError::Kind::kInvalidValue;
+        if (!refused && Now() < deadline) {
+          spdlog::debug("{}: {} (retrying)", what, e.what());
+          std::this_thread::sleep_for(options.loop);
+          continue;
+        }
+        if (!refused) controller_lost = true;
+        throw Interrupt{Trip{refused ? "controller-refused" : "controller-lost",
+                             refused ? SafetyAction::kStop : SafetyAction::kInterlock, Now(),
+                             fmt::format("{}: {}", what, e.what())}};
+      }
     }
   }
 
@@ -569,6 +580,13 @@ RunReport MatrixRunner::Run(const std::vector<RunItem>& items) {
     }
     m.Call("read status", [&] { m.status = m.controller.ReadStatus(); });
     m.have_status = true;
+    if (m.options.reset_heartbeat_fault && m.status.fault_word == daq::fault_bits::kHeartbeatLost) {
+      m.Event("reset", fmt::format("the controller latched heartbeat-lost (its watchdog fired after the previous run "
+                                   "stopped beating, state {}): reset before going on",
+                                   daq::ToString(m.status.state)));
+      m.Call("reset faults", [&] { m.controller.ResetFaults(); });
+      m.Call("read status", [&] { m.status = m.controller.ReadStatus(); });
+    }
     if (m.status.faulted()) {
       throw Interrupt{Trip{"controller-fault", SafetyAction::kInterlock, Now(),
                            fmt::format("the controller has latched faults 0x{:04x} ({}) before the run: reset them first",

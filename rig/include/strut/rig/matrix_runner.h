@@ -46,6 +46,10 @@ struct RunnerOptions {
   std::string pressure_reference = "gauge";
   //! Stroke within this of the static position counts as arrived (m).
   double position_tolerance = 2e-4;
+  //! A controller whose only latched fault is heartbeat-lost (its watchdog fired because an earlier
+  //! run stopped beating: a crash, kill -9) is reset at the start, with an event, instead of refused.
+  //! For resumed runs; any other fault is always refused.
+  bool reset_heartbeat_fault = false;
   bool IsValid(std::string* error) const;
 };
 

@@ -93,16 +93,6 @@ SampleBlock Block(std::int64_t t0_ns, long first, long n, long g0 = 0) {
   return b;
 }
 
-// The events of a session: (kind, text) in order.
-std::vector<std::pair<std::string, std::string>> Events(const Session& s) {
-  std::vector<std::pair<std::string, std::string>> out;
-  const MetadataGroup* recording = s.find_metadata("recording");
-  const MetadataGroup* events = recording ? recording->find_group("events") : nullptr;
-  if (events == nullptr) return out;
-  for (const MetadataGroup& e : events->groups) out.emplace_back(*e.text("kind"), *e.text("text"));
-  return out;
-}
-
 TEST(Recorder, ResumeGoesOnRecordingIntoAClosedSessionWhoseJournalWasKept) {
   TempDir dir;
   const std::string path = dir.file("run.h5");
@@ -145,7 +135,7 @@ TEST(Recorder, ResumeGoesOnRecordingIntoAClosedSessionWhoseJournalWasKept) {
   EXPECT_EQ(s.experiments[1].sample_count(), 200u);
   EXPECT_DOUBLE_EQ(s.experiments[1].channel("force").samples[5], 1005.0);
   bool resumed = false;
-  for (const auto& [kind, text] : Events(s)) resumed |= kind == "resumed" && text == "resumed by the test";
+  for (const auto& [kind, text] : strut::test::SessionEvents(s)) resumed |= kind == "resumed" && text == "resumed by the test";
   EXPECT_TRUE(resumed);
   EXPECT_EQ(*s.find_metadata("recording")->text("ended"), "closed");
   // Metadata groups added during the recording are merged by name.
@@ -194,7 +184,7 @@ TEST(Recorder, ResumeAfterACutEndsTheExperimentInProgressAbortedAndCutsTheTornTa
   EXPECT_EQ(s.experiments[2].label, "e1-2");
   EXPECT_EQ(s.experiments[2].status, "complete");
   int recovered = 0;
-  for (const auto& [kind, text] : Events(s)) recovered += kind == "recovered" && text.find("'e1'") != std::string::npos;
+  for (const auto& [kind, text] : strut::test::SessionEvents(s)) recovered += kind == "recovered" && text.find("'e1'") != std::string::npos;
   EXPECT_EQ(recovered, 1);
   // Without a journal there is nothing to resume.
   EXPECT_THROW(Recorder::Resume(dir.file("none.h5")), RecorderError);

@@ -30,25 +30,16 @@ using test::PlantAcquisition;
 using test::PlantOptions;
 using test::TempDir;
 
-std::vector<std::pair<std::string, std::string>> Events(const daq::Session& s) {
-  std::vector<std::pair<std::string, std::string>> out;
-  const daq::MetadataGroup* recording = s.find_metadata("recording");
-  const daq::MetadataGroup* events = recording ? recording->find_group("events") : nullptr;
-  if (events == nullptr) return out;
-  for (const daq::MetadataGroup& e : events->groups) out.emplace_back(*e.text("kind"), *e.text("text"));
-  return out;
-}
-
 // The first event of `kind` whose text contains `part`, or "".
 std::string FindEvent(const daq::Session& s, const std::string& kind, const std::string& part = "") {
-  for (const auto& [k, text] : Events(s))
+  for (const auto& [k, text] : test::SessionEvents(s))
     if (k == kind && text.find(part) != std::string::npos) return text;
   return "";
 }
 
 std::string AllEvents(const daq::Session& s) {
   std::string out;
-  for (const auto& [k, text] : Events(s)) out += k + ": " + text + "\n";
+  for (const auto& [k, text] : test::SessionEvents(s)) out += k + ": " + text + "\n";
   return out;
 }
 

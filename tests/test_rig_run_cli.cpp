@@ -162,6 +162,9 @@ TEST(RigRunCli, KillNineMidExperimentThenResumeCompletesTheMatrixIntoTheSameFile
   const auto resumed = test::RunStrut(common.substr(std::string(STRUT_BINARY).size() + 1) + " --resume --no-progress");
   ASSERT_EQ(resumed.exit_code, 0) << resumed.output;
   EXPECT_NE(resumed.output.find("run complete"), std::string::npos) << resumed.output;
+  // Not a terminal: plain log lines, one a phase, with the steady-state measure and the margins.
+  EXPECT_NE(resumed.output.find("[info] c (2/3): recording (cycle "), std::string::npos) << resumed.output;
+  EXPECT_NE(resumed.output.find("margins stroke "), std::string::npos) << resumed.output;
   EXPECT_FALSE(fs::exists(daq::JournalPath(session)));
   const daq::Session s = daq::ReadSession(session);
   EXPECT_EQ(s.damper_serial, "K9");
@@ -177,8 +180,7 @@ TEST(RigRunCli, KillNineMidExperimentThenResumeCompletesTheMatrixIntoTheSameFile
   }
   EXPECT_GT(s.experiments[1].sample_count(), 100u);  // what the killed run recorded of 'b' is kept
   std::string events;
-  const daq::MetadataGroup* list = s.find_metadata("recording")->find_group("events");
-  for (const auto& e : list->groups) events += *e.text("kind") + ": " + *e.text("text") + "\n";
+  for (const auto& [kind, text] : test::SessionEvents(s)) events += kind + ": " + text + "\n";
   EXPECT_NE(events.find("recovered: experiment 'b' was in progress"), std::string::npos) << events;
   EXPECT_NE(events.find("resumed: strut rig run --resume"), std::string::npos) << events;
   EXPECT_NE(events.find("reset: the controller latched heartbeat-lost"), std::string::npos) << events;

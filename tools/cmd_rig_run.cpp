@@ -171,6 +171,7 @@ struct RigRunCommand {
     const bool tty = !no_progress && isatty(fileno(stderr));
     std::string last_line;
     runner.on_progress = [&](const rig::Progress& p) {
+      if (p.experiment.empty()) return;  // starting: nothing to show yet
       const std::string where = fmt::format("{} ({}/{})", p.experiment, p.index + 1, p.total);
       const std::string measure = std::isfinite(p.steady_measure) ? fmt::format("{:.2f}", p.steady_measure) : "-";
       const std::string margins =

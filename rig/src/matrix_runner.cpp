@@ -495,7 +495,6 @@ struct MatrixRunner::Impl {
       current->open = false;
     }
     const double frequency = current ? current->item.entry.frequency : 1.0;
-    const double position = current ? current->item.entry.static_position : status.stroke;
     if (controller_lost) return;  // nothing to command; the controller's watchdog stops it
     if (trip.action == SafetyAction::kInterlock || status.faulted()) {
       Disarm();
@@ -513,7 +512,6 @@ struct MatrixRunner::Impl {
                              (status.status_word & daq::status_bits::kAtStatic) != 0; },
                 (options.ramp_cycles + 1) / frequency, "the ramp out to the static level");
     }
-    (void)position;
   }
 
   void Disarm() {

@@ -124,6 +124,12 @@ struct RigRunCommand {
     } else {
       for (const rig::MatrixEntry& e : plan.experiments) items.push_back({e});
     }
+    if (resume && items.empty()) {
+      // Cut off after the last record ended: nothing to run, the session only needs closing.
+      daq::Recorder::Resume(output, {}, "strut rig run --resume: nothing left to run").Close();
+      std::cout << fmt::format("{}: run complete (every experiment of the matrix was recorded already)\n", output);
+      return;
+    }
     std::vector<rig::MatrixEntry> entries;
     for (const rig::RunItem& i : items) entries.push_back(i.entry);
     const std::vector<std::string> refusals = rig::CheckMatrix(entries, safety, rate, predictor);

@@ -24,6 +24,8 @@ void RegisterSimCommand(CLI::App& app);
 void RegisterImportCommand(CLI::App& app);
 //! `rig controller-status` (tools/cmd_rig.cpp).
 void RegisterRigCommand(CLI::App& app);
+//! Adds `run` (the test matrix on the rig, tools/cmd_rig_run.cpp) under the `rig` subcommand.
+void RegisterRigRunCommand(CLI::App& rig);
 void RegisterRecoverCommand(CLI::App& app);
 //! Adds `recorder` (streaming recorder throughput and CPU) under the `bench` subcommand.
 void RegisterBenchRecorder(CLI::App& bench);

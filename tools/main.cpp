@@ -54,6 +54,7 @@ int main(int argc, char** argv) {
   strut::tools::RegisterSimCommand(app);
   strut::tools::RegisterImportCommand(app);
   strut::tools::RegisterRigCommand(app);
+  strut::tools::RegisterRigRunCommand(*app.get_subcommand("rig"));
   strut::tools::RegisterRecoverCommand(app);
   strut::tools::RegisterQcCommand(app);
   strut::tools::RegisterPredictCommand(app);

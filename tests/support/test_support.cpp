@@ -96,4 +96,13 @@ std::size_t Count(const std::string& haystack, const std::string& needle) {
   return n;
 }
 
+std::vector<std::pair<std::string, std::string>> SessionEvents(const daq::Session& session) {
+  std::vector<std::pair<std::string, std::string>> out;
+  const daq::MetadataGroup* recording = session.find_metadata("recording");
+  const daq::MetadataGroup* events = recording ? recording->find_group("events") : nullptr;
+  if (events == nullptr) return out;
+  for (const daq::MetadataGroup& e : events->groups) out.emplace_back(*e.text("kind"), *e.text("text"));
+  return out;
+}
+
 }  // namespace strut::test

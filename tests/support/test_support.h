@@ -2,6 +2,10 @@
 #pragma once
 
 #include <string>
+#include <utility>
+#include <vector>
+
+#include "strut/daq/session.h"
 
 namespace strut::test {
 
@@ -48,6 +52,9 @@ std::string ChromiumCommand(const std::string& profile_dir);
 
 //! The whole file as a string ("" when it cannot be read).
 std::string ReadFile(const std::string& path);
+
+//! The events a recorded session holds (/recording/events): (kind, text), oldest first.
+std::vector<std::pair<std::string, std::string>> SessionEvents(const daq::Session& session);
 
 //! Occurrences of `needle` in `haystack`.
 std::size_t Count(const std::string& haystack, const std::string& needle);

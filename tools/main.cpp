@@ -55,6 +55,8 @@ int main(int argc, char** argv) {
   strut::tools::RegisterImportCommand(app);
   strut::tools::RegisterRigCommand(app);
   strut::tools::RegisterRecoverCommand(app);
+  strut::tools::RegisterReplayCommand(app);
+  strut::tools::RegisterBenchReplay(*app.get_subcommand("bench"));
   strut::tools::RegisterQcCommand(app);
   strut::tools::RegisterPredictCommand(app);
 

@@ -93,6 +93,113 @@ SampleBlock Block(std::int64_t t0_ns, long first, long n, long g0 = 0) {
   return b;
 }
 
+// The events of a session: (kind, text) in order.
+std::vector<std::pair<std::string, std::string>> Events(const Session& s) {
+  std::vector<std::pair<std::string, std::string>> out;
+  const MetadataGroup* recording = s.find_metadata("recording");
+  const MetadataGroup* events = recording ? recording->find_group("events") : nullptr;
+  if (events == nullptr) return out;
+  for (const MetadataGroup& e : events->groups) out.emplace_back(*e.text("kind"), *e.text("text"));
+  return out;
+}
+
+TEST(Recorder, ResumeGoesOnRecordingIntoAClosedSessionWhoseJournalWasKept) {
+  TempDir dir;
+  const std::string path = dir.file("run.h5");
+  const std::int64_t t0 = NowNs();
+  {
+    Recorder r = Recorder::Open(path, Metadata());
+    r.BeginExperiment(Periodic("e0"));
+    r.Append(Block(t0, 0, 300));
+    r.EndExperiment(EndStatus::kComplete);
+    r.Close(/*keep_journal=*/true);
+  }
+  // A valid session now, and the journal stays for the resume.
+  ASSERT_TRUE(fs::exists(path));
+  ASSERT_TRUE(fs::exists(JournalPath(path)));
+  EXPECT_EQ(ReadSession(path).experiments.size(), 1u);
+  // A new recording into the same path is refused while the journal is there.
+  EXPECT_THROW(Recorder::Open(path, Metadata()), RecorderError);
+
+  Session so_far;
+  {
+    Recorder r = Recorder::Resume(path, {}, "resumed by the test", &so_far);
+    ASSERT_EQ(so_far.experiments.size(), 1u);
+    EXPECT_EQ(so_far.experiments[0].label, "e0");
+    // Labels already recorded stay taken.
+    EXPECT_THROW(r.BeginExperiment(Periodic("e0")), RecorderError);
+    r.BeginExperiment(Periodic("e1", 2));
+    r.Append(Block(t0 + 10'000'000'000, 0, 200, 1000));
+    r.EndExperiment(EndStatus::kComplete);
+    r.AddMetadata({"rig_run", {{"note", std::string("first")}}, {{"e1", {{"cycles", 2LL}}, {}}}});
+    r.AddMetadata({"rig_run", {{"note", std::string("second")}}, {{"e0", {{"cycles", 3LL}}, {}}}});
+    EXPECT_THROW(r.AddMetadata({"recording", {}, {}}), RecorderError);
+    r.Close();
+  }
+  EXPECT_FALSE(fs::exists(JournalPath(path)));
+  const Session s = ReadSession(path);
+  ASSERT_EQ(s.experiments.size(), 2u);
+  EXPECT_EQ(s.experiments[0].label, "e0");
+  EXPECT_EQ(s.experiments[0].sample_count(), 300u);
+  EXPECT_EQ(s.experiments[1].label, "e1");
+  EXPECT_EQ(s.experiments[1].sample_count(), 200u);
+  EXPECT_DOUBLE_EQ(s.experiments[1].channel("force").samples[5], 1005.0);
+  bool resumed = false;
+  for (const auto& [kind, text] : Events(s)) resumed |= kind == "resumed" && text == "resumed by the test";
+  EXPECT_TRUE(resumed);
+  EXPECT_EQ(*s.find_metadata("recording")->text("ended"), "closed");
+  // Metadata groups added during the recording are merged by name.
+  const MetadataGroup* rig = s.find_metadata("rig_run");
+  ASSERT_NE(rig, nullptr);
+  EXPECT_EQ(*rig->text("note"), "second");
+  ASSERT_EQ(rig->groups.size(), 2u);
+  EXPECT_EQ(*rig->find_group("e0")->number("cycles"), 3.0);
+  EXPECT_EQ(*rig->find_group("e1")->number("cycles"), 2.0);
+}
+
+TEST(Recorder, ResumeAfterACutEndsTheExperimentInProgressAbortedAndCutsTheTornTail) {
+  TempDir dir;
+  const std::string path = dir.file("cut.h5");
+  const std::string copy = dir.file("copy.h5");
+  const std::int64_t t0 = NowNs();
+  RecorderOptions options;
+  options.sync_interval = std::chrono::milliseconds(5);
+  {
+    Recorder r = Recorder::Open(path, Metadata(), options);
+    r.BeginExperiment(Periodic("e0"));
+    r.Append(Block(t0, 0, 300));
+    r.EndExperiment(EndStatus::kComplete);
+    r.BeginExperiment(Periodic("e1"));
+    r.Append(Block(t0 + 5'000'000'000, 0, 120));
+    // What a kill -9 leaves: the journal as written so far, plus half a record of garbage.
+    std::this_thread::sleep_for(std::chrono::milliseconds(200));
+    fs::copy_file(JournalPath(path), JournalPath(copy));
+    std::ofstream(JournalPath(copy), std::ios::app | std::ios::binary) << std::string("\x40\x00\x00\x00\x03\x00", 6);
+    r.Close();
+  }
+  {
+    Recorder r = Recorder::Resume(copy, options);
+    r.BeginExperiment(Periodic("e1-2"));
+    r.Append(Block(t0 + 9'000'000'000, 0, 300));
+    r.EndExperiment(EndStatus::kComplete);
+    r.Close();
+  }
+  const Session s = ReadSession(copy);
+  ASSERT_EQ(s.experiments.size(), 3u);
+  EXPECT_EQ(s.experiments[0].status, "complete");
+  EXPECT_EQ(s.experiments[1].label, "e1");
+  EXPECT_EQ(s.experiments[1].status, "aborted");
+  EXPECT_EQ(s.experiments[1].sample_count(), 120u);
+  EXPECT_EQ(s.experiments[1].extra_attributes.at("requested_periods"), "3");
+  EXPECT_EQ(s.experiments[2].label, "e1-2");
+  EXPECT_EQ(s.experiments[2].status, "complete");
+  int recovered = 0;
+  for (const auto& [kind, text] : Events(s)) recovered += kind == "recovered" && text.find("'e1'") != std::string::npos;
+  EXPECT_EQ(recovered, 1);
+  // Without a journal there is nothing to resume.
+  EXPECT_THROW(Recorder::Resume(dir.file("none.h5")), RecorderError);
+}
+
 TEST(Recorder, RoundTripGivesBackEverySampleEventAndCalibration) {
   TempDir dir;
   const std::string path = dir.file("run.h5");

@@ -218,6 +218,13 @@ std::string ClosePayload(const std::string& closed_utc) {
   return json{{"closed_utc", closed_utc}}.dump();
 }
 
+std::string ResumePayload(std::int64_t monotonic_ns, std::int64_t utc_ns, const std::string& resumed_utc,
+                          const std::string& text) {
+  return json{{"monotonic_ns", monotonic_ns}, {"utc_ns", utc_ns}, {"resumed_utc", resumed_utc}, {"text", text}}.dump();
+}
+
+std::string GroupPayload(const MetadataGroup& group) { return GroupJson(group).dump(); }
+
 std::int64_t MonotonicNowNs() {
   timespec t{};
   clock_gettime(CLOCK_MONOTONIC, &t);
@@ -531,6 +538,19 @@ class Assembler {
         closed_utc_ = j.at("closed_utc").get<std::string>();
         closed_ = true;
         break;
+      case RecordType::kResume: {
+        // A new process goes on recording: its monotonic clock may be another boot's, so the
+        // pair it brings maps its times to UTC from here on.
+        if (open_ != nullptr) throw std::out_of_range("a resume inside an experiment");
+        const std::int64_t t = j.at("monotonic_ns").get<std::int64_t>();
+        clock_.push_back({t, j.at("utc_ns").get<std::int64_t>()});
+        events_.push_back({t, "resumed", j.at("text").get<std::string>(), {}});
+        closed_ = false;
+        break;
+      }
+      case RecordType::kGroup:
+        MergeGroup(journal::GroupFromJson(j));
+        break;
       default:
         throw std::out_of_range(fmt::format("unknown record type {}", static_cast<int>(type)));
     }
@@ -541,12 +561,34 @@ class Assembler {
 
   Session Finish(JournalReport& report) {
     report.closed = closed_;
+    if (open_ != nullptr) report.in_progress = open_->descriptor.header.label;
     for (Building& b : experiments_) Emit(b, report);
     session_.metadata.push_back(RecordingGroup(report));
     return std::move(session_);
   }
 
  private:
+  // Attributes replace those of the same name; subgroups replace the same-named or are appended.
+  void MergeGroup(MetadataGroup group) {
+    if (group.name == "experiments" || group.name == "recording" || group.name.empty())
+      throw std::out_of_range("metadata group '" + group.name + "' is reserved");
+    auto it = std::find_if(session_.metadata.begin(), session_.metadata.end(),
+                           [&](const MetadataGroup& g) { return g.name == group.name; });
+    if (it == session_.metadata.end()) {
+      session_.metadata.push_back(std::move(group));
+      return;
+    }
+    for (auto& [name, value] : group.attributes) it->attributes[name] = std::move(value);
+    for (MetadataGroup& sub : group.groups) {
+      auto same = std::find_if(it->groups.begin(), it->groups.end(), [&](const MetadataGroup& g) { return g.name == sub.name; });
+      if (same != it->groups.end()) {
+        *same = std::move(sub);
+      } else {
+        it->groups.push_back(std::move(sub));
+      }
+    }
+  }
+
   void Emit(Building& b, JournalReport& report) {
     Experiment e = std::move(b.descriptor.header);
     if (b.monotonic_ns.empty()) {

@@ -29,6 +29,8 @@ enum class RecordType : std::uint16_t {
   kEnd = 5,    //!< JSON: status, periods
   kClock = 6,  //!< JSON: monotonic_ns, utc_ns
   kClose = 7,  //!< JSON: closed_utc
+  kResume = 8,  //!< JSON: monotonic_ns, utc_ns, resumed_utc, text: the recording goes on after a Close or a cut
+  kGroup = 9,   //!< JSON: a root metadata group, merged into one of that name
 };
 
 //! CRC-32 (IEEE 802.3, the zlib one), continued from `crc` (0 to start).
@@ -51,6 +53,9 @@ std::string EventPayload(std::int64_t monotonic_ns, std::string_view kind, std::
 std::string EndPayload(EndStatus status, long periods);
 std::string ClockPayload(std::int64_t monotonic_ns, std::int64_t utc_ns);
 std::string ClosePayload(const std::string& closed_utc);
+std::string ResumePayload(std::int64_t monotonic_ns, std::int64_t utc_ns, const std::string& resumed_utc,
+                          const std::string& text);
+std::string GroupPayload(const MetadataGroup& group);
 
 //! Now on CLOCK_MONOTONIC and CLOCK_REALTIME, ns.
 std::int64_t MonotonicNowNs();

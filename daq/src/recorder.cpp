@@ -103,6 +103,21 @@ bool RecorderOptions::IsValid(std::string* error) const {
   return true;
 }
 
+// An existing journal opened to append (Resume), after cutting it to `keep_bytes` (a torn tail).
+std::unique_ptr<JournalSink> ReopenJournalFile(const std::string& journal_path, std::uint64_t keep_bytes) {
+  const int fd = ::open(journal_path.c_str(), O_WRONLY | O_APPEND | O_CLOEXEC);
+  if (fd < 0) {
+    throw RecorderError(fmt::format("{}: cannot reopen the journal: {}", journal_path, std::strerror(errno)));
+  }
+  if (::ftruncate(fd, static_cast<off_t>(keep_bytes)) != 0 || ::fdatasync(fd) != 0) {
+    const int error = errno;
+    ::close(fd);
+    throw RecorderError(fmt::format("{}: cannot cut the journal's torn tail at byte {}: {}", journal_path, keep_bytes,
+                                    std::strerror(error)));
+  }
+  return std::make_unique<JournalFile>(journal_path, fd);
+}
+
 std::unique_ptr<JournalSink> CreateJournalFile(const std::string& journal_path, bool force) {
   const int flags = O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC | (force ? O_TRUNC : O_EXCL);
   const int fd = ::open(journal_path.c_str(), flags, 0666);
@@ -361,7 +376,7 @@ struct Recorder::Impl {
     if (writer.joinable()) writer.join();
   }
 
-  void Close() {
+  void Close(bool keep_journal) {
     std::lock_guard call(api);
     std::unique_lock lock(mutex);
     if (closed) return;
@@ -404,6 +419,7 @@ struct Recorder::Impl {
       throw RecorderError(fmt::format("{}; {} holds what was recorded until then ({} samples), the journal {} is kept",
                                       failed, session_path, report.samples, journal_path));
     }
+    if (keep_journal) return;
     std::error_code error;
     if (!std::filesystem::remove(journal_path, error)) {
       spdlog::warn("{}: written, but removing the journal {} failed: {}", session_path, journal_path, error.message());
@@ -417,7 +433,7 @@ Recorder& Recorder::operator=(Recorder&& other) noexcept {
   if (this != &other) {
     if (impl_ && !impl_->closed) {
       try {
-        impl_->Close();
+        impl_->Close(false);
       } catch (const std::exception& e) {
         spdlog::error("{}", e.what());
       }
@@ -430,7 +446,7 @@ Recorder& Recorder::operator=(Recorder&& other) noexcept {
 Recorder::~Recorder() {
   if (!impl_ || impl_->closed) return;
   try {
-    impl_->Close();
+    impl_->Close(false);
   } catch (const std::exception& e) {
     spdlog::error("{}", e.what());
   }
@@ -470,7 +486,7 @@ Recorder Recorder::Open(const std::string& session_path, const RecordingMetadata
   impl->options = options;
   if (!sink && !options.force && std::filesystem::exists(impl->journal_path, ignored)) {
     throw RecorderError(fmt::format(
-        "{}: the journal of an earlier recording is there: `strut recover {}` it first, or record with force",
+        "{}: the journal of an earlier recording is there: resume it, `strut recover {}` it first, or record with force",
         impl->journal_path, impl->journal_path));
   }
   impl->sink = sink ? std::move(sink) : CreateJournalFile(impl->journal_path, options.force);
@@ -483,6 +499,56 @@ Recorder Recorder::Open(const std::string& session_path, const RecordingMetadata
   Impl* raw = impl.get();
   impl->writer = std::thread([raw] { raw->WriterLoop(); });
   return Recorder(std::move(impl));
+}
+
+Recorder Recorder::Resume(const std::string& session_path, const RecorderOptions& options, const std::string& text,
+                          Session* so_far) {
+  std::string error;
+  if (!options.IsValid(&error)) throw RecorderError(fmt::format("{}: recorder options: {}", session_path, error));
+  const std::string journal_path = JournalPath(session_path);
+  std::error_code ignored;
+  if (!std::filesystem::exists(journal_path, ignored)) {
+    throw RecorderError(fmt::format("{}: no journal {} to resume from (a session closed complete has none)", session_path,
+                                    journal_path));
+  }
+  JournalReport report;
+  Session session = ReadJournal(journal_path, &report);
+  auto impl = std::make_unique<Impl>();
+  impl->session_path = session_path;
+  impl->journal_path = journal_path;
+  impl->metadata.damper_serial = session.damper_serial;
+  impl->metadata.rig = session.rig;
+  impl->metadata.profile = session.profile;
+  impl->options = options;
+  for (const Experiment& e : session.experiments) impl->labels.insert(e.label);
+  impl->sink = ReopenJournalFile(journal_path, report.bytes_read);
+  const std::int64_t now = journal::MonotonicNowNs();
+  if (!report.in_progress.empty()) {
+    impl->sink->Write(journal::Record(
+        journal::RecordType::kEvent,
+        journal::EventPayload(now, "recovered",
+                              fmt::format("experiment '{}' was in progress when the recording was cut off: marked aborted",
+                                          report.in_progress))));
+    impl->sink->Write(journal::Record(journal::RecordType::kEnd, journal::EndPayload(EndStatus::kAborted, 0)));
+  }
+  impl->sink->Write(journal::Record(journal::RecordType::kResume,
+                                    journal::ResumePayload(now, journal::UtcNowNs(), UtcNowIso8601(), text)));
+  impl->sink->Sync();
+  if (so_far != nullptr) *so_far = ReadJournal(journal_path);
+  Impl* raw = impl.get();
+  impl->writer = std::thread([raw] { raw->WriterLoop(); });
+  return Recorder(std::move(impl));
+}
+
+void Recorder::AddMetadata(const MetadataGroup& group) {
+  Impl& m = *impl_;
+  std::lock_guard call(m.api);
+  std::unique_lock lock(m.mutex);
+  m.CheckUsable();
+  if (!ValidName(group.name) || group.name == "experiments" || group.name == "recording") {
+    m.Throw(fmt::format("metadata group '{}' is not allowed (reserved or not a name)", group.name));
+  }
+  m.Enqueue(lock, journal::Record(journal::RecordType::kGroup, journal::GroupPayload(group)));
 }
 
 void Recorder::BeginExperiment(const ExperimentDescriptor& d) {
@@ -556,7 +622,7 @@ void Recorder::EndExperiment(EndStatus status, std::optional<long> periods) {
   m.open.reset();
 }
 
-void Recorder::Close() { impl_->Close(); }
+void Recorder::Close(bool keep_journal) { impl_->Close(keep_journal); }
 
 RecorderStats Recorder::stats() const {
   std::lock_guard lock(impl_->mutex);

@@ -148,6 +148,15 @@ class Recorder {
   static Recorder Open(const std::string& session_path, const RecordingMetadata& metadata,
                        const RecorderOptions& options = {},
                        std::unique_ptr<JournalSink> sink = nullptr);
+  //! Goes on recording into the session whose journal `<session_path>.journal` is there (kept by
+  //! Close(true), or left by a crash or kill -9): reads it as `strut recover` does, cuts off a torn
+  //! tail, ends an experiment that was in progress as aborted (event "recovered"), and appends a
+  //! Resume record (event "resumed" with `text`, a new clock pair) after which new experiments
+  //! follow. The session so far (what Close would write now) goes to `so_far` when given.
+  //! RecorderError when there is no journal (a session closed without keeping it cannot be resumed)
+  //! or it is not a recording journal. options.force is not used.
+  static Recorder Resume(const std::string& session_path, const RecorderOptions& options = {},
+                         const std::string& text = "recording resumed", Session* so_far = nullptr);
   Recorder(Recorder&&) noexcept;
   Recorder& operator=(Recorder&&) noexcept;
   //! Closes like Close() when still open (errors are logged, the journal then stays).
@@ -163,13 +172,18 @@ class Recorder {
   void Append(const SampleBlock& block);
   //! Records an event (trip, abort, pause, resume, note, ...) at a monotonic time.
   void Event(std::int64_t monotonic_ns, std::string_view kind, std::string_view text);
+  //! Adds a root metadata group during the recording (e.g. the rig runner's per-cycle summaries):
+  //! merged into a group of that name if there is one (attributes and same-named subgroups
+  //! replaced, others appended). Throws for "experiments", "recording" or a name with '/'.
+  void AddMetadata(const MetadataGroup& group);
   //! Ends the open experiment. `periods` (periodic, complete): whole periods recorded, default
   //! the requested ones; the sample count must match (contract). Aborted experiments are stored
   //! with periods = 0 and `requested_periods`.
   void EndExperiment(EndStatus status, std::optional<long> periods = std::nullopt);
   //! Ends an open experiment as aborted, drains and syncs the journal, writes the session file
-  //! and removes the journal. When anything failed the journal is kept and RecorderError says so.
-  void Close();
+  //! and removes the journal, or keeps it with `keep_journal` so that Resume can go on (a paused
+  //! or stopped run). When anything failed the journal is kept and RecorderError says so.
+  void Close(bool keep_journal = false);
 
   RecorderStats stats() const;
   const std::string& session_path() const;
@@ -189,6 +203,7 @@ struct JournalReport {
   bool closed = false;                //!< the recording ended with Close
   std::vector<std::string> aborted;   //!< experiments that were in progress at the cut
   std::vector<std::string> dropped;   //!< experiments without a single sample (not written)
+  std::string in_progress;            //!< the experiment open at the journal's end ("" when none)
   std::uint64_t samples = 0;
 };
 

@@ -1,0 +1,432 @@
+#include "strut/rig/safety.h"
+
+#include <spdlog/fmt/fmt.h>
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <numbers>
+#include <set>
+#include <sstream>
+#include <toml++/toml.h>
+
+#include "strut/daq/session.h"
+#include "strut/ident/fit_report.h"
+#include "strut/ident/periodic.h"
+
+namespace strut::rig {
+
+std::string_view ToString(SafetyAction action) {
+  switch (action) {
+    case SafetyAction::kIndicate:
+      return "indicate";
+    case SafetyAction::kHold:
+      return "hold";
+    case SafetyAction::kStop:
+      return "stop";
+    case SafetyAction::kInterlock:
+      return "interlock";
+  }
+  return "unknown";
+}
+
+std::optional<SafetyAction> SafetyActionFrom(std::string_view text) {
+  for (SafetyAction a : {SafetyAction::kIndicate, SafetyAction::kHold, SafetyAction::kStop, SafetyAction::kInterlock})
+    if (ToString(a) == text) return a;
+  return std::nullopt;
+}
+
+bool SafetyConfig::IsValid(std::string* error) const {
+  auto fail = [&](std::string m) {
+    if (error) *error = std::move(m);
+    return false;
+  };
+  const auto limit = [&](const char* name, const ChannelLimit& l) {
+    if (!std::isfinite(l.lower) || !std::isfinite(l.upper) || !(l.lower < l.upper))
+      return fail(fmt::format("[{}] lower {} must be below upper {} (both finite)", name, l.lower, l.upper));
+    if (l.persistence < 1 || l.persistence > 100000)
+      return fail(fmt::format("[{}] persistence {} is outside 1..100000 samples", name, l.persistence));
+    return true;
+  };
+  if (!limit("stroke", stroke) || !limit("force", force) || !limit("pressure", pressure)) return false;
+  if (!(following.max_error > 0.0 && std::isfinite(following.max_error)) || following.persistence < 1)
+    return fail(fmt::format("[following_error] max_error {} must be positive and persistence {} >= 1", following.max_error,
+                            following.persistence));
+  if (!(under_peak.fraction > 0.0 && under_peak.fraction <= 1.0) || under_peak.cycles < 1)
+    return fail(fmt::format("[under_peak] fraction {} must be in (0, 1] and cycles {} >= 1", under_peak.fraction,
+                            under_peak.cycles));
+  if (stale.timeout.count() < 1) return fail("[stale] timeout must be at least 1 ms");
+  if (heartbeat.controller_timeout.count() < 1) return fail("[heartbeat] controller_timeout must be at least 1 ms");
+  if (heartbeat.watchdog.count() < 0 || heartbeat.watchdog.count() > 65535)
+    return fail(fmt::format("[heartbeat] watchdog {} ms is outside 0..65535 ms", heartbeat.watchdog.count()));
+  for (auto [name, v] : {std::pair{"max_velocity", actuator.max_velocity}, {"piston_area", actuator.piston_area},
+                         {"max_flow", actuator.max_flow}}) {
+    if (!(v > 0.0 && std::isfinite(v))) return fail(fmt::format("[actuator] {} = {} must be positive", name, v));
+  }
+  if (!(controller.stroke_min < controller.stroke_max) || !(controller.force_min < controller.force_max))
+    return fail("[controller] limits must be ordered (min below max)");
+  return true;
+}
+
+namespace {
+
+class Reader {
+ public:
+  Reader(const toml::table& root, std::string source) : root_(root), source_(std::move(source)) {}
+
+  [[noreturn]] void Fail(const toml::node& n, const std::string& what) const {
+    throw SafetyError(fmt::format("{}:{}: {}", source_, n.source().begin.line, what));
+  }
+
+  // Visits a section, refusing keys it does not know.
+  template <typename F>
+  void Section(const char* name, std::initializer_list<const char*> keys, F&& read) {
+    seen_.insert(name);
+    const toml::node* node = root_.get(name);
+    if (!node) return;
+    const toml::table* t = node->as_table();
+    if (!t) Fail(*node, fmt::format("'{}' must be a table ([{}])", name, name));
+    for (auto&& [k, v] : *t) {
+      if (std::find_if(keys.begin(), keys.end(), [&](const char* key) { return k.str() == key; }) == keys.end())
+        Fail(v, fmt::format("[{}] unknown key '{}' (known: {})", name, k.str(), fmt::join(keys, ", ")));
+    }
+    read(*t);
+  }
+
+  void Number(const toml::table& t, const char* section, const char* key, double& out) {
+    const toml::node* n = t.get(key);
+    if (!n) return;
+    if (!n->is_number()) Fail(*n, fmt::format("[{}] {} must be a number", section, key));
+    out = *n->value<double>();
+    if (!std::isfinite(out)) Fail(*n, fmt::format("[{}] {} must be finite", section, key));
+  }
+  void Integer(const toml::table& t, const char* section, const char* key, int& out) {
+    const toml::node* n = t.get(key);
+    if (!n) return;
+    if (!n->is_integer()) Fail(*n, fmt::format("[{}] {} must be an integer", section, key));
+    out = static_cast<int>(*n->value<std::int64_t>());
+  }
+  void Bool(const toml::table& t, const char* section, const char* key, bool& out) {
+    const toml::node* n = t.get(key);
+    if (!n) return;
+    if (!n->is_boolean()) Fail(*n, fmt::format("[{}] {} must be true or false", section, key));
+    out = *n->value<bool>();
+  }
+  void Millis(const toml::table& t, const char* section, const char* key, std::chrono::milliseconds& out) {
+    double seconds = out.count() * 1e-3;
+    Number(t, section, key, seconds);
+    out = std::chrono::milliseconds(std::llround(seconds * 1e3));
+  }
+  void Action(const toml::table& t, const char* section, SafetyAction& out) {
+    const toml::node* n = t.get("action");
+    if (!n) return;
+    const auto text = n->value<std::string>();
+    const auto action = text ? SafetyActionFrom(*text) : std::nullopt;
+    if (!action) Fail(*n, fmt::format("[{}] action must be \"indicate\", \"hold\", \"stop\" or \"interlock\"", section));
+    out = *action;
+  }
+  void Limit(const char* section, ChannelLimit& l) {
+    Section(section, {"enabled", "lower", "upper", "persistence", "action"}, [&](const toml::table& t) {
+      Bool(t, section, "enabled", l.enabled);
+      Number(t, section, "lower", l.lower);
+      Number(t, section, "upper", l.upper);
+      Integer(t, section, "persistence", l.persistence);
+      Action(t, section, l.action);
+    });
+  }
+  void RefuseUnknownSections() const {
+    for (auto&& [k, v] : root_) {
+      if (!seen_.count(std::string(k.str())))
+        Fail(v, fmt::format("unknown section '{}' (known: stroke, force, pressure, following_error, under_peak, stale, "
+                            "heartbeat, actuator, controller)",
+                            k.str()));
+    }
+  }
+
+ private:
+  const toml::table& root_;
+  std::string source_;
+  std::set<std::string> seen_;
+};
+
+}  // namespace
+
+SafetyConfig ParseSafetyConfig(std::string_view text, const std::string& source) {
+  toml::table root;
+  try {
+    root = toml::parse(text, source);
+  } catch (const toml::parse_error& e) {
+    throw SafetyError(fmt::format("{}:{}:{}: TOML syntax: {}", source, e.source().begin.line, e.source().begin.column,
+                                  e.description()));
+  }
+  SafetyConfig c;
+  Reader r(root, source);
+  r.Limit("stroke", c.stroke);
+  r.Limit("force", c.force);
+  r.Limit("pressure", c.pressure);
+  r.Section("following_error", {"enabled", "max_error", "persistence", "action"}, [&](const toml::table& t) {
+    r.Bool(t, "following_error", "enabled", c.following.enabled);
+    r.Number(t, "following_error", "max_error", c.following.max_error);
+    r.Integer(t, "following_error", "persistence", c.following.persistence);
+    r.Action(t, "following_error", c.following.action);
+  });
+  r.Section("under_peak", {"enabled", "fraction", "cycles", "action"}, [&](const toml::table& t) {
+    r.Bool(t, "under_peak", "enabled", c.under_peak.enabled);
+    r.Number(t, "under_peak", "fraction", c.under_peak.fraction);
+    r.Integer(t, "under_peak", "cycles", c.under_peak.cycles);
+    r.Action(t, "under_peak", c.under_peak.action);
+  });
+  r.Section("stale", {"enabled", "timeout", "action"}, [&](const toml::table& t) {
+    r.Bool(t, "stale", "enabled", c.stale.enabled);
+    r.Millis(t, "stale", "timeout", c.stale.timeout);
+    r.Action(t, "stale", c.stale.action);
+  });
+  r.Section("heartbeat", {"enabled", "controller_timeout", "watchdog", "action"}, [&](const toml::table& t) {
+    r.Bool(t, "heartbeat", "enabled", c.heartbeat.enabled);
+    r.Millis(t, "heartbeat", "controller_timeout", c.heartbeat.controller_timeout);
+    r.Millis(t, "heartbeat", "watchdog", c.heartbeat.watchdog);
+    r.Action(t, "heartbeat", c.heartbeat.action);
+  });
+  r.Section("actuator", {"max_velocity", "piston_area", "max_flow"}, [&](const toml::table& t) {
+    r.Number(t, "actuator", "max_velocity", c.actuator.max_velocity);
+    r.Number(t, "actuator", "piston_area", c.actuator.piston_area);
+    r.Number(t, "actuator", "max_flow", c.actuator.max_flow);
+  });
+  r.Section("controller", {"stroke_min", "stroke_max", "force_min", "force_max"}, [&](const toml::table& t) {
+    r.Number(t, "controller", "stroke_min", c.controller.stroke_min);
+    r.Number(t, "controller", "stroke_max", c.controller.stroke_max);
+    r.Number(t, "controller", "force_min", c.controller.force_min);
+    r.Number(t, "controller", "force_max", c.controller.force_max);
+  });
+  r.RefuseUnknownSections();
+  std::string error;
+  if (!c.IsValid(&error)) throw SafetyError(fmt::format("{}: {}", source, error));
+  return c;
+}
+
+SafetyConfig ReadSafetyConfig(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw SafetyError(fmt::format("{}: cannot open the limits file", path));
+  std::ostringstream text;
+  text << in.rdbuf();
+  return ParseSafetyConfig(text.str(), path);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Run-time detectors
+
+SafetyMonitor::SafetyMonitor(SafetyConfig config) : config_(std::move(config)) {
+  std::string error;
+  if (!config_.IsValid(&error)) throw std::invalid_argument("safety config: " + error);
+}
+
+void SafetyMonitor::Arm(std::int64_t now_ns) {
+  last_sample_ns_ = now_ns;
+  heartbeat_changed_ns_ = now_ns;
+  last_heartbeat_.reset();
+}
+
+void SafetyMonitor::Reset(std::int64_t now_ns) {
+  stroke_ = force_ = pressure_ = following_ = {};
+  stale_latched_ = heartbeat_latched_ = fault_latched_ = under_peak_latched_ = false;
+  under_peak_count_ = 0;
+  Arm(now_ns);
+}
+
+namespace {
+// Fraction of the band [lower, upper] between value and the nearer limit, scaled so the middle is 1.
+double Margin(double value, double lower, double upper) {
+  const double half = 0.5 * (upper - lower);
+  return std::min(value - lower, upper - value) / half;
+}
+}  // namespace
+
+std::optional<Trip> SafetyMonitor::CheckLimit(const char* detector, const char* unit, const ChannelLimit& l,
+                                              LimitState& s, double v, std::int64_t t) {
+  if (!l.enabled || s.latched) return std::nullopt;
+  if (v >= l.lower && v <= l.upper) {
+    s.count = 0;
+    return std::nullopt;
+  }
+  if (++s.count < l.persistence) return std::nullopt;
+  s.latched = true;
+  const std::string channel(detector, std::string_view(detector).find('-'));
+  return Trip{detector, l.action, t,
+              fmt::format("{} {:.6g} {} {} the limit {:.6g} {} for {} samples", channel, v, unit,
+                          v > l.upper ? "above" : "below", v > l.upper ? l.upper : l.lower, unit, s.count)};
+}
+
+std::vector<Trip> SafetyMonitor::CheckBlock(const daq::AcquiredBlock& block, const std::vector<std::string>& channels) {
+  std::vector<Trip> trips;
+  if (block.empty()) return trips;
+  last_sample_ns_ = std::max(last_sample_ns_, block.time_ns.back());
+  for (std::size_t k = 0; k < channels.size() && k < block.values.size(); ++k) {
+    const ChannelLimit* l = nullptr;
+    LimitState* s = nullptr;
+    const char* detector = nullptr;
+    const char* unit = nullptr;
+    double* margin = nullptr;
+    if (channels[k] == "stroke") l = &config_.stroke, s = &stroke_, detector = "stroke-limit", unit = "m", margin = &margins_.stroke;
+    if (channels[k] == "force") l = &config_.force, s = &force_, detector = "force-limit", unit = "N", margin = &margins_.force;
+    if (channels[k] == "pressure")
+      l = &config_.pressure, s = &pressure_, detector = "pressure-limit", unit = "Pa", margin = &margins_.pressure;
+    if (!l) continue;
+    const std::vector<double>& v = block.values[k];
+    for (std::size_t i = 0; i < v.size(); ++i) {
+      *margin = std::min(*margin, Margin(v[i], l->lower, l->upper));
+      if (auto trip = CheckLimit(detector, unit, *l, *s, v[i], block.time_ns[i])) trips.push_back(std::move(*trip));
+    }
+  }
+  return trips;
+}
+
+std::optional<Trip> SafetyMonitor::CheckStale(std::int64_t now_ns) {
+  if (!config_.stale.enabled || stale_latched_) return std::nullopt;
+  const std::int64_t silent = now_ns - last_sample_ns_;
+  if (silent < std::chrono::nanoseconds(config_.stale.timeout).count()) return std::nullopt;
+  stale_latched_ = true;
+  return Trip{"stale-data", config_.stale.action, now_ns,
+              fmt::format("no sample from the acquisition for {} ms (limit {} ms)", silent / 1'000'000,
+                          config_.stale.timeout.count())};
+}
+
+std::vector<Trip> SafetyMonitor::CheckStatus(const daq::ControllerStatus& status, std::int64_t now_ns) {
+  std::vector<Trip> trips;
+  if (status.faulted() && !fault_latched_) {
+    fault_latched_ = true;
+    // The controller's own interlock already acted; strut follows with the same.
+    trips.push_back({"controller-fault", SafetyAction::kInterlock, now_ns,
+                     fmt::format("the controller latched faults 0x{:04x} ({}), state {}", status.fault_word,
+                                 daq::FaultBitsText(status.fault_word), daq::ToString(status.state))});
+  }
+  if (config_.heartbeat.enabled && !heartbeat_latched_) {
+    if (!last_heartbeat_ || *last_heartbeat_ != status.heartbeat) {
+      last_heartbeat_ = status.heartbeat;
+      heartbeat_changed_ns_ = now_ns;
+    } else if (now_ns - heartbeat_changed_ns_ >= std::chrono::nanoseconds(config_.heartbeat.controller_timeout).count()) {
+      heartbeat_latched_ = true;
+      trips.push_back({"controller-heartbeat", config_.heartbeat.action, now_ns,
+                       fmt::format("the controller's heartbeat counter stayed at {} for {} ms (limit {} ms)",
+                                   status.heartbeat, (now_ns - heartbeat_changed_ns_) / 1'000'000,
+                                   config_.heartbeat.controller_timeout.count())});
+    }
+  }
+  if (config_.following.enabled && status.mode == daq::ControlMode::kStroke &&
+      status.state != daq::ControllerState::kDisarmed && status.state != daq::ControllerState::kFaulted) {
+    const double error = status.command - status.stroke;
+    margins_.following = std::min(margins_.following, 1.0 - std::abs(error) / config_.following.max_error);
+    if (!following_.latched) {
+      if (std::abs(error) <= config_.following.max_error) {
+        following_.count = 0;
+      } else if (++following_.count >= config_.following.persistence) {
+        following_.latched = true;
+        trips.push_back({"following-error", config_.following.action, now_ns,
+                         fmt::format("command {:.6g} m minus stroke {:.6g} m = {:.6g} m beyond {:.6g} m for {} reads",
+                                     status.command, status.stroke, error, config_.following.max_error,
+                                     following_.count)});
+      }
+    }
+  }
+  return trips;
+}
+
+std::optional<Trip> SafetyMonitor::CheckCycle(const CycleSummary& cycle, double commanded, std::int64_t now_ns) {
+  if (!config_.under_peak.enabled || under_peak_latched_ || !(commanded > 0.0)) return std::nullopt;
+  const double reached = cycle.stroke_amplitude();
+  if (reached >= config_.under_peak.fraction * commanded) {
+    under_peak_count_ = 0;
+    return std::nullopt;
+  }
+  if (++under_peak_count_ < config_.under_peak.cycles) return std::nullopt;
+  under_peak_latched_ = true;
+  return Trip{"under-peak", config_.under_peak.action, now_ns,
+              fmt::format("stroke amplitude {:.6g} m is {:.1f} % of the commanded {:.6g} m for {} cycles (limit {:.0f} %)",
+                          reached, 100.0 * reached / commanded, commanded, under_peak_count_,
+                          100.0 * config_.under_peak.fraction)};
+}
+
+Margins SafetyMonitor::TakeMargins() { return std::exchange(margins_, Margins{}); }
+
+// ---------------------------------------------------------------------------------------------
+// The matrix check
+
+ResponsePredictor FitPredictor(const ident::FitRecord& fit, int points) {
+  auto solver = std::make_shared<ident::PeriodicSolver>(fit.model);
+  auto theta = std::make_shared<std::vector<double>>(fit.parameters.values());
+  const std::string source = fit.source;
+  return [solver, theta, source, points](const MatrixEntry& e) {
+    PredictedResponse r;
+    try {
+      const auto input = ident::PeriodicInput::Sine(e.frequency, e.static_position, e.amplitude, points);
+      const ident::PeriodicSolution s = solver->Solve(input, *theta);
+      const auto row = [&](const char* name) -> std::optional<Eigen::VectorXd> {
+        for (std::size_t c = 0; c < s.channels.size(); ++c)
+          if (s.channels[c] == name) return Eigen::VectorXd(s.outputs.row(static_cast<Eigen::Index>(c)).transpose());
+        return std::nullopt;
+      };
+      const auto force = row("force");
+      if (!force) throw SafetyError(fmt::format("the model of {} predicts no force", source));
+      r.force_min = force->minCoeff();
+      r.force_max = force->maxCoeff();
+      if (const auto p = row("pressure")) {
+        r.pressure_min = p->minCoeff();
+        r.pressure_max = p->maxCoeff();
+      } else {
+        r.pressure_min = r.pressure_max = std::nan("");
+      }
+    } catch (const ident::PeriodicSolverError& ex) {
+      throw SafetyError(fmt::format("experiment '{}': the fit {} has no periodic response to predict: {}", e.label,
+                                    source, ex.what()));
+    }
+    return r;
+  };
+}
+
+std::vector<std::string> CheckMatrix(const std::vector<MatrixEntry>& matrix, const SafetyConfig& c, double sample_rate,
+                                     const ResponsePredictor& predictor) {
+  std::vector<std::string> refusals;
+  const double lowest = std::max(c.stroke.enabled ? c.stroke.lower : -1e300, c.controller.stroke_min);
+  const double highest = std::min(c.stroke.enabled ? c.stroke.upper : 1e300, c.controller.stroke_max);
+  for (const MatrixEntry& e : matrix) {
+    const auto refuse = [&](std::string what) { refusals.push_back(fmt::format("experiment '{}': {}", e.label, what)); };
+    if (!(e.frequency > 0.0) || !(e.amplitude >= 0.0) || !std::isfinite(e.static_position)) {
+      refuse(fmt::format("frequency {} Hz, amplitude {} m, static position {} m are no sine", e.frequency, e.amplitude,
+                         e.static_position));
+      continue;
+    }
+    const double low = e.static_position - e.amplitude, high = e.static_position + e.amplitude;
+    if (low < lowest || high > highest)
+      refuse(fmt::format("stroke {:.4g} .. {:.4g} m leaves the stroke limit {:.4g} .. {:.4g} m", low, high, lowest, highest));
+    const double velocity = 2.0 * std::numbers::pi * e.frequency * e.amplitude;
+    if (velocity > c.actuator.max_velocity)
+      refuse(fmt::format("peak velocity 2 pi f A = {:.4g} m/s exceeds the velocity limit {:.4g} m/s", velocity,
+                         c.actuator.max_velocity));
+    const double flow = c.actuator.piston_area * velocity;
+    if (flow > c.actuator.max_flow)
+      refuse(fmt::format("actuator flow {:.4g} m^3/s ({:.1f} l/min: piston area {:.4g} m^2 x {:.4g} m/s) exceeds the "
+                         "supply's {:.4g} m^3/s ({:.1f} l/min)",
+                         flow, flow * 6e4, c.actuator.piston_area, velocity, c.actuator.max_flow, c.actuator.max_flow * 6e4));
+    const auto n = WholeSamplesPerCycle(sample_rate, e.frequency);
+    if (!n || *n < 16)
+      refuse(fmt::format("{} Hz sampled at {} Hz is not a whole number (>= 16) of samples per period", e.frequency,
+                         sample_rate));
+    if (predictor) {
+      const PredictedResponse p = predictor(e);
+      const double f_low = std::max(c.force.enabled ? c.force.lower : -1e300, c.controller.force_min);
+      const double f_high = std::min(c.force.enabled ? c.force.upper : 1e300, c.controller.force_max);
+      if (p.force_min < f_low || p.force_max > f_high)
+        refuse(fmt::format("predicted force {:.4g} .. {:.4g} N leaves the force limit {:.4g} .. {:.4g} N", p.force_min,
+                           p.force_max, f_low, f_high));
+      if (c.pressure.enabled && std::isfinite(p.pressure_max)) {
+        // The models give absolute pressure; the limit applies to the acquired (gauge) reading.
+        const double low_p = p.pressure_min - daq::kGaugeReferencePa, high_p = p.pressure_max - daq::kGaugeReferencePa;
+        if (low_p < c.pressure.lower || high_p > c.pressure.upper)
+          refuse(fmt::format("predicted pressure {:.4g} .. {:.4g} Pa (gauge) leaves the pressure limit {:.4g} .. {:.4g} Pa",
+                             low_p, high_p, c.pressure.lower, c.pressure.upper));
+      }
+    }
+  }
+  return refusals;
+}
+
+}  // namespace strut::rig

@@ -17,6 +17,7 @@
 #include "python_peer.h"
 #include "strut/daq/can_acquisition.h"
 #include "strut/daq/replay.h"
+#include "strut/rig/steady_state.h"
 #include "test_support.h"
 
 namespace strut::daq {
@@ -126,6 +127,15 @@ TEST(Replay, SimMatrixSessionReRecordsBitForBitAndIdentifiesExactlyTheSame) {
   const Session a = ReadSession(original), b = ReadSession(again);
   ExpectSameSamples(a, b);
   ASSERT_NE(b.find_metadata("truth"), nullptr);  // the drawn unit's truth goes along
+  // The runner's steady-state detector on the replayed stream says what it says on the file.
+  for (const Experiment& e : a.experiments) {
+    const rig::SteadyStateVerdict v = rig::DetectSteadyState(rig::SummariseExperiment(e), {});
+    const std::string row = fmt::format("{} ({} cycles)", v.steady ? "yes" : "no", v.cycles);
+    const std::size_t line = r.output.find("\n" + e.label + " ");
+    ASSERT_NE(line, std::string::npos) << e.label << "\n" << r.output;
+    EXPECT_EQ(r.output.substr(line, r.output.find('\n', line + 1) - line).find(row) != std::string::npos, true)
+        << e.label << ": expected " << row << "\n" << r.output;
+  }
   ExpectSameDatasetsInH5py(dir, original, again);
 
   const nlohmann::json p = IdentifiedParameters(dir, original, "original");
@@ -485,7 +495,7 @@ struct Receiver {
     acquisition = std::make_unique<CanAcquisition>(std::move(transport), options);
     acquisition->Start();
     thread = std::thread([this] {
-      for (int quiet = 0; quiet < 15;) {  // 1.5 s without samples: the replay is over
+      for (int quiet = 0; quiet < 6;) {  // 0.6 s without samples: the replay is over
         const AcquiredBlock b = acquisition->Read(100ms);
         quiet = b.empty() ? quiet + 1 : 0;
         for (std::size_t c = 0; c < b.counts.size(); ++c) {
@@ -501,10 +511,11 @@ struct Receiver {
 TEST(Replay, OverUdpTheSamplesArriveWithTheirCounts) {
   TempDir dir;
   ReplayOptions o;
-  o.speed = 20.0;  // 650 sets at 200 Hz: 0.16 s
+  o.speed = 10.0;  // 650 sets at 200 Hz: 0.33 s
   auto replay = ReplayAcquisition::Open(RecordedSession(dir), o);
   const CanAcquisitionOptions can = ReplayCanOptions(*replay);
-  EXPECT_FALSE(can.layout.fd);  // 200 Hz fits classic frames
+  EXPECT_EQ(can.sample_rate, 2000.0);  // the receiver's rate: recorded rate x speed
+  EXPECT_FALSE(can.layout.fd);          // 2 kHz fits classic frames
   ASSERT_EQ(can.channels.size(), 3u);
   Receiver receiver(can);
   const ReplayFigures f = SendReplay(*replay, UdpCanTransport::Connect("127.0.0.1", receiver.port), can);
@@ -532,20 +543,89 @@ TEST(Replay, OverUdpTheSamplesArriveWithTheirCounts) {
   }
 }
 
+TEST(Replay, OverUdpFasterThanRealTimeEveryCountArrivesAtTheRateTimesTheSpeed) {
+  // 100 s at 200 Hz sent at 1000 times the pace: a 200 kHz stream, CAN FD; a receiver at the
+  // recorded rate would take the frames for a restarted module and drop most of them.
+  Session s = TwoRateSession();
+  s.experiments.pop_back();
+  Experiment& e = s.experiments[0];
+  const int n = 20000;
+  e.time.clear();
+  for (auto& c : e.channels) c.samples.clear();
+  for (int i = 0; i < n; ++i) {
+    e.time.push_back(i / 200.0);
+    e.channels[0].samples.push_back(0.1 + 0.01 * std::sin(0.1 * i));
+    e.channels[1].samples.push_back(1000.0 * std::cos(0.1 * i));
+    e.channels[2].samples.push_back(1e6 + i);
+  }
+  e.periods = n / 50;
+  ReplayOptions o;
+  o.speed = 1000.0;
+  ReplayAcquisition replay(s, o);
+  const CanAcquisitionOptions can = ReplayCanOptions(replay);
+  EXPECT_EQ(can.sample_rate, 200000.0);
+  EXPECT_TRUE(can.layout.fd);
+  Receiver receiver(can);
+  SendReplay(replay, UdpCanTransport::Connect("127.0.0.1", receiver.port), can);
+  receiver.Join();
+  const AcquisitionStats& stats = receiver.acquisition->stats();
+  EXPECT_EQ(stats.lost_sample_sets, 0u);
+  EXPECT_EQ(stats.corrupt_frames, 0u);
+  for (std::size_t c = 0; c < 3; ++c) {
+    ASSERT_EQ(receiver.counts[c].size(), static_cast<std::size_t>(n)) << c;
+    EXPECT_EQ(receiver.counts[c], replay.counts(0, c)) << c;
+  }
+  o.speed = 0.0;  // as fast as possible: no rate a receiver could check the frames against
+  ReplayAcquisition fastest(s, o);
+  EXPECT_THROW(ReplayCanOptions(fastest), std::invalid_argument);
+}
+
 TEST(ReplayCli, SendsToAUdpReceiverAndPrintsTheCalibrationItUses) {
   TempDir dir;
   const std::string session = RecordedSession(dir);
-  ReplayAcquisition probe(ReadSession(session));
+  ReplayOptions o;
+  o.speed = 10.0;
+  ReplayAcquisition probe(ReadSession(session), o);
   Receiver receiver(ReplayCanOptions(probe));
   const test::CommandResult r =
-      RunStrut(fmt::format("replay {} --to udp:127.0.0.1:{} --speed 20", session, receiver.port));
+      RunStrut(fmt::format("replay {} --to udp:127.0.0.1:{} --speed 10", session, receiver.port));
   receiver.Join();
   ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("2000 Hz"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("classic CAN"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("channel force"), std::string::npos) << r.output;
   ASSERT_EQ(receiver.counts[0].size(), 650u);
   EXPECT_EQ(receiver.counts[1][0], probe.counts(0, 1)[0]);
   EXPECT_EQ(receiver.counts[1].back(), probe.counts(2, 1).back());
+}
+
+TEST(ReplayCli, PrintsTheSteadyStateOfTheStreamAndOfTheCyclesTheRunnerStored) {
+  TempDir dir;
+  const std::string recorded = RecordedSession(dir);
+  // The session as the matrix runner leaves it: every cycle it saw, settling included.
+  Session s = ReadSession(recorded);
+  std::vector<rig::CycleSummary> cycles;
+  for (long k = 0; k < 9; ++k) {
+    const double settle = std::exp(-0.9 * k);  // settles after a few cycles
+    cycles.push_back({k, k * 500'000'000, (k + 1) * 500'000'000 - 5'000'000, 0.005 - 0.002 * settle, 0.025,
+                      -9000.0 * (1 + settle), 9000.0, 1.7e6});
+  }
+  const rig::SteadyStateVerdict expected = rig::DetectSteadyState(cycles, {});
+  ASSERT_TRUE(expected.steady);
+  s.metadata.push_back({"rig_run", {}, {rig::CyclesGroup("a", cycles, expected, {})}});
+  const std::string path = dir.file("run.h5");
+  WriteSession(path, s);
+  const test::CommandResult r = RunStrut("replay " + path);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find(fmt::format("the runner's cycles (/rig_run/a): steady yes ({} cycles, from cycle {})",
+                                      expected.cycles, expected.steady_at)),
+            std::string::npos)
+      << r.output;
+  const rig::SteadyStateVerdict stream = rig::DetectSteadyState(rig::SummariseExperiment(s.experiment("a")), {});
+  EXPECT_NE(r.output.find(fmt::format("{} ({} cycles)", stream.steady ? "yes" : "no", stream.cycles)),
+            std::string::npos)
+      << r.output;
+  EXPECT_EQ(stream.cycles, 3);  // 300 samples of 100 per cycle
 }
 
 TEST(ReplayCli, BadInputIsAClearErrorNamingTheFileOrOption) {
@@ -594,6 +674,9 @@ TEST(ReplayCli, BadInputIsAClearErrorNamingTheFileOrOption) {
   r = RunStrut("replay " + session + " -o " + dir.file("z.h5") + " --to udp:127.0.0.1:9");
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_NE(r.output.find("--to"), std::string::npos) << r.output;
+  r = RunStrut("replay " + session + " --to udp:127.0.0.1:9 --speed max");
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.output.find("--speed max with --to"), std::string::npos) << r.output;
   r = RunStrut("replay " + session + " --to tcp:nowhere");
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_NE(r.output.find("tcp:nowhere"), std::string::npos) << r.output;

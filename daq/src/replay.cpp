@@ -480,12 +480,21 @@ CanAcquisitionOptions ReplayCanOptions(const ReplayAcquisition& replay, std::uin
     }
   }
   CanAcquisitionOptions o;
-  o.sample_rate = first.sample_rate;
+  // The wire carries the recorded rate times the pace, and a receiver checks frames against a
+  // clock at the rate it is given: frames more than max(1024 sets, 0.5 s) ahead of it are taken
+  // for a restarted module and dropped (docs/can-acquisition.md). So the stream's rate is the pace's.
+  const double speed = replay.options().speed;
+  if (!(speed > 0.0)) {
+    throw std::invalid_argument(fmt::format("{}: a CAN stream needs a pace (speed > 0): a receiver checks the frames "
+                                            "against its clock, as fast as possible it would drop them",
+                                            file));
+  }
+  o.sample_rate = first.sample_rate * speed;
   o.channels = first.channels;
   o.layout.channels = static_cast<int>(first.channels.size());
   o.layout.module = module;
-  const int status_every = std::max(1, static_cast<int>(std::lround(first.sample_rate / 10)));
-  o.layout.fd = o.layout.channels > 4 || first.sample_rate > MaxSampleRate(o.layout, CanBitrates{}, 0.5, status_every);
+  const int status_every = std::max(1, static_cast<int>(std::lround(o.sample_rate / 10)));
+  o.layout.fd = o.layout.channels > 4 || o.sample_rate > MaxSampleRate(o.layout, CanBitrates{}, 0.5, status_every);
   std::string why;
   if (!o.IsValid(&why)) throw SessionError(fmt::format("{}: cannot be sent over CAN: {}", file, why));
   return o;

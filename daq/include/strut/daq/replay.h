@@ -144,10 +144,12 @@ struct ReplayFigures {
 ReplayFigures PlayReplay(ReplayAcquisition& replay, Recorder* recorder, ReplayObserver* observer = nullptr);
 
 //! The CAN stream a replay sends (docs/replay.md "Over CAN"), which is also what its receiver is
-//! configured with: the stream's channels, rate and calibration (one for the whole session),
-//! classic frames when the rate fits half of a 1 Mbit/s bus, else CAN FD. Throws SessionError
+//! configured with: the stream's channels and calibration (one for the whole session), the rate
+//! on the wire (the recorded rate times the speed: a receiver checks frames against a clock at its
+//! rate), classic frames when that fits half of a 1 Mbit/s bus, else CAN FD. Throws SessionError
 //! naming the experiment and channel when experiments differ in rate, channels or calibration,
-//! or when a count does not fit 16 bits.
+//! or when a count does not fit 16 bits; std::invalid_argument when the replay has no pace
+//! (speed 0).
 CanAcquisitionOptions ReplayCanOptions(const ReplayAcquisition& replay, std::uint8_t module = 1);
 
 //! Plays the whole replay as frames of `options` (ReplayCanOptions) into `transport`: every

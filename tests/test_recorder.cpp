@@ -225,7 +225,7 @@ TEST(Recorder, RoundTripGivesBackEverySampleEventAndCalibration) {
   const SampleBlock expected = Block(t0, 0, 300);
   ASSERT_EQ(a.sample_count(), 300u);
   for (std::size_t i = 0; i < 300; ++i) {
-    ASSERT_EQ(a.time[i], (expected.monotonic_ns[i] - t0) * 1e-9) << i;
+    ASSERT_EQ(a.time[i], static_cast<double>(expected.monotonic_ns[i] - t0) / 1e9) << i;
     ASSERT_EQ(a.channel("stroke").samples[i], expected.values[0][i]) << i;
     ASSERT_EQ(a.channel("force").samples[i], expected.values[1][i]) << i;
     ASSERT_EQ(a.channel("pressure").samples[i], expected.values[2][i]) << i;

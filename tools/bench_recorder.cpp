@@ -16,6 +16,7 @@
 #include <nlohmann/json.hpp>
 #include <thread>
 
+#include "bench_support.h"
 #include "commands.h"
 #include "strut/daq/recorder.h"
 #include "option_checks.h"
@@ -24,12 +25,6 @@ namespace strut::tools {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-
-double ProcessCpuSeconds() {  // all threads: the producer and the recorder's writer
-  timespec t{};
-  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
-  return t.tv_sec + t.tv_nsec * 1e-9;
-}
 
 double Seconds(Clock::time_point since) { return std::chrono::duration<double>(Clock::now() - since).count(); }
 
@@ -104,7 +99,7 @@ struct BenchRecorder {
   // Writes `bytes` in 1 MiB pieces with write(2), fdatasync every `sync` (0: only at the end).
   Figure RawWrite(const std::string& path, std::uint64_t bytes, std::chrono::milliseconds sync) const {
     std::vector<char> buffer(1 << 20, 'x');
-    const double cpu0 = ProcessCpuSeconds();
+    const double cpu0 = ProcessSeconds();
     const auto t0 = Clock::now();
     const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
     if (fd < 0) throw std::runtime_error(fmt::format("{}: cannot create: {}", path, std::strerror(errno)));
@@ -126,7 +121,7 @@ struct BenchRecorder {
     ::close(fd);
     Figure f{sync.count() > 0 ? fmt::format("raw write(2), fdatasync every {} ms", sync.count())
                               : "raw write(2), one fdatasync at the end",
-             Seconds(t0), ProcessCpuSeconds() - cpu0, static_cast<double>(bytes)};
+             Seconds(t0), ProcessSeconds() - cpu0, static_cast<double>(bytes)};
     std::filesystem::remove(path);
     return f;
   }
@@ -149,7 +144,7 @@ struct BenchRecorder {
     double session_bytes = 0.0;
     daq::RecorderStats last;
     for (int r = 0; r < repeats; ++r) {
-      const double cpu0 = ProcessCpuSeconds();
+      const double cpu0 = ProcessSeconds();
       const auto t0 = Clock::now();
       daq::Recorder recorder = daq::Recorder::Open(session, {"BENCH-1", "bench", "", "", "", {}, "damper", {}}, options);
       recorder.BeginExperiment(descriptor);
@@ -158,7 +153,7 @@ struct BenchRecorder {
       // Streaming ends when the last block is durable: Close drains and syncs before converting,
       // so the two phases are timed through the journal's size on disk.
       while (recorder.stats().bytes_written < recorder.stats().bytes_handed) std::this_thread::sleep_for(std::chrono::microseconds(200));
-      const double cpu1 = ProcessCpuSeconds();
+      const double cpu1 = ProcessSeconds();
       const auto t1 = Clock::now();
       last = recorder.stats();
       journal_bytes = fs::file_size(recorder.journal_path());
@@ -166,7 +161,7 @@ struct BenchRecorder {
       stream_wall.push_back(std::chrono::duration<double>(t1 - t0).count());
       stream_cpu.push_back(cpu1 - cpu0);
       close_wall.push_back(Seconds(t1));
-      close_cpu.push_back(ProcessCpuSeconds() - cpu1);
+      close_cpu.push_back(ProcessSeconds() - cpu1);
       session_bytes = static_cast<double>(fs::file_size(session));
       fs::remove(session);
     }

@@ -1,5 +1,5 @@
-// What the benchmarks share: one thread's CPU time (they run on a shared machine) and the
-// Wilson interval of the fractions they report.
+// What the benchmarks share: CPU time of one thread and of the whole process (they run on a shared
+// machine) and the Wilson interval of the fractions they report.
 #pragma once
 
 #include <time.h>
@@ -13,6 +13,14 @@ namespace strut::tools {
 inline double ThreadSeconds() {
   timespec t{};
   clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+  return t.tv_sec + 1e-9 * t.tv_nsec;
+}
+
+//! CPU seconds used by the whole process so far, every thread (CLOCK_PROCESS_CPUTIME_ID): for
+//! work that runs on helper threads too (the recorder's writer).
+inline double ProcessSeconds() {
+  timespec t{};
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
   return t.tv_sec + 1e-9 * t.tv_nsec;
 }
 

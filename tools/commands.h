@@ -27,6 +27,10 @@ void RegisterRigCommand(CLI::App& app);
 //! Adds `run` (the test matrix on the rig, tools/cmd_rig_run.cpp) under the `rig` subcommand.
 void RegisterRigRunCommand(CLI::App& rig);
 void RegisterRecoverCommand(CLI::App& app);
+//! `replay`: a recorded session played back as the rig's stream (tools/cmd_replay.cpp).
+void RegisterReplayCommand(CLI::App& app);
+//! Adds `replay` (replay speed, samples per CPU second) under the `bench` subcommand.
+void RegisterBenchReplay(CLI::App& bench);
 //! Adds `recorder` (streaming recorder throughput and CPU) under the `bench` subcommand.
 void RegisterBenchRecorder(CLI::App& bench);
 //! Adds `drop` (drop prediction from shaker fits of drawn units) under the `bench` subcommand.

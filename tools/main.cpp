@@ -56,6 +56,8 @@ int main(int argc, char** argv) {
   strut::tools::RegisterRigCommand(app);
   strut::tools::RegisterRigRunCommand(*app.get_subcommand("rig"));
   strut::tools::RegisterRecoverCommand(app);
+  strut::tools::RegisterReplayCommand(app);
+  strut::tools::RegisterBenchReplay(*app.get_subcommand("bench"));
   strut::tools::RegisterQcCommand(app);
   strut::tools::RegisterPredictCommand(app);
 

@@ -619,7 +619,10 @@ class Assembler {
     e.extra_attributes["utc_start"] = journal::Iso8601Ms(UtcOf(clock_, first));
 
     e.time.resize(b.monotonic_ns.size());
-    for (std::size_t i = 0; i < e.time.size(); ++i) e.time[i] = (b.monotonic_ns[i] - first) * 1e-9;
+    // Divided by 1e9 (exact in binary), not multiplied by 1e-9 (not exact): the correctly rounded
+    // value, so a constant rate of whole nanoseconds gives exactly i / sample_rate, what other tools
+    // write, and a replayed session records its own time axis again bit for bit (docs/replay.md).
+    for (std::size_t i = 0; i < e.time.size(); ++i) e.time[i] = static_cast<double>(b.monotonic_ns[i] - first) / 1e9;
     for (std::size_t k = 0; k < e.channels.size(); ++k) e.channels[k].samples = std::move(b.values[k]);
     MetadataGroup calibration{e.label, {}, {}};
     for (std::size_t k = 0; k < b.descriptor.raw.size(); ++k) {
@@ -665,7 +668,7 @@ class Assembler {
       g.attributes["kind"] = e.kind;
       g.attributes["text"] = e.text;
       if (!e.experiment.empty()) g.attributes["experiment"] = e.experiment;
-      if (e.has_time) g.attributes["time"] = (e.monotonic_ns - e.first_ns) * 1e-9;
+      if (e.has_time) g.attributes["time"] = static_cast<double>(e.monotonic_ns - e.first_ns) / 1e9;
       events.groups.push_back(std::move(g));
     }
     if (!events.groups.empty()) r.groups.push_back(std::move(events));

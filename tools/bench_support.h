@@ -1,11 +1,13 @@
-// What the benchmarks share: one thread's CPU time (they run on a shared machine) and the
-// Wilson interval of the fractions they report.
+// What the benchmarks share: one thread's CPU time (they run on a shared machine), the median
+// and the Wilson interval of the fractions they report.
 #pragma once
 
 #include <time.h>
 
+#include <algorithm>
 #include <cmath>
 #include <utility>
+#include <vector>
 
 namespace strut::tools {
 
@@ -14,6 +16,13 @@ inline double ThreadSeconds() {
   timespec t{};
   clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
   return t.tv_sec + 1e-9 * t.tv_nsec;
+}
+
+//! The median (the mean of the middle two for an even count); NaN for none.
+inline double Median(std::vector<double> v) {
+  if (v.empty()) return NAN;
+  std::sort(v.begin(), v.end());
+  return v.size() % 2 ? v[v.size() / 2] : 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]);
 }
 
 //! Wilson score interval (95 %) of a binomial fraction k / total; NaN for no trials.

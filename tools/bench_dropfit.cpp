@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 #include <iostream>
+#include <map>
 #include <nlohmann/json.hpp>
 
 #include "bench_support.h"
@@ -31,13 +32,18 @@ struct FitFigures {
   int inside = 0, estimated = 0;                  //!< estimated parameters with the truth inside the 95 % interval
   double max_stroke_error = NAN, peak_force_error = NAN;  //!< relative, the drop predicted from this fit
   bool max_stroke_inside = false;
+  //! The max stroke error (relative) split over the estimated parameters, linearised: the
+  //! prediction's gradient times each estimate's error (key, share), largest first.
+  std::vector<std::pair<std::string, double>> max_stroke_terms;
+  std::map<std::string, double> z_of;  //!< per estimated parameter, (estimate - truth) / sd
   double cpu = 0.0;  //!< s of this thread for the fit
   nlohmann::json Json() const {
     return {{"verdict", verdict},          {"theta3", theta3},
             {"theta3_sd", theta3_sd},      {"theta3_z", z},
             {"inside_95", inside},         {"estimated", estimated},
             {"max_stroke_error", max_stroke_error}, {"max_stroke_inside", max_stroke_inside},
-            {"peak_force_error", peak_force_error}, {"fit_cpu_s", cpu}};
+            {"peak_force_error", peak_force_error}, {"fit_cpu_s", cpu},
+            {"max_stroke_error_terms", max_stroke_terms}};
   }
 };
 
@@ -57,6 +63,7 @@ struct BenchDropFit {
       if (!s.estimated[i]) continue;
       const double t = truth.value(*truth.find(s.parameters.spec(i).key()));
       ++f.estimated;
+      f.z_of[s.parameters.spec(i).key()] = (s.parameters.value(i) - t) / s.sd[i];
       f.inside += std::abs(s.parameters.value(i) - t) <= 1.96 * s.sd[i];
       if (s.parameters.spec(i).index == 3) {
         f.theta3 = s.parameters.value(i);
@@ -73,6 +80,13 @@ struct BenchDropFit {
     f.max_stroke_error = (p.figures.max_stroke - want.max_stroke) / want.max_stroke;
     f.peak_force_error = (p.figures.peak_force - want.peak_force) / want.peak_force;
     f.max_stroke_inside = want.max_stroke >= p.uncertainty[2].lower && want.max_stroke <= p.uncertainty[2].upper;
+    for (std::size_t a = 0; a < p.interval_parameters.size(); ++a) {
+      const std::string& key = p.interval_parameters[a];
+      const double error = record.parameters.value(*record.parameters.find(key)) - truth.value(*truth.find(key));
+      f.max_stroke_terms.emplace_back(key, p.gradient(2, static_cast<Eigen::Index>(a)) * error / want.max_stroke);
+    }
+    std::sort(f.max_stroke_terms.begin(), f.max_stroke_terms.end(),
+              [](const auto& x, const auto& y) { return std::abs(x.second) > std::abs(y.second); });
     return f;
   }
 
@@ -88,6 +102,8 @@ struct BenchDropFit {
     std::cout << "  unit   shaker alone: theta3 +- sd (z)      with the drop: theta3 +- sd (z)    sd ratio  "
                  "in 95 %  max stroke error (alone / with)\n";
     std::vector<double> ratios, cpu_alone, cpu_with, stroke_alone, stroke_with;
+    std::map<std::string, std::vector<double>> terms_alone;  // per parameter, its share of each unit's max stroke error
+    std::map<std::string, std::vector<double>> z_alone;      // per parameter, the shaker fit's z of each unit
     int in3_alone = 0, in3_with = 0, inside_alone = 0, inside_with = 0, estimated_alone = 0, estimated_with = 0;
     int floor_alone = 0, floor_with = 0, stroke_in_alone = 0, stroke_in_with = 0;
     nlohmann::json rows = nlohmann::json::array();
@@ -127,6 +143,8 @@ struct BenchDropFit {
       cpu_with.push_back(b.cpu);
       stroke_alone.push_back(a.max_stroke_error);
       stroke_with.push_back(b.max_stroke_error);
+      for (const auto& [key, term] : a.max_stroke_terms) terms_alone[key].push_back(term);
+      for (const auto& [key, z] : a.z_of) z_alone[key].push_back(z);
       in3_alone += std::abs(a.z) <= 1.96;
       in3_with += std::abs(b.z) <= 1.96;
       inside_alone += a.inside;
@@ -144,6 +162,16 @@ struct BenchDropFit {
                                a.verdict == "at-noise-floor" && b.verdict == "at-noise-floor"
                                    ? ""
                                    : fmt::format("  ({} / {})", a.verdict, b.verdict));
+      std::string largest_terms;
+      for (std::size_t k = 0; k < std::min<std::size_t>(3, a.max_stroke_terms.size()); ++k)
+        largest_terms += fmt::format("{}{} {:+.2f} % (its z {:+.2f})", k ? ", " : "", a.max_stroke_terms[k].first,
+                                     100 * a.max_stroke_terms[k].second, a.z_of.at(a.max_stroke_terms[k].first));
+      // The stroke zero moves no figure of a drop directly (the drop starts at the true zero), but
+      // the shaker fit cannot tell it from theta5, theta6: its z says where their errors come from.
+      const auto zero = a.z_of.find("theta12");
+      std::cout << fmt::format("         the shaker fit's max stroke error from its estimates' errors: {}{}\n",
+                               largest_terms,
+                               zero == a.z_of.end() ? "" : fmt::format("; stroke zero theta12 z {:+.2f}", zero->second));
       rows.push_back({{"seed", seed},
                       {"theta3_truth", truth_values.value(*truth_values.find("theta3"))},
                       {"shaker", a.Json()},
@@ -170,6 +198,16 @@ struct BenchDropFit {
         estimated_with, floor_alone, units, floor_with, units, 100 * Median(stroke_alone), 100 * largest(stroke_alone),
         under(stroke_alone), units, stroke_in_alone, units, 100 * Median(stroke_with), 100 * largest(stroke_with),
         under(stroke_with), units, stroke_in_with, units, Median(cpu_alone), Median(cpu_with));
+    std::vector<std::pair<double, std::string>> medians;
+    for (const auto& [key, v] : terms_alone) medians.emplace_back(Median(v), key);
+    std::sort(medians.begin(), medians.end(), [](const auto& x, const auto& y) { return std::abs(x.first) > std::abs(y.first); });
+    std::string split;
+    for (std::size_t k = 0; k < std::min<std::size_t>(4, medians.size()); ++k)
+      split += fmt::format("{}{} {:+.2f} % (median z {:+.2f})", k ? ", " : "", medians[k].second, 100 * medians[k].first,
+                           Median(z_alone[medians[k].second]));
+    std::cout << fmt::format("shaker alone's max stroke error, linearised over its estimates' errors (median per "
+                             "parameter): {}; the stroke zero theta12: median z {:+.2f}\n",
+                             split, Median(z_alone["theta12"]));
     if (!json_path.empty())
       WriteTextOutput(json_path, nlohmann::json{{"units", rows},
                                                 {"theta3_sd_ratio_median", Median(ratios)},

@@ -141,8 +141,9 @@ TEST(PrepareTransientExperiments, NamesTheFileAndExperimentOfABadDrop) {
 }
 
 // Issue 15: a drawn unit's standard shaker matrix and one 350 kg drop at 0.5 m/s, fitted together as
-// strut identify does. Every estimated parameter recovers the truth within 3 sd (theta3 within its
-// 95 % interval), and the drop determines theta3 several times more sharply than the matrix alone.
+// strut identify does. Every estimated parameter recovers the truth within 3 sd and most inside their
+// 95 % intervals (13 parameters: about 0.65 outside by chance), and the drop determines theta3
+// several times more sharply than the matrix alone (strut bench dropfit: 5.9-15 times on 10 units).
 TEST(DropFit, ShakerMatrixPlusOneDropRecoversADrawnUnitsTruth) {
   const std::uint64_t seed = 1001;
   const Truth truth = DrawUnit(WithIdealRig(DefaultTruth()), UnitDraw{}, seed);
@@ -162,15 +163,19 @@ TEST(DropFit, ShakerMatrixPlusOneDropRecoversADrawnUnitsTruth) {
   ASSERT_EQ(s.transient_experiments.size(), 1u);
   EXPECT_TRUE(s.transient_experiments[0].converged);
   const ident::ParameterSet want = truth.Parameters(rig.model());
+  int estimated = 0, inside = 0;
   for (int i = 0; i < s.parameters.size(); ++i) {
     if (!s.estimated[i]) continue;
     const std::string key = s.parameters.spec(i).key();
     const double truth_value = want.value(*want.find(key));
     EXPECT_LE(std::abs(s.parameters.value(i) - truth_value), 3.0 * s.sd[i]) << key;
+    ++estimated;
+    inside += std::abs(s.parameters.value(i) - truth_value) <= 1.96 * s.sd[i];
   }
+  EXPECT_GE(estimated, 12);
+  EXPECT_GE(inside, estimated - 2);
   const int theta3 = s.parameters.position_of_index(3);
   ASSERT_TRUE(s.estimated[theta3]);
-  EXPECT_LE(std::abs(s.parameters.value(theta3) - want.value(*want.find("theta3"))), 1.96 * s.sd[theta3]);
   // The drop's contribution: theta3's sd without it over the sd with it.
   const auto drop = std::find_if(s.contributions.begin(), s.contributions.end(),
                                  [](const ident::ExperimentContribution& c) { return c.kind == "drop"; });

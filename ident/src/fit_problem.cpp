@@ -173,6 +173,13 @@ int EstimatedInputHarmonics(const Model& model, const EstimatorOptions& options,
                    (static_cast<int>(d.input.values.size()) - 1) / 2});
 }
 
+//! Mean, sd and rms of a channel's residual into its statistics.
+void SetResidualStatistics(const Eigen::VectorXd& r, ChannelStatistics& st) {
+  st.mean = r.mean();
+  st.sd = std::sqrt((r.array() - st.mean).square().sum() / std::max<Eigen::Index>(1, r.size() - 1));
+  st.rms = std::sqrt(r.squaredNorm() / r.size());
+}
+
 PeriodicSolverOptions SolverOptions(const EstimatorOptions& options) {
   PeriodicSolverOptions o;
   o.scheme = options.scheme;
@@ -846,9 +853,7 @@ void FitProblem::Summarise(const ResidualSums& sums, const std::vector<double>& 
         const Eigen::VectorXd r = s.Residual(channels_[b], output_row_[b]);
         f.residual[channels_[b]] = r;
         f.noise_variance[channels_[b]] = it->second.mean_noise_variance;
-        st.mean = r.mean();
-        st.sd = std::sqrt((r.array() - st.mean).square().sum() / std::max<Eigen::Index>(1, r.size() - 1));
-        st.rms = std::sqrt(r.squaredNorm() / r.size());
+        SetResidualStatistics(r, st);
         st.input_dof = s.InputDof(b);
         st.noise_ratio = r.squaredNorm() / (std::max(1.0, r.size() - st.input_dof) * it->second.mean_noise_variance);
       }
@@ -882,9 +887,7 @@ void FitProblem::Summarise(const ResidualSums& sums, const std::vector<double>& 
       if (t.active) {
         f.predicted[channel] = t.Predicted(b);
         const Eigen::VectorXd r = t.Residual(b);
-        st.mean = r.mean();
-        st.sd = std::sqrt((r.array() - st.mean).square().sum() / std::max<Eigen::Index>(1, r.size() - 1));
-        st.rms = std::sqrt(r.squaredNorm() / r.size());
+        SetResidualStatistics(r, st);
         st.noise_ratio = r.squaredNorm() / (static_cast<double>(r.size()) * recorded.noise_variance);
       }
       f.channels.push_back(st);

@@ -17,6 +17,13 @@
 namespace strut::tools {
 namespace {
 
+//! ", plus the drops a, b" (empty without drops), for the log.
+std::string DropLabels(const std::vector<ident::TransientExperimentData>& drops) {
+  std::string labels;
+  for (const auto& d : drops) labels += (labels.empty() ? ", plus the drops " : ", ") + d.label;
+  return labels;
+}
+
 struct IdentifyCommand {
   std::vector<std::string> sessions;
   ModelOptions model;
@@ -60,7 +67,7 @@ struct IdentifyCommand {
     if (tty) std::fprintf(stderr, "\r%60s\r", "");
     spdlog::info("{} ({} input), {} periodic experiments{}; starting values as used:", m.composition(),
                  ident::ToString(m.causality()), fit.data.experiments.size(),
-                 fit.data.transients.empty() ? "" : fmt::format(" and {} drops", fit.data.transients.size()));
+                 DropLabels(fit.data.transients));
     for (const auto& line : fit.plan.Describe()) spdlog::info("  {}", line);
     std::cout << fit.summary.FullReport();
     if (!json_path.empty()) {

@@ -1,5 +1,5 @@
-// What the benchmarks share: one thread's CPU time (they run on a shared machine), the median
-// and the Wilson interval of the fractions they report.
+// What the benchmarks share: one thread's CPU time (they run on a shared machine) and the
+// Wilson interval of the fractions they report.
 #pragma once
 
 #include <time.h>
@@ -18,13 +18,6 @@ inline double ThreadSeconds() {
   return t.tv_sec + 1e-9 * t.tv_nsec;
 }
 
-//! The median (the mean of the middle two for an even count); NaN for none.
-inline double Median(std::vector<double> v) {
-  if (v.empty()) return NAN;
-  std::sort(v.begin(), v.end());
-  return v.size() % 2 ? v[v.size() / 2] : 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]);
-}
-
 //! Wilson score interval (95 %) of a binomial fraction k / total; NaN for no trials.
 inline std::pair<double, double> Wilson(long k, long total) {
   if (total <= 0) return {NAN, NAN};
@@ -32,6 +25,13 @@ inline std::pair<double, double> Wilson(long k, long total) {
   const double centre = (p + z * z / (2 * nn)) / (1 + z * z / nn);
   const double half = z / (1 + z * z / nn) * std::sqrt(p * (1 - p) / nn + z * z / (4 * nn * nn));
   return {centre - half, centre + half};
+}
+
+//! The median (the mean of the middle two for an even count); NaN for none.
+inline double Median(std::vector<double> v) {
+  if (v.empty()) return NAN;
+  std::sort(v.begin(), v.end());
+  return v.size() % 2 ? v[v.size() / 2] : 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]);
 }
 
 }  // namespace strut::tools

@@ -25,12 +25,6 @@
 namespace strut::tools {
 namespace {
 
-double Median(std::vector<double> v) {
-  if (v.empty()) return NAN;
-  std::sort(v.begin(), v.end());
-  return v.size() % 2 ? v[v.size() / 2] : 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]);
-}
-
 struct BenchDrop {
   int units = 10;
   unsigned long first_seed = 2000;

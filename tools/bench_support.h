@@ -4,8 +4,10 @@
 
 #include <time.h>
 
+#include <algorithm>
 #include <cmath>
 #include <utility>
+#include <vector>
 
 namespace strut::tools {
 
@@ -31,6 +33,13 @@ inline std::pair<double, double> Wilson(long k, long total) {
   const double centre = (p + z * z / (2 * nn)) / (1 + z * z / nn);
   const double half = z / (1 + z * z / nn) * std::sqrt(p * (1 - p) / nn + z * z / (4 * nn * nn));
   return {centre - half, centre + half};
+}
+
+//! The median (the mean of the middle two for an even count); NaN for none.
+inline double Median(std::vector<double> v) {
+  if (v.empty()) return NAN;
+  std::sort(v.begin(), v.end());
+  return v.size() % 2 ? v[v.size() / 2] : 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]);
 }
 
 }  // namespace strut::tools

@@ -12,9 +12,17 @@
 #include "output_files.h"
 #include "strut/ident/fit_report.h"
 #include "strut/ident/session_fit.h"
+#include "strut/sim/drop_fit.h"
 
 namespace strut::tools {
 namespace {
+
+//! ", plus the drops a, b" (empty without drops), for the log.
+std::string DropLabels(const std::vector<ident::TransientExperimentData>& drops) {
+  std::string labels;
+  for (const auto& d : drops) labels += (labels.empty() ? ", plus the drops " : ", ") + d.label;
+  return labels;
+}
 
 struct IdentifyCommand {
   std::vector<std::string> sessions;
@@ -38,6 +46,8 @@ struct IdentifyCommand {
     options.estimator.scheme = ident::ParseScheme(scheme);
     if (estimate_input != "auto") options.estimator.estimate_input = estimate_input == "on";
     options.estimator.input_harmonics = input_harmonics;
+    // Drop experiments are fitted beside the periodic ones, predicted by sim's transient integrator.
+    options.estimator.transient_predictor = sim::DropPredictorFactory();
     const ident::Model m = model.BuildModel();
     ident::FitData data = ident::ReadFitData(sessions, m, n, options.exclude);
     for (const auto& issue : data.issues)
@@ -55,8 +65,9 @@ struct IdentifyCommand {
     };
     const ident::SessionFit fit = ident::FitPrepared(std::move(data), m, options, progress);
     if (tty) std::fprintf(stderr, "\r%60s\r", "");
-    spdlog::info("{} ({} input), {} experiments; starting values as used:", m.composition(),
-                 ident::ToString(m.causality()), fit.data.experiments.size());
+    spdlog::info("{} ({} input), {} periodic experiments{}; starting values as used:", m.composition(),
+                 ident::ToString(m.causality()), fit.data.experiments.size(),
+                 DropLabels(fit.data.transients));
     for (const auto& line : fit.plan.Describe()) spdlog::info("  {}", line);
     std::cout << fit.summary.FullReport();
     if (!json_path.empty()) {
@@ -89,7 +100,8 @@ void RegisterIdentifyCommand(CLI::App& app) {
   auto command = std::make_shared<IdentifyCommand>();
   CLI::App* sub = app.add_subcommand(
       "identify",
-      "Estimate the damper model's parameters from recorded sessions (periodic equilibria, all experiments at once). "
+      "Estimate the damper model's parameters from recorded sessions (periodic equilibria and drop tests, all "
+      "experiments at once). "
       "Exit code 0: converged at the noise floor; 3: converged but above the noise floor; 2: not converged; 1: error.");
   sub->add_option("sessions", command->sessions, "Session files (HDF5) to fit together.")->required()->check(CLI::ExistingFile);
   command->model.Add(*sub);

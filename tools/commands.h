@@ -35,6 +35,7 @@ void RegisterBenchReplay(CLI::App& bench);
 void RegisterBenchRecorder(CLI::App& bench);
 //! Adds `drop` (drop prediction from shaker fits of drawn units) under the `bench` subcommand.
 void RegisterBenchDrop(CLI::App& bench);
+void RegisterBenchDropFit(CLI::App& bench);
 //! `predict drop`: drop-test prediction from a fit.
 void RegisterPredictCommand(CLI::App& app);
 

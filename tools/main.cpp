@@ -51,6 +51,7 @@ int main(int argc, char** argv) {
   strut::tools::RegisterBenchConfusion(*app.get_subcommand("bench"));
   strut::tools::RegisterBenchQc(*app.get_subcommand("bench"));
   strut::tools::RegisterBenchDrop(*app.get_subcommand("bench"));
+  strut::tools::RegisterBenchDropFit(*app.get_subcommand("bench"));
   strut::tools::RegisterSimCommand(app);
   strut::tools::RegisterImportCommand(app);
   strut::tools::RegisterRigCommand(app);

@@ -38,6 +38,41 @@ ParameterChoice Estimated(const ParameterSpec& spec) {
   return c;
 }
 
+//! What each experiment adds (ExperimentContribution): its share of the information's diagonal and
+//! the posterior sd with it left out (its information, input noise and estimated input removed).
+std::vector<ExperimentContribution> Contributions(const std::vector<std::pair<std::string, std::string>>& labels,
+                                                  const NormalEquations& eq, const ScaledPriors& priors,
+                                                  const std::vector<int>& est, const std::vector<double>& scale, int np) {
+  std::vector<ExperimentContribution> out;
+  const int l = static_cast<int>(est.size());
+  if (eq.experiment_information.size() != labels.size()) return out;
+  const Eigen::VectorXd diagonal = eq.information.diagonal();
+  for (std::size_t a = 0; a < labels.size(); ++a) {
+    ExperimentContribution c;
+    c.label = labels[a].first;
+    c.kind = labels[a].second;
+    c.information_share.assign(np, NAN);
+    c.sd_without.assign(np, NAN);
+    const Eigen::MatrixXd& h = eq.experiment_information[a];
+    const Eigen::MatrixXd noise = eq.input_noise.size() > 0 && a < eq.experiment_input_noise.size()
+                                      ? Eigen::MatrixXd(eq.input_noise - eq.experiment_input_noise[a])
+                                      : eq.input_noise;
+    std::vector<NuisanceBlock> inputs = eq.inputs;
+    if (a < inputs.size()) inputs[a] = NuisanceBlock();
+    const Posterior without = PosteriorCovariance(eq.information - h, noise, priors, inputs);
+    std::vector<bool> undetermined(l, false);
+    for (const auto& direction : without.undetermined)
+      for (int k : direction) undetermined[k] = true;
+    for (int k = 0; k < l; ++k) {
+      c.information_share[est[k]] = diagonal[k] > 0 ? h(k, k) / diagonal[k] : NAN;
+      c.sd_without[est[k]] =
+          undetermined[k] ? INFINITY : std::sqrt(std::max(without.covariance(k, k), 0.0)) * scale[est[k]];
+    }
+    out.push_back(std::move(c));
+  }
+  return out;
+}
+
 }  // namespace
 
 std::vector<ParameterChoice> DefaultChoices(const ParameterSet& parameters) {
@@ -93,7 +128,8 @@ Estimator::Estimator(Model model, EstimatorOptions options) : model_(std::move(m
 
 FitSummary Estimator::Fit(const std::vector<ExperimentData>& data, const ParameterSet& initial,
                           const std::vector<ParameterChoice>& choices, const std::vector<DataIssue>& issues,
-                          const std::function<void(const FitProgress&)>& progress) const {
+                          const std::function<void(const FitProgress&)>& progress,
+                          const std::vector<TransientExperimentData>& transients) const {
   const int np = model_.parameter_count();
   if (initial.size() != np || static_cast<int>(choices.size()) != np)
     throw std::invalid_argument("estimator: parameter set and choices must match the model");
@@ -136,11 +172,11 @@ FitSummary Estimator::Fit(const std::vector<ExperimentData>& data, const Paramet
     bounds.upper[k] = (range.upper - (range.upper_open ? 1e-6 * scale[i] : 0.0)) / scale[i];
   }
 
-  FitProblem problem(model_, options_, data, issues, est, scale);
+  FitProblem problem(model_, options_, data, issues, est, scale, transients);
   summary.warnings = problem.warnings();
   problem.Solve(theta, true, 0, progress);
   if (problem.active_count() == 0)
-    throw std::runtime_error("estimator: no experiment has a periodic solution at the starting values");
+    throw std::runtime_error("estimator: no experiment has a solution at the starting values");
   Eigen::VectorXd x = scaled(theta);
   ResidualSums current = problem.Evaluate();
   // With estimated inputs (errors in variables) the objective also has their prior.
@@ -301,6 +337,7 @@ FitSummary Estimator::Fit(const std::vector<ExperimentData>& data, const Paramet
           "beyond any interval",
           channels, widest));
     }
+    summary.contributions = Contributions(problem.experiment_labels(), eq, priors, est, scale, np);
     if ((options_.input_noise && eq.input_noise.size() > 0) || !eq.inputs.empty()) {
       summary.input_noise_sd_factor.assign(np, NAN);
       for (int a = 0; a < l; ++a) summary.input_noise_sd_factor[est[a]] = posterior.input_noise_factor[a];
@@ -442,6 +479,35 @@ std::string FitSummary::FullReport() const {
       out += fmt::format("  {}: {:+.3g} / {:.3g} / {:.3g}{}", c.channel, c.mean, 2 * c.sd, c.noise_ratio,
                          c.fitted ? "" : " (not fitted)");
     out += "\n";
+  }
+  for (const auto& t : transient_experiments) {
+    out += fmt::format("  {:<6} {:<7} {:.0f} kg at {:.3g} m/s", t.label, t.kind, t.drop_mass, t.impact_velocity);
+    if (!t.converged) {
+      out += "  no prediction: " + t.error + "\n";
+      continue;
+    }
+    for (const auto& c : t.channels)
+      out += fmt::format("  {}: {:+.3g} / {:.3g} / {:.3g}", c.channel, c.mean, 2 * c.sd, c.noise_ratio);
+    out += "\n";
+  }
+  // What each drop adds: the parameters it sharpens most (sd without it over the sd with it).
+  for (const auto& c : contributions) {
+    if (c.kind == "periodic") continue;
+    std::vector<std::pair<double, int>> gains;
+    for (int i = 0; i < parameters.size(); ++i)
+      if (estimated[i] && sd[i] > 0 && c.sd_without[i] > 1.05 * sd[i]) gains.emplace_back(c.sd_without[i] / sd[i], i);
+    std::sort(gains.rbegin(), gains.rend());
+    std::string list;
+    for (std::size_t k = 0; k < std::min<std::size_t>(gains.size(), 6); ++k)
+      list += (k ? "; " : "") +
+              (std::isinf(gains[k].first)
+                   ? fmt::format("{} undetermined without it, sd {:.3g} with", parameters.spec(gains[k].second).key(),
+                                 sd[gains[k].second])
+                   : fmt::format("{} sd {:.3g} without it, {:.3g} with ({:.2g} times sharper)",
+                                 parameters.spec(gains[k].second).key(), c.sd_without[gains[k].second],
+                                 sd[gains[k].second], gains[k].first));
+    out += fmt::format("{} '{}' adds: {}\n", c.kind, c.label,
+                       list.empty() ? "no parameter sharper by more than 5 %" : list);
   }
   for (const auto& w : warnings) out += "warning: " + w + "\n";
   return out;

@@ -11,6 +11,14 @@ namespace {
 
 nlohmann::json Number(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
 
+nlohmann::json ChannelJson(const ChannelStatistics& c) {
+  return {{"mean", Number(c.mean)},
+          {"sd", Number(c.sd)},
+          {"rms", Number(c.rms)},
+          {"noise_ratio", Number(c.noise_ratio)},
+          {"fitted", c.fitted}};
+}
+
 }  // namespace
 
 nlohmann::json FitToJson(const FitSummary& fit) {
@@ -54,13 +62,38 @@ nlohmann::json FitToJson(const FitSummary& fit) {
                      {"static_position", e.static_position},
                      {"converged", e.converged}};
     if (!e.error.empty()) x["error"] = e.error;
-    for (const ChannelStatistics& c : e.channels)
-      x[c.channel] = {{"mean", Number(c.mean)},
-                      {"sd", Number(c.sd)},
-                      {"rms", Number(c.rms)},
-                      {"noise_ratio", Number(c.noise_ratio)},
-                      {"fitted", c.fitted}};
+    for (const ChannelStatistics& c : e.channels) x[c.channel] = ChannelJson(c);
     j["experiments"].push_back(x);
+  }
+  j["transient_experiments"] = nlohmann::json::array();
+  for (const TransientExperimentFit& t : fit.transient_experiments) {
+    nlohmann::json x{{"label", t.label},
+                     {"kind", t.kind},
+                     {"session", t.session},
+                     {"drop_mass", t.drop_mass},
+                     {"impact_velocity", t.impact_velocity},
+                     {"samples", t.time.size()},
+                     {"converged", t.converged}};
+    if (!t.error.empty()) x["error"] = t.error;
+    for (const ChannelStatistics& c : t.channels) {
+      x[c.channel] = ChannelJson(c);
+      x[c.channel]["noise_variance"] =
+          Number(t.noise_variance.count(c.channel) ? t.noise_variance.at(c.channel) : NAN);
+    }
+    j["transient_experiments"].push_back(x);
+  }
+  // What each experiment adds: per estimated parameter its share of the information and the sd
+  // without it (null: undetermined without it).
+  j["contributions"] = nlohmann::json::array();
+  for (const ExperimentContribution& c : fit.contributions) {
+    nlohmann::json share = nlohmann::json::object(), without = nlohmann::json::object();
+    for (int i : fit.estimated_positions) {
+      const std::string key = fit.parameters.spec(i).key();
+      share[key] = Number(c.information_share[i]);
+      without[key] = Number(c.sd_without[i]);
+    }
+    j["contributions"].push_back(
+        {{"label", c.label}, {"kind", c.kind}, {"information_share", share}, {"sd_without", without}});
   }
   j["loglik"] = Number(fit.loglik);
   j["aic"] = Number(fit.aic);

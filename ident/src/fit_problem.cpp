@@ -173,6 +173,13 @@ int EstimatedInputHarmonics(const Model& model, const EstimatorOptions& options,
                    (static_cast<int>(d.input.values.size()) - 1) / 2});
 }
 
+//! Mean, sd and rms of a channel's residual into its statistics.
+void SetResidualStatistics(const Eigen::VectorXd& r, ChannelStatistics& st) {
+  st.mean = r.mean();
+  st.sd = std::sqrt((r.array() - st.mean).square().sum() / std::max<Eigen::Index>(1, r.size() - 1));
+  st.rms = std::sqrt(r.squaredNorm() / r.size());
+}
+
 PeriodicSolverOptions SolverOptions(const EstimatorOptions& options) {
   PeriodicSolverOptions o;
   o.scheme = options.scheme;
@@ -267,6 +274,27 @@ struct FitProblem::Experiment {
   int n() const { return static_cast<int>(data->input.values.size()); }
 };
 
+// A transient (drop) experiment of the fit: its record, its predictor and the prediction at the
+// current parameters.
+struct FitProblem::TransientExperiment {
+  const TransientExperimentData* data = nullptr;
+  std::unique_ptr<TransientExperimentPredictor> predictor;
+  std::vector<std::string> recorded;  // per fit channel: the recorded channel fitted there ("": none)
+  TransientPrediction prediction;     // outputs at the current parameters (no sensitivities)
+  std::vector<Eigen::MatrixXd> sensitivities;  // per fit channel: samples x estimated, scaled (empty: none yet)
+  bool active = true;
+  bool dropped_at_start = false;
+  std::string error;
+  bool fitted(int b) const { return !recorded[b].empty(); }
+  Eigen::VectorXd Predicted(int b) const {
+    const std::string& name = recorded[b];
+    for (std::size_t row = 0; row < prediction.channels.size(); ++row)
+      if (prediction.channels[row] == name) return prediction.outputs.row(static_cast<Eigen::Index>(row)).transpose();
+    throw std::logic_error(fmt::format("drop experiment '{}': the prediction has no '{}' output", data->label, name));
+  }
+  Eigen::VectorXd Residual(int b) const { return data->channels.at(recorded[b]).samples - Predicted(b); }
+};
+
 double ResidualSums::LogLikelihood() const {
   double value = 0.0;
   for (std::size_t b = 0; b < counts.size(); ++b)
@@ -284,7 +312,8 @@ std::vector<double> ResidualSums::Variances(int estimated) const {
 }
 
 FitProblem::FitProblem(const Model& model, const EstimatorOptions& options, const std::vector<ExperimentData>& data,
-                       const std::vector<DataIssue>& issues, std::vector<int> estimated, std::vector<double> scale)
+                       const std::vector<DataIssue>& issues, std::vector<int> estimated, std::vector<double> scale,
+                       const std::vector<TransientExperimentData>& transients)
     : model_(model),
       options_(options),
       estimated_(std::move(estimated)),
@@ -362,8 +391,47 @@ FitProblem::FitProblem(const Model& model, const EstimatorOptions& options, cons
     }
     experiments_.push_back(std::move(s));
   }
+  periodic_channels_ = nc;
+  // Drops: their channels ("drop:stroke", ...) after the periodic ones, each with its own variance.
+  for (const TransientExperimentData& d : transients) {
+    if (!options.transient_predictor) {
+      warnings_.push_back(fmt::format("{}: {} experiment '{}' left out: this fit has no transient predictor (strut "
+                                      "identify has one)",
+                                      d.session, d.kind, d.label));
+      continue;
+    }
+    TransientExperiment t;
+    t.data = &d;
+    try {
+      t.predictor = options.transient_predictor(model, d);
+    } catch (const std::exception& e) {
+      warnings_.push_back(fmt::format("{}: {} experiment '{}' left out: {}", d.session, d.kind, d.label, e.what()));
+      continue;
+    }
+    for (const auto& [channel, recorded] : d.channels) {
+      const bool defect = std::any_of(issues.begin(), issues.end(), [&](const DataIssue& issue) {
+        return issue.experiment == d.label && issue.channel == channel;
+      });
+      if (defect) continue;
+      const std::string name = TransientChannelName(d.kind, channel);
+      if (std::find(channels_.begin(), channels_.end(), name) == channels_.end()) channels_.push_back(name);
+    }
+    transients_.push_back(std::move(t));
+  }
+  for (TransientExperiment& t : transients_) {
+    t.recorded.assign(channels_.size(), "");
+    for (const auto& [channel, recorded] : t.data->channels) {
+      const auto it = std::find(channels_.begin(), channels_.end(), TransientChannelName(t.data->kind, channel));
+      const bool defect = std::any_of(issues.begin(), issues.end(), [&](const DataIssue& issue) {
+        return issue.experiment == t.data->label && issue.channel == channel;
+      });
+      if (it != channels_.end() && !defect) t.recorded[it - channels_.begin()] = channel;
+    }
+  }
   for (const DataIssue& issue : issues)
-    if (std::find(channels_.begin(), channels_.end(), issue.channel) == channels_.end())
+    if (std::find(channels_.begin(), channels_.end(), issue.channel) == channels_.end() &&
+        std::none_of(transients.begin(), transients.end(),
+                     [&](const TransientExperimentData& d) { return d.label == issue.experiment; }))
       warnings_.push_back(
           fmt::format("experiment '{}', channel '{}': {} ({})", issue.experiment, issue.channel, issue.kind, issue.detail));
 }
@@ -372,8 +440,52 @@ FitProblem::~FitProblem() = default;
 
 int FitProblem::experiment_count() const { return static_cast<int>(experiments_.size()); }
 
+int FitProblem::transient_count() const { return static_cast<int>(transients_.size()); }
+
 int FitProblem::active_count() const {
-  return static_cast<int>(std::count_if(experiments_.begin(), experiments_.end(), [](const Experiment& e) { return e.active; }));
+  return static_cast<int>(std::count_if(experiments_.begin(), experiments_.end(), [](const Experiment& e) { return e.active; }) +
+                          std::count_if(transients_.begin(), transients_.end(),
+                                        [](const TransientExperiment& t) { return t.active; }));
+}
+
+std::vector<std::pair<std::string, std::string>> FitProblem::experiment_labels() const {
+  std::vector<std::pair<std::string, std::string>> labels;
+  for (const Experiment& s : experiments_) labels.emplace_back(s.data->label, "periodic");
+  for (const TransientExperiment& t : transients_) labels.emplace_back(t.data->label, t.data->kind);
+  return labels;
+}
+
+bool FitProblem::PredictTransient(TransientExperiment& t, const std::vector<double>& theta, bool sensitivities) const {
+  const int l = static_cast<int>(estimated_.size());
+  try {
+    TransientPrediction p = t.predictor->Predict(theta, sensitivities ? std::span<const int>(estimated_)
+                                                                      : std::span<const int>());
+    const Eigen::Index samples = static_cast<Eigen::Index>(t.data->time.size());
+    if (p.outputs.cols() != samples || p.outputs.rows() != static_cast<Eigen::Index>(p.channels.size()) ||
+        (sensitivities && p.sensitivities.size() != p.channels.size()))
+      throw std::logic_error("the predictor's outputs do not match the record");
+    if (!p.outputs.allFinite()) throw TransientPredictionError("the predicted outputs are not finite");
+    if (!sensitivities) {
+      t.prediction = std::move(p);
+      return true;
+    }
+    t.sensitivities.assign(channels_.size(), Eigen::MatrixXd());
+    for (std::size_t b = 0; b < channels_.size(); ++b) {
+      if (!t.fitted(static_cast<int>(b))) continue;
+      const auto row = std::find(p.channels.begin(), p.channels.end(), t.recorded[b]) - p.channels.begin();
+      if (row >= static_cast<Eigen::Index>(p.channels.size()))
+        throw std::logic_error(fmt::format("the prediction has no '{}' output", t.recorded[b]));
+      Eigen::MatrixXd j = p.sensitivities[row];
+      if (j.rows() != samples || j.cols() != l || !j.allFinite())
+        throw TransientPredictionError(fmt::format("the sensitivities of '{}' are not finite", t.recorded[b]));
+      for (int k = 0; k < l; ++k) j.col(k) *= scale_[estimated_[k]];
+      t.sensitivities[b] = std::move(j);
+    }
+    return true;
+  } catch (const std::exception& e) {
+    t.error = e.what();
+    return false;
+  }
 }
 
 const std::string& FitProblem::error(int experiment) const { return experiments_.at(experiment).error; }
@@ -396,6 +508,16 @@ bool FitProblem::Solve(const std::vector<double>& theta, bool allow_drop, int it
       failure[a] = e.what();
     }
   });
+  for (TransientExperiment& t : transients_) {
+    if (!t.active) continue;
+    if (PredictTransient(t, theta, false)) continue;
+    if (!allow_drop) return false;
+    t.active = false;
+    t.dropped_at_start = true;
+    t.sensitivities.clear();
+    spdlog::warn("{} experiment '{}': no prediction at the starting values ({}); left out until the parameters improve",
+                 t.data->kind, t.data->label, t.error);
+  }
   for (std::size_t a = 0; a < experiments_.size(); ++a) {
     if (!failure[a]) continue;
     if (!allow_drop) return false;
@@ -424,6 +546,14 @@ bool FitProblem::Readmit(const std::vector<double>& theta) {
     } catch (const PeriodicSolverError&) {
     }
   }
+  for (TransientExperiment& t : transients_) {
+    if (t.active || !t.dropped_at_start || !PredictTransient(t, theta, false)) continue;
+    t.active = true;
+    t.error.clear();
+    t.sensitivities.clear();
+    readmitted = true;
+    spdlog::info("{} experiment '{}' has a prediction again; back in the fit", t.data->kind, t.data->label);
+  }
   return readmitted;
 }
 
@@ -448,6 +578,7 @@ FitProblem::Saved FitProblem::Snapshot() const {
     saved.solutions.push_back(s.solution);
     saved.inputs.push_back(s.estimate ? s.estimate->xi : Eigen::VectorXd());
   }
+  for (const TransientExperiment& t : transients_) saved.transient_outputs.push_back(t.prediction.outputs);
   return saved;
 }
 
@@ -460,6 +591,8 @@ void FitProblem::Restore(Saved saved) {
       s.UpdateInput();
     }
   }
+  for (std::size_t k = 0; k < transients_.size() && k < saved.transient_outputs.size(); ++k)
+    transients_[k].prediction.outputs = std::move(saved.transient_outputs[k]);
 }
 
 bool FitProblem::estimates_inputs() const {
@@ -483,11 +616,21 @@ double FitProblem::InputLogPrior() const {
 }
 
 ResidualSums FitProblem::Evaluate() const {
-  const int nc = static_cast<int>(channels_.size());
+  const int all = static_cast<int>(channels_.size());
+  const int nc = periodic_channels_;
   ResidualSums e;
-  e.sum_squares.assign(nc, 0.0);
-  e.counts.assign(nc, 0);
-  e.input_dof.assign(nc, 0.0);
+  e.sum_squares.assign(all, 0.0);
+  e.counts.assign(all, 0);
+  e.input_dof.assign(all, 0.0);
+  for (const TransientExperiment& t : transients_) {
+    if (!t.active) continue;
+    for (int b = nc; b < all; ++b) {
+      if (!t.fitted(b)) continue;
+      const Eigen::VectorXd r = t.Residual(b);
+      e.sum_squares[b] += r.squaredNorm();
+      e.counts[b] += r.size();
+    }
+  }
   for (const Experiment& s : experiments_) {
     if (!s.active) continue;
     for (int b = 0; b < nc; ++b) {
@@ -505,7 +648,7 @@ ResidualSums FitProblem::Evaluate() const {
 NormalEquations FitProblem::Linearise(const std::vector<double>& theta, const std::vector<double>& variance,
                                       LinearisationMode mode) {
   const int l = static_cast<int>(estimated_.size());
-  const int nc = static_cast<int>(channels_.size());
+  const int nc = periodic_channels_;
   NormalEquations eq;
   eq.information.setZero(l, l);
   eq.gradient.setZero(l);
@@ -602,20 +745,54 @@ NormalEquations FitProblem::Linearise(const std::vector<double>& theta, const st
         ns[a] = InputNoiseCovariance(*s.data, gradient, estimated_harmonics);
     }
   });
-  for (std::size_t a = 0; a < experiments_.size(); ++a) {
+  // Drops: their sensitivities from the predictor (IDAS forward sensitivities), residuals of the
+  // samples weighted by the drop channels' own variances.
+  for (TransientExperiment& t : transients_) {
+    Eigen::MatrixXd h = Eigen::MatrixXd::Zero(l, l);
+    Eigen::VectorXd g = Eigen::VectorXd::Zero(l);
+    if (t.active) {
+      if ((!mode.reuse || mode.exact || t.sensitivities.empty()) && !PredictTransient(t, theta, true))
+        throw std::runtime_error(fmt::format("{} experiment '{}': no sensitivities at the current parameters: {}",
+                                             t.data->kind, t.data->label, t.error));
+      for (int b = nc; b < static_cast<int>(channels_.size()); ++b) {
+        if (!t.fitted(b)) continue;
+        const Eigen::MatrixXd& j = t.sensitivities[b];
+        h.noalias() += j.transpose() * j / variance[b];
+        g.noalias() += j.transpose() * t.Residual(b) / variance[b];
+      }
+    }
+    hs.push_back(std::move(h));
+    ns.push_back(Eigen::MatrixXd::Zero(l, l));
+    eq.experiment_gradient.push_back(std::move(g));
+  }
+  for (std::size_t a = 0; a < hs.size(); ++a) {
     eq.information += hs[a];
     eq.gradient += eq.experiment_gradient[a];
   }
   if (mode.input_noise) {
     eq.input_noise.setZero(l, l);
     for (const auto& m_a : ns) eq.input_noise += m_a;
+    eq.experiment_input_noise = ns;
   }
+  eq.experiment_information = std::move(hs);
   return eq;
 }
 
 std::vector<double> FitProblem::NoiseRatios() const {
-  const int nc = static_cast<int>(channels_.size());
-  std::vector<double> sum(nc, 0.0), count(nc, 0.0);
+  const int all = static_cast<int>(channels_.size());
+  const int nc = periodic_channels_;
+  std::vector<double> sum(all, 0.0), count(all, 0.0);
+  for (const TransientExperiment& t : transients_) {
+    if (!t.active) continue;
+    for (int b = nc; b < all; ++b) {
+      if (!t.fitted(b)) continue;
+      const double noise = t.data->channels.at(t.recorded[b]).noise_variance;
+      if (!(noise > 0)) continue;
+      const Eigen::VectorXd r = t.Residual(b);
+      sum[b] += r.squaredNorm() / noise;
+      count[b] += static_cast<double>(r.size());
+    }
+  }
   for (const Experiment& s : experiments_) {
     if (!s.active) continue;
     for (int b = 0; b < nc; ++b) {
@@ -625,15 +802,16 @@ std::vector<double> FitProblem::NoiseRatios() const {
       count[b] += static_cast<double>(s.j0.size()) - s.InputDof(b);
     }
   }
-  std::vector<double> ratio(nc);
-  for (int b = 0; b < nc; ++b) ratio[b] = count[b] > 0 ? sum[b] / count[b] : NAN;
+  std::vector<double> ratio(all);
+  for (int b = 0; b < all; ++b) ratio[b] = count[b] > 0 ? sum[b] / count[b] : NAN;
   return ratio;
 }
 
 void FitProblem::Summarise(const ResidualSums& sums, const std::vector<double>& variance,
                            const std::vector<double>& ratio, FitSummary& summary) {
-  const int nc = static_cast<int>(channels_.size());
-  for (int b = 0; b < nc; ++b) {
+  const int all = static_cast<int>(channels_.size());
+  const int nc = periodic_channels_;
+  for (int b = 0; b < all; ++b) {
     FitChannel c;
     c.name = channels_[b];
     c.variance = variance[b];
@@ -642,11 +820,17 @@ void FitProblem::Summarise(const ResidualSums& sums, const std::vector<double>& 
     int count = 0;
     for (const Experiment& s : experiments_) {
       const auto it = s.data->channels.find(channels_[b]);
-      if (s.active && s.channel_fitted[b] && it != s.data->channels.end() && std::isfinite(it->second.mean_noise_variance)) {
+      if (b < nc && s.active && s.channel_fitted[b] && it != s.data->channels.end() &&
+          std::isfinite(it->second.mean_noise_variance)) {
         noise += it->second.mean_noise_variance;
         ++count;
       }
     }
+    for (const TransientExperiment& t : transients_)
+      if (t.active && t.fitted(b) && std::isfinite(t.data->channels.at(t.recorded[b]).noise_variance)) {
+        noise += t.data->channels.at(t.recorded[b]).noise_variance;
+        ++count;
+      }
     c.noise_floor_variance = count > 0 ? noise / count : NAN;
     c.noise_ratio = ratio[b];
     summary.channels.push_back(c);
@@ -675,9 +859,7 @@ void FitProblem::Summarise(const ResidualSums& sums, const std::vector<double>& 
         const Eigen::VectorXd r = s.Residual(channels_[b], output_row_[b]);
         f.residual[channels_[b]] = r;
         f.noise_variance[channels_[b]] = it->second.mean_noise_variance;
-        st.mean = r.mean();
-        st.sd = std::sqrt((r.array() - st.mean).square().sum() / std::max<Eigen::Index>(1, r.size() - 1));
-        st.rms = std::sqrt(r.squaredNorm() / r.size());
+        SetResidualStatistics(r, st);
         st.input_dof = s.InputDof(b);
         st.noise_ratio = r.squaredNorm() / (std::max(1.0, r.size() - st.input_dof) * it->second.mean_noise_variance);
       }
@@ -685,6 +867,38 @@ void FitProblem::Summarise(const ResidualSums& sums, const std::vector<double>& 
     }
     if (s.active) f.solution = std::move(s.solution);
     summary.experiments.push_back(std::move(f));
+  }
+  for (const TransientExperiment& t : transients_) {
+    TransientExperimentFit f;
+    f.label = t.data->label;
+    f.session = t.data->session;
+    f.kind = t.data->kind;
+    f.drop_mass = t.data->drop_mass;
+    f.impact_velocity = t.data->impact_velocity;
+    f.converged = t.active;
+    f.error = t.error;
+    f.time = t.data->time;
+    if (!t.active)
+      summary.warnings.push_back(
+          fmt::format("{} experiment '{}': no prediction ({}); left out of the fit", f.kind, f.label, t.error));
+    for (int b = nc; b < all; ++b) {
+      if (!t.fitted(b)) continue;
+      const std::string& channel = t.recorded[b];
+      const TransientChannel& recorded = t.data->channels.at(channel);
+      ChannelStatistics st;
+      st.channel = channel;
+      st.fitted = t.active;
+      f.measured[channel] = recorded.samples;
+      f.noise_variance[channel] = recorded.noise_variance;
+      if (t.active) {
+        f.predicted[channel] = t.Predicted(b);
+        const Eigen::VectorXd r = t.Residual(b);
+        SetResidualStatistics(r, st);
+        st.noise_ratio = r.squaredNorm() / (static_cast<double>(r.size()) * recorded.noise_variance);
+      }
+      f.channels.push_back(st);
+    }
+    summary.transient_experiments.push_back(std::move(f));
   }
 }
 

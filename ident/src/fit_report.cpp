@@ -46,7 +46,9 @@ DisplayUnit DisplayUnitOf(const std::string& unit) {
   return {1.0, 0.0, unit};
 }
 
-DisplayUnit ChannelDisplayUnit(const std::string& channel) {
+DisplayUnit ChannelDisplayUnit(const std::string& name) {
+  // A transient experiment's channel ("drop:stroke") is shown like the recorded channel.
+  const std::string channel = name.substr(name.find(':') == std::string::npos ? 0 : name.find(':') + 1);
   if (channel == "stroke") return DisplayUnitOf("m");
   if (channel == "force") return DisplayUnitOf("N");
   if (channel == "pressure") return DisplayUnitOf("Pa");
@@ -109,6 +111,8 @@ void AddResidualBars(HtmlReport& report, const FitSummary& fit) {
   std::vector<std::string> labels;
   for (const auto& e : fit.experiments) labels.push_back(e.label);
   for (std::size_t c = 0; c < fit.channels.size(); ++c) {
+    // The periodic experiments' channels (a drop's follow them and are plotted with the drop).
+    if (fit.experiments.empty() || c >= fit.experiments.front().channels.size()) break;
     const DisplayUnit d = ChannelDisplayUnit(fit.channels[c].name);
     ErrorBarSeries series{fit.channels[c].name, {}, {}};
     for (const auto& e : fit.experiments) {
@@ -174,6 +178,68 @@ void AddExperimentPlots(HtmlReport& report, const FitSummary& fit) {
   }
 }
 
+void AddContributionTable(HtmlReport& report, const FitSummary& fit) {
+  if (fit.contributions.empty()) return;
+  std::vector<std::string> header{"experiment", "kind"};
+  for (int i : fit.estimated_positions) header.push_back(fit.parameters.spec(i).key());
+  std::vector<std::vector<std::string>> rows;
+  for (const ExperimentContribution& c : fit.contributions) {
+    std::vector<std::string> row{c.label, c.kind};
+    for (int i : fit.estimated_positions) {
+      const double ratio = c.sd_without[i] / fit.sd[i];
+      row.push_back(std::isinf(c.sd_without[i]) ? "undetermined"
+                                                : fmt::format("{:.3g} ({:.0f} %)", ratio, 100 * c.information_share[i]));
+    }
+    rows.push_back(std::move(row));
+  }
+  report.AddTable(header, rows,
+                  "Per experiment and parameter: the sd with the experiment left out over the sd of the fit "
+                  "(linearised at the fit; 1: the others determine it alone), and in brackets its share of the "
+                  "information on the parameter.");
+}
+
+void AddTransientPlots(HtmlReport& report, const FitSummary& fit) {
+  for (const TransientExperimentFit& t : fit.transient_experiments) {
+    report.AddHeading(fmt::format("{} {} ({:.0f} kg at {:.3g} m/s)", t.kind, t.label, t.drop_mass, t.impact_velocity), 3);
+    if (!t.converged) {
+      report.AddCallout("No prediction at the final parameters: " + t.error, Tone::kBad);
+      continue;
+    }
+    // At most about 2000 points a curve: every k-th sample, the first 2.5 s (the impact) in full.
+    const std::size_t n = t.time.size();
+    std::vector<std::size_t> kept;
+    const std::size_t stride = std::max<std::size_t>(1, n / 2000);
+    for (std::size_t i = 0; i < n; ++i)
+      if (t.time[i] <= 2.5 || i % stride == 0) kept.push_back(i);
+    std::vector<double> time;
+    for (std::size_t i : kept) time.push_back(t.time[i]);
+    const auto pick = [&](const Eigen::VectorXd& v, const DisplayUnit& d) {
+      std::vector<double> out;
+      for (std::size_t i : kept) out.push_back(d.Value(v[static_cast<Eigen::Index>(i)]));
+      return out;
+    };
+    for (const ChannelStatistics& c : t.channels) {
+      const DisplayUnit d = ChannelDisplayUnit(c.channel);
+      const Eigen::VectorXd& measured = t.measured.at(c.channel);
+      const Eigen::VectorXd& predicted = t.predicted.at(c.channel);
+      LinePlot overlay{fmt::format("{}: {}", t.label, c.channel), "time from contact [s]", AxisLabel(c.channel, d), {}};
+      overlay.series.push_back({"measured", time, pick(measured, d), "markers"});
+      overlay.series.push_back({"predicted", time, pick(predicted, d)});
+      const DisplayUnit dr{d.scale, 0.0, d.unit};
+      LinePlot residual{fmt::format("{}: {} residual, measured − predicted (noise ratio {:.3g})", t.label, c.channel,
+                                    c.noise_ratio),
+                        "time from contact [s]", AxisLabel(c.channel + " residual", d), {}};
+      residual.series.push_back({"residual", time, pick(measured - predicted, dr)});
+      const auto noise = t.noise_variance.find(c.channel);
+      if (noise != t.noise_variance.end() && std::isfinite(noise->second)) {
+        const double s = 2.0 * std::sqrt(noise->second) * d.scale, end = t.time.back();
+        residual.series.push_back({"± 2σ noise", {0.0, end, 0.0, 0.0, end}, {s, s, NAN, -s, -s}});
+      }
+      report.AddLinePlots({overlay, residual});
+    }
+  }
+}
+
 void WriteFitReport(const FitSummary& fit, const std::string& path, const std::string& title) {
   HtmlReport report(title);
   AddVerdict(report, fit);
@@ -205,8 +271,27 @@ void WriteFitReport(const FitSummary& fit, const std::string& path, const std::s
     rows.push_back(row);
   }
   std::vector<std::string> header{"experiment", "group", "frequency [Hz]", "static position [mm]", "amplitude [mm]"};
-  for (const auto& c : fit.channels) header.push_back(c.name + " noise ratio");
+  if (!fit.experiments.empty())
+    for (const auto& c : fit.experiments.front().channels) header.push_back(c.channel + " noise ratio");
   report.AddTable(header, rows, "Per experiment: residual over noise variance (about 1 at the noise floor).");
+
+  if (!fit.transient_experiments.empty()) {
+    std::vector<std::vector<std::string>> drops;
+    for (const auto& t : fit.transient_experiments) {
+      std::vector<std::string> row{t.label, t.kind, fmt::format("{:.0f}", t.drop_mass),
+                                   fmt::format("{:.3g}", t.impact_velocity)};
+      std::string ratios;
+      for (const auto& c : t.channels) ratios += fmt::format("{}{} {:.3g}", ratios.empty() ? "" : ", ", c.channel, c.noise_ratio);
+      row.push_back(t.converged ? ratios : "no prediction");
+      drops.push_back(std::move(row));
+    }
+    report.AddTable({"experiment", "kind", "mass [kg]", "impact velocity [m/s]", "noise ratio"}, drops,
+                    "Drops fitted beside the periodic experiments: residual over the record's noise variance at rest.");
+  }
+  if (!fit.contributions.empty()) {
+    report.AddHeading("What each experiment adds");
+    AddContributionTable(report, fit);
+  }
 
   if (fit.correlation.rows() > 0) {
     report.AddHeading("Correlation of the estimates");
@@ -230,6 +315,12 @@ void WriteFitReport(const FitSummary& fit, const std::string& path, const std::s
       "period. Right: the residual, measured − predicted, with the band of ± 2σ of the averaged data's noise; a "
       "residual that stays inside the band is noise, a pattern outside it is physics the model lacks.");
   AddExperimentPlots(report, fit);
+  if (!fit.transient_experiments.empty()) {
+    report.AddHeading("Measured and predicted, per drop");
+    report.AddParagraph("The record (dots) and the prediction of the fitted model (line) from contact, with the "
+                        "residual and the band of ± 2σ of the record's noise at rest.");
+    AddTransientPlots(report, fit);
+  }
   report.Write(path);
 }
 

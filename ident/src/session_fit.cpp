@@ -74,6 +74,27 @@ void AddSession(FitData& fit, const daq::Session& session, const std::string& pa
     }
     fit.experiments.push_back(std::move(e));
   }
+  for (TransientExperimentData& t : PrepareTransientExperiments(kept, path)) {
+    const std::string original = t.label;
+    const bool clash =
+        std::any_of(fit.experiments.begin(), fit.experiments.end(), [&](const ExperimentData& d) { return d.label == t.label; }) ||
+        std::any_of(fit.transients.begin(), fit.transients.end(),
+                    [&](const TransientExperimentData& d) { return d.label == t.label; });
+    if (clash) t.label = path + ":" + t.label;
+    for (const std::string& item : exclude) {
+      const auto [label, channel] = SplitExclusion(item);
+      if (label == original && !channel.empty() && t.channels.count(channel)) {
+        t.channels.erase(channel);
+        fit.excluded.push_back(
+            fmt::format("{}: experiment '{}', channel '{}' excluded by the user", path, original, channel));
+      }
+    }
+    if (t.channels.empty()) {
+      fit.excluded.push_back(fmt::format("{}: drop experiment '{}' has no channel left to fit", path, original));
+      continue;
+    }
+    fit.transients.push_back(std::move(t));
+  }
   fit.issues.insert(fit.issues.end(), issues.begin(), issues.end());
 }
 
@@ -165,7 +186,7 @@ FitPlan PlanFit(const Model& model, const FitData& data, const SessionFitOptions
     if (plan.choices[i].estimate) est.push_back(i);
   }
   if (est.empty()) return plan;
-  FitProblem problem(model, options.estimator, data.experiments, data.issues, est, scale);
+  FitProblem problem(model, options.estimator, data.experiments, data.issues, est, scale, data.transients);
   problem.Solve(at.values(), true);
   if (problem.active_count() == 0) return plan;  // the fit itself will say why
   std::vector<double> variance;
@@ -176,6 +197,10 @@ FitPlan PlanFit(const Model& model, const FitData& data, const SessionFitOptions
       const auto it = e.channels.find(channel);
       if (it != e.channels.end() && it->second.mean_noise_variance > 0) sum += it->second.mean_noise_variance, ++count;
     }
+    for (const TransientExperimentData& t : data.transients)
+      for (const auto& [name, recorded] : t.channels)
+        if (TransientChannelName(t.kind, name) == channel && recorded.noise_variance > 0)
+          sum += recorded.noise_variance, ++count;
     variance.push_back(count > 0 ? sum / count : 1.0);
   }
   const NormalEquations eq = problem.Linearise(at.values(), variance, {true, false, false, false});
@@ -236,13 +261,15 @@ SessionFit FitPlanned(FitData data, const Model& model, FitPlan plan, const Sess
                       const std::function<void(const FitProgress&)>& progress) {
   SessionFit fit{model, std::move(data), std::move(plan), {}};
   const Estimator estimator(fit.model, options.estimator);
-  fit.summary = estimator.Fit(fit.data.experiments, fit.plan.start, fit.plan.choices, fit.data.issues, progress);
+  fit.summary = estimator.Fit(fit.data.experiments, fit.plan.start, fit.plan.choices, fit.data.issues, progress,
+                              fit.data.transients);
   if (fit.summary.Verdict() != FitVerdict::kAtNoiseFloor && fit.plan.data_start.values() != fit.plan.start.values()) {
     // A second start: the data's own values (what a fit of an unknown unit starts from).
     ParameterSet second = fit.plan.data_start;
     for (int i = 0; i < second.size(); ++i)
       if (fit.plan.choices[i].prior_sd || !fit.plan.choices[i].estimate) second.values()[i] = fit.plan.start.value(i);
-    FitSummary other = estimator.Fit(fit.data.experiments, second, fit.plan.choices, fit.data.issues, progress);
+    FitSummary other =
+        estimator.Fit(fit.data.experiments, second, fit.plan.choices, fit.data.issues, progress, fit.data.transients);
     const auto objective = [](const FitSummary& s) {
       return s.IsSolutionUsable() && !s.history.empty() ? s.history.back().objective : -INFINITY;
     };

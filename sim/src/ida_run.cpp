@@ -69,7 +69,7 @@ int SensitivityCallback(int ns, double t, N_Vector y, N_Vector yp, N_Vector, N_V
       sp.col(k) = Eigen::Map<const Eigen::VectorXd>(N_VGetArrayPointer(yps[k]), n);
     }
     const Eigen::MatrixXd r = SensitivityResiduals(
-        data->system->model(), setup.theta, *setup.input, setup.parameters, t,
+        data->system->model(), setup.theta, *setup.load, setup.parameters, t,
         std::span<const double>(N_VGetArrayPointer(y), n), std::span<const double>(N_VGetArrayPointer(yp), n), s, sp);
     if (!r.allFinite()) return 1;
     for (int k = 0; k < ns; ++k) Eigen::Map<Eigen::VectorXd>(N_VGetArrayPointer(rs[k]), n) = r.col(k);
@@ -129,7 +129,7 @@ IdaRun::IdaRun(SUNContext ctx, const DaeSystem& system, const TransientOptions& 
   const Eigen::MatrixXd& s0 = sensitivities->start;
   ns_ = static_cast<int>(s0.cols());
   if (s0.rows() != n_ || static_cast<int>(sensitivities->parameters.size()) != ns_ ||
-      static_cast<int>(sensitivities->pbar.size()) != ns_ || !sensitivities->input)
+      static_cast<int>(sensitivities->pbar.size()) != ns_ || !sensitivities->load)
     throw std::invalid_argument("transient: sensitivity set-up of the wrong size");
   ys_ = N_VCloneVectorArray(ns_, y_);
   yps_ = N_VCloneVectorArray(ns_, y_);

@@ -30,7 +30,7 @@ struct SundialsContext {
 //! Forward sensitivities dY/dtheta_k of the DAE for the parameters at `parameters`, their residuals
 //! exact from the model's Jets (SensitivityResiduals).
 struct SensitivitySetup {
-  const InputSignal* input = nullptr;
+  const Load* load = nullptr;  //!< the DaeSystem's input or drop load
   std::span<const double> theta;
   std::span<const int> parameters;
   Eigen::MatrixXd start;     //!< dY/dtheta at t = 0: DaeSystem size x parameters

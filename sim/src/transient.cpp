@@ -324,15 +324,20 @@ TransientResult TransientSimulator::Simulate(std::span<const double> theta, cons
                                 ? model_
                                 : Model::Build(model_.composition(), Causality::kForceInput);
   CheckTheta(force_model, theta);
+  return Run(force_model, theta, load, output_times, DropContactState(model_, theta, load));
+}
+
+InitialState DropContactState(const Model& model, std::span<const double> theta, const DropLoad& load) {
   // States at q = 0 at rest (T ambient): the stroke-input static equilibrium at the measured
   // stroke of q = 0, which is the sensor offset theta12 when the model has one.
-  const Model stroke_model = Model::Build(model_.composition(), Causality::kStrokeInput);
+  const Model stroke_model = model.causality() == Causality::kStrokeInput
+                                 ? model
+                                 : Model::Build(model.composition(), Causality::kStrokeInput);
   const int offset = stroke_model.defaults().position_of_index(12);
   const double measured_zero = offset >= 0 && stroke_model.has_term("stroke-offset") ? theta[offset] : 0.0;
   std::vector<double> x0 = stroke_model.StaticEquilibrium(measured_zero, theta);
   x0[0] = 0.0;  // the force slot becomes the stroke
-  InitialState initial{x0, load.impact_velocity};
-  return Run(force_model, theta, load, output_times, initial);
+  return InitialState{x0, load.impact_velocity};
 }
 
 TransientResult TransientSimulator::Simulate(std::span<const double> theta, const DropLoad& load, double t_end,

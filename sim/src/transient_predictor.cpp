@@ -51,6 +51,13 @@ Eigen::MatrixXd SensitivityResiduals(const Model& model, std::span<const double>
                                      std::span<const int> parameters, double t, std::span<const double> y,
                                      std::span<const double> yp, const Eigen::MatrixXd& s, const Eigen::MatrixXd& sp,
                                      Eigen::VectorXd* values) {
+  return SensitivityResiduals(model, theta, Load(input), parameters, t, y, yp, s, sp, values);
+}
+
+Eigen::MatrixXd SensitivityResiduals(const Model& model, std::span<const double> theta, const Load& load,
+                                     std::span<const int> parameters, double t, std::span<const double> y,
+                                     std::span<const double> yp, const Eigen::MatrixXd& s, const Eigen::MatrixXd& sp,
+                                     Eigen::VectorXd* values) {
   const int m = model.unknown_count();
   const bool force_input = model.causality() == Causality::kForceInput;
   const int size = force_input ? m + 1 : m;
@@ -71,13 +78,23 @@ Eigen::MatrixXd SensitivityResiduals(const Model& model, std::span<const double>
   } else {
     xd[0] = YP[0];
   }
-  const InputSample u = input(t);
   std::vector<Jet> theta_jet;
   theta_jet.reserve(theta.size());
   for (double v : theta) theta_jet.push_back(constant(v));
   for (int k = 0; k < ns; ++k) theta_jet[parameters[k]] = Jet(theta[parameters[k]], DerivativeVector::Unit(ns, k));
-  model.Residual<Jet>(x, xd, xdd, constant(u.value), constant(u.rate), constant(u.accel), theta_jet,
-                      std::span<Jet>(r).first(m));
+  Jet u, ud = constant(0.0), udd = constant(0.0);
+  if (const auto* input = std::get_if<InputSignal>(&load)) {
+    const InputSample sample = (*input)(t);
+    u = constant(sample.value);
+    ud = constant(sample.rate);
+    udd = constant(sample.accel);
+  } else {
+    // Mass-load mode, as DaeSystem::Evaluate: F = M (g - v') with v' (and its sensitivity) from Y'.
+    if (!force_input) throw std::invalid_argument("sensitivity residuals: a drop load needs the force-input form");
+    const DropLoad& drop = std::get<DropLoad>(load);
+    u = (constant(drop.gravity) - YP[m]) * drop.mass;
+  }
+  model.Residual<Jet>(x, xd, xdd, u, ud, udd, theta_jet, std::span<Jet>(r).first(m));
   Eigen::MatrixXd out(size, ns);
   if (values) values->resize(size);
   for (int i = 0; i < size; ++i) {
@@ -217,8 +234,9 @@ std::vector<Eigen::MatrixXd> TransientPredictor::OutputSensitivities(const ident
     if (pbar[k] == 1e-300) pbar[k] = 1.0;
   }
 
+  const Load load = signal;
   detail::SensitivitySetup setup;
-  setup.input = &signal;
+  setup.load = &load;
   setup.theta = theta;
   setup.parameters = parameters;
   setup.start = s0;

@@ -13,6 +13,7 @@
 #include "strut/ident/model.h"
 #include "strut/ident/parameters.h"
 #include "strut/ident/periodic.h"
+#include "strut/ident/transient_fit.h"
 
 namespace strut::ident {
 
@@ -67,6 +68,9 @@ struct EstimatorOptions {
   //! How outputs and sensitivities are predicted; empty: the periodic solver with `scheme`.
   //! (`strut bench identify` plugs in transient integration to compare.)
   std::function<std::unique_ptr<PeriodicPredictor>(const Model&)> predictor;
+  //! How transient (drop) experiments are predicted, with their sensitivities (sim::DropPredictorFactory).
+  //! Empty: drop experiments given to the fit are left out with a warning (ident cannot integrate them).
+  TransientPredictorFactory transient_predictor;
   bool IsValid(std::string* error) const;
 };
 
@@ -95,6 +99,35 @@ struct ExperimentFit {
   std::map<std::string, Eigen::VectorXd> measured;  //!< every averaged measured channel at `phases`
   std::map<std::string, Eigen::VectorXd> residual;  //!< measured - predicted at `phases`, fitted channels
   std::map<std::string, double> noise_variance;     //!< of the averaged values, per fitted channel
+};
+
+//! A transient (drop) experiment of the fit: its residual statistics and its record beside the
+//! prediction at the final parameters.
+struct TransientExperimentFit {
+  std::string label, session, kind;
+  double drop_mass = 0.0, impact_velocity = 0.0;
+  bool converged = false;  //!< predicted at the final parameters
+  std::string error;       //!< why not
+  //! Per fitted channel (`channel` is the recorded name, "stroke"); noise_ratio against the
+  //! record's noise variance at rest.
+  std::vector<ChannelStatistics> channels;
+  std::vector<double> time;
+  std::map<std::string, Eigen::VectorXd> measured;   //!< per fitted channel, SI (pressure absolute)
+  std::map<std::string, Eigen::VectorXd> predicted;  //!< per fitted channel at the final parameters
+  std::map<std::string, double> noise_variance;      //!< per fitted channel, per sample
+};
+
+//! What one experiment adds to the estimate (linearised at the final parameters, white noise at
+//! the fit's channel variances, the misfit widening left out): docs/drop-prediction.md.
+struct ExperimentContribution {
+  std::string label;
+  std::string kind;  //!< "periodic" or "drop"
+  //! Per parameter (all of them; NaN when fixed): this experiment's share of the diagonal of the
+  //! information J'WJ (the shares of all experiments sum to 1).
+  std::vector<double> information_share;
+  //! Per parameter: the posterior sd with this experiment left out (NaN when fixed, +inf when the
+  //! others leave it undetermined). Over FitSummary::sd it is how much sharper this experiment makes it.
+  std::vector<double> sd_without;
 };
 
 struct FitChannel {
@@ -145,6 +178,9 @@ struct FitSummary {
   Eigen::MatrixXd correlation;       //!< among the estimated parameters
   std::vector<FitChannel> channels;
   std::vector<ExperimentFit> experiments;
+  std::vector<TransientExperimentFit> transient_experiments;  //!< drops, in the order given
+  //! Per experiment (periodic ones first, then the drops): what it adds (empty when nothing was estimated).
+  std::vector<ExperimentContribution> contributions;
   double loglik = 0.0, aic = 0.0, bic = 0.0;
   long observations = 0;
   std::vector<std::string> warnings;
@@ -186,10 +222,12 @@ class Estimator {
   const Model& model() const { return model_; }
 
   //! Fits all experiments at once from `initial`. Experiments whose periodic solution fails at the
-  //! start are reported by name and left out; the others still fit.
+  //! start are reported by name and left out; the others still fit. `transients` (drops) are fitted
+  //! beside the periodic ones when the options have a transient_predictor.
   FitSummary Fit(const std::vector<ExperimentData>& data, const ParameterSet& initial,
                  const std::vector<ParameterChoice>& choices, const std::vector<DataIssue>& issues = {},
-                 const std::function<void(const FitProgress&)>& progress = {}) const;
+                 const std::function<void(const FitProgress&)>& progress = {},
+                 const std::vector<TransientExperimentData>& transients = {}) const;
 
  private:
   Model model_;

@@ -16,6 +16,7 @@
 #include "strut/ident/experiment_data.h"
 #include "strut/ident/model.h"
 #include "strut/ident/periodic.h"
+#include "strut/ident/transient_fit.h"
 
 namespace strut::ident {
 
@@ -44,8 +45,13 @@ struct NormalEquations {
   //! sum over each input's noisy Fourier coefficients c of var(c) q_c q_c^T, q_c = J^T W dy/dc);
   //! empty unless asked for.
   Eigen::MatrixXd input_noise;
-  //! Per experiment, its share of `gradient` (zero for inactive experiments).
+  //! Per experiment, its share of `gradient` (zero for inactive experiments); the periodic
+  //! experiments first, then the transient ones.
   std::vector<Eigen::VectorXd> experiment_gradient;
+  //! Per experiment (same order), its share of `information`.
+  std::vector<Eigen::MatrixXd> experiment_information;
+  //! Per experiment (same order), its share of `input_noise` (empty unless asked for).
+  std::vector<Eigen::MatrixXd> experiment_input_noise;
   //! Per experiment, the block of its estimated input's coefficients (errors in variables,
   //! EstimatorOptions::estimate_input; empty where the input is not estimated): eliminated by the
   //! Bard step and the posterior (bard.h).
@@ -66,15 +72,21 @@ class FitProblem {
   //! `estimated`: positions of the estimated parameters; `scale`: per parameter (all of them) the
   //! size the sensitivities are scaled by. Throws std::invalid_argument for data that do not suit
   //! the model (grid size, channels).
+  //! `transients`: drop experiments, predicted by the options' transient_predictor (left out with a
+  //! warning without one); their channels follow the periodic ones in channels().
   FitProblem(const Model& model, const EstimatorOptions& options, const std::vector<ExperimentData>& data,
-             const std::vector<DataIssue>& issues, std::vector<int> estimated, std::vector<double> scale);
+             const std::vector<DataIssue>& issues, std::vector<int> estimated, std::vector<double> scale,
+             const std::vector<TransientExperimentData>& transients = {});
   ~FitProblem();
   FitProblem(const FitProblem&) = delete;
   FitProblem& operator=(const FitProblem&) = delete;
 
   const std::vector<std::string>& channels() const { return channels_; }
-  int experiment_count() const;
-  int active_count() const;
+  int experiment_count() const;  //!< periodic experiments
+  int transient_count() const;   //!< transient experiments in the fit
+  int active_count() const;      //!< experiments of either kind with a solution
+  //! Labels of all experiments in the order of NormalEquations::experiment_gradient, and their kinds.
+  std::vector<std::pair<std::string, std::string>> experiment_labels() const;
   //! Why an experiment has no solution (empty: it has one).
   const std::string& error(int experiment) const;
   //! Warnings found while setting up (missing channels, data defects).
@@ -91,6 +103,7 @@ class FitProblem {
   struct Saved {
     std::vector<PeriodicSolution> solutions;
     std::vector<Eigen::VectorXd> inputs;
+    std::vector<Eigen::MatrixXd> transient_outputs;
   };
   Saved Snapshot() const;
   void Restore(Saved saved);
@@ -119,6 +132,10 @@ class FitProblem {
 
  private:
   struct Experiment;
+  struct TransientExperiment;
+  //! Predicts transient experiment `t` at `theta` (with the estimated parameters' sensitivities when
+  //! `sensitivities`); false with its error set when the predictor fails.
+  bool PredictTransient(TransientExperiment& t, const std::vector<double>& theta, bool sensitivities) const;
   //! The first solve of an experiment: from the measured stroke when that fits, else cold.
   PeriodicSolution FirstSolve(Experiment& experiment, const std::vector<double>& theta) const;
   const Model& model_;
@@ -128,6 +145,8 @@ class FitProblem {
   std::vector<int> estimated_;
   std::vector<double> scale_;
   std::vector<Experiment> experiments_;
+  std::vector<TransientExperiment> transients_;
+  int periodic_channels_ = 0;  //!< channels_[0, periodic_channels_) are the periodic experiments'
   std::vector<std::string> warnings_;
   std::optional<Model> stroke_driven_;
   int threads_ = 1;

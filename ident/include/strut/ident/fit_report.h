@@ -67,5 +67,9 @@ void AddResidualBars(HtmlReport& report, const FitSummary& fit);    //!< residua
 //! Per experiment: each fitted channel's overlay (measured dots, predicted line) beside its residual
 //! over the period with the ± 2σ noise band, then the force- and pressure-stroke loops.
 void AddExperimentPlots(HtmlReport& report, const FitSummary& fit);
+//! Per experiment and estimated parameter: sd without it over the sd of the fit, and its information share.
+void AddContributionTable(HtmlReport& report, const FitSummary& fit);
+//! Per drop: each fitted channel's record and prediction from contact beside the residual.
+void AddTransientPlots(HtmlReport& report, const FitSummary& fit);
 
 }  // namespace strut::ident

@@ -33,11 +33,15 @@ struct SessionFitOptions {
 struct FitData {
   std::vector<std::string> sessions;
   std::vector<ExperimentData> experiments;
+  //! Drop experiments: fitted beside the periodic ones when the estimator options have a
+  //! transient_predictor (strut identify), left out with a warning otherwise.
+  std::vector<TransientExperimentData> transients;
   std::vector<DataIssue> issues;  //!< data defects found, and the channels excluded by the user
   std::vector<std::string> excluded;  //!< what --exclude left out, in words
 };
 
-//! Reads sessions and prepares their periodic experiments for `model` on the n-point grid. Labels
+//! Reads sessions and prepares their periodic experiments for `model` on the n-point grid, and their
+//! drop experiments (PrepareTransientExperiments). Labels
 //! that repeat across sessions are prefixed with the file. Throws daq::SessionError or
 //! std::invalid_argument naming the file, experiment and channel; an --exclude item that names
 //! no experiment or channel is an error too.

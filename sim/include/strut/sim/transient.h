@@ -215,6 +215,12 @@ class TransientSimulator {
   std::unique_ptr<Context> context_;
 };
 
+//! The state of a drop at contact (TransientSimulator::Simulate with a DropLoad starts from it):
+//! q = 0, q' = the impact velocity, the states at rest at full extension (T at ambient), from the
+//! stroke-input static equilibrium at the measured stroke of q = 0 (the sensor zero theta12 when
+//! the model has one). `unknowns` are the force-input model's, the stroke first.
+InitialState DropContactState(const ident::Model& model, std::span<const double> theta, const DropLoad& load);
+
 //! Sample times 0, 1/rate, ... up to t_end (t_end included). Throws std::invalid_argument.
 std::vector<double> UniformTimes(double t_end, double rate);
 

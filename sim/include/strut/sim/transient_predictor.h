@@ -100,5 +100,11 @@ Eigen::MatrixXd SensitivityResiduals(const ident::Model& model, std::span<const 
                                      std::span<const int> parameters, double t, std::span<const double> y,
                                      std::span<const double> yp, const Eigen::MatrixXd& s, const Eigen::MatrixXd& sp,
                                      Eigen::VectorXd* values = nullptr);
+//! The same for any load: in mass-load mode (a drop, force-input model) the force is the Jet
+//! expression M (g - v') of Y', as DaeSystem writes it, so its sensitivity carries -M s'_v.
+Eigen::MatrixXd SensitivityResiduals(const ident::Model& model, std::span<const double> theta, const Load& load,
+                                     std::span<const int> parameters, double t, std::span<const double> y,
+                                     std::span<const double> yp, const Eigen::MatrixXd& s, const Eigen::MatrixXd& sp,
+                                     Eigen::VectorXd* values = nullptr);
 
 }  // namespace strut::sim

@@ -55,7 +55,8 @@ struct RemoteRig {
         plant, daq::UdpCanTransport::Connect("127.0.0.1", static_cast<std::uint16_t>(udp_port)));
   }
   std::string Args() const {
-    return fmt::format("--rig modbus-tcp://127.0.0.1:{} --daq udp:127.0.0.1:{} --daq-rate {}", server.port(), udp_port,
+    // --drift-window 0: the plant has no thermal drift and the test runs in real time.
+    return fmt::format("--rig modbus-tcp://127.0.0.1:{} --daq udp:127.0.0.1:{} --daq-rate {} --drift-window 0", server.port(), udp_port,
                        plant.options().sample_rate);
   }
   Plant plant;

@@ -74,6 +74,7 @@ TEST(SteadyState, SteadyWhenTheConsecutiveChangesAreWithinTolerance) {
   const auto cycles = cut.Add(s.t, s.stroke, s.force, s.pressure);
   SteadyStateTolerances t;
   t.consecutive = 2;
+  t.drift_window = 0.0;  // these cycles last 64 ms: the thermal drift test has its own below
   const SteadyStateVerdict v = DetectSteadyState(cycles, t);
   EXPECT_TRUE(v.steady);
   EXPECT_FALSE(v.timed_out);
@@ -94,6 +95,7 @@ TEST(SteadyState, ADriftingResponseTimesOutAtTheCycleOrTimeLimit) {
   const auto cycles = cut.Add(s.t, s.stroke, s.force, s.pressure);
   SteadyStateTolerances t;
   t.max_cycles = 12;
+  t.drift_window = 0.0;
   SteadyStateVerdict v = DetectSteadyState(cycles, t);
   EXPECT_FALSE(v.steady);
   EXPECT_TRUE(v.timed_out);
@@ -109,7 +111,39 @@ TEST(SteadyState, ADriftingResponseTimesOutAtTheCycleOrTimeLimit) {
   CycleSummariser no_pressure(50);
   const auto dry = no_pressure.Add(s.t, s.stroke, s.force, {});
   EXPECT_TRUE(std::isnan(dry[0].pressure_mean));
-  EXPECT_TRUE(DetectSteadyState(dry, SteadyStateTolerances{}).steady);
+  EXPECT_TRUE(DetectSteadyState(dry, t).steady);
+}
+
+TEST(SteadyState, ASlowThermalDriftWithinTheCycleToleranceIsNotSteadyUntilItHasDecayed) {
+  // Cycles of 0.5 s (a 2 Hz test), the mean pressure relaxing as 2 MPa (1 + 0.05 exp(-t / 40 s)),
+  // the gas near full compression: consecutive cycles differ by at most 0.06 %, far within the
+  // 0.5 % cycle tolerance, but the drift over the 30 s window up to t is 2e-4 of the mean only once
+  // 0.05 exp(-t/40) (exp(30/40) - 1) <= 2e-4, at t = 40 ln(0.05 x 1.117 / 2e-4) = 225.3 s.
+  const int n = 50, cycles_count = 800;
+  const double period = 0.5, tau = 40.0;
+  Synthetic s;
+  for (int c = 0; c < cycles_count; ++c)
+    for (int i = 0; i < n; ++i) {
+      const double time = (c * n + i) * period / n;
+      s.t.push_back(static_cast<std::int64_t>(std::llround(time * 1e9)));
+      const double phase = 2.0 * std::numbers::pi * (i + 0.5) / n;
+      s.stroke.push_back(0.2 + 0.01 * std::sin(phase));
+      s.force.push_back(1e4 * std::sin(phase) + 500.0);
+      s.pressure.push_back(2e6 * (1.0 + 0.05 * std::exp(-time / tau)));
+    }
+  CycleSummariser cut(n);
+  const auto cycles = cut.Add(s.t, s.stroke, s.force, s.pressure);
+  SteadyStateTolerances t;
+  t.max_cycles = 100000;
+  const SteadyStateVerdict v = DetectSteadyState(cycles, t);
+  ASSERT_TRUE(v.steady) << v.cycles << " " << v.measure;
+  // The cycle mean of exp(-t/tau) shifts the moment by under a cycle; the window's cycle ends
+  // round it up to the next whole cycle.
+  const double expected = tau * std::log(0.05 * (std::exp(30.0 / tau) - 1.0) / 2e-4);
+  EXPECT_NEAR((v.steady_at + 1) * period, expected, 1.5) << v.steady_at;
+  // Without the drift test (window 0) the per-cycle tolerance passes at once.
+  t.drift_window = 0.0;
+  EXPECT_LT(DetectSteadyState(cycles, t).steady_at, 5);
 }
 
 TEST(SteadyState, CyclesRoundTripThroughASessionGroupAndGiveTheSameVerdict) {

@@ -169,7 +169,7 @@ TEST(ServedRig, RecordsAnExperimentOverModbusAndCanThatMatchesTheSimulatedRig) {
       const std::size_t take = std::min(b.size(), wanted - recorded);
       daq::SampleBlock block = daq::RecordedBlock(b, 0, take);
       if (!origin) origin = block.monotonic_ns.front();
-      ToSimulatedTime(block, *origin, rig.server->options().speed);
+      daq::ToRecordedTime(block, *origin, rig.server->options().speed);
       recorder.Append(block);
       recorded += take;
     }
@@ -265,7 +265,7 @@ TEST(ServedRig, ControllerLostMidRunFailsFastAndTheRecordingEndsAborted) {
     if (!b.empty()) {
       daq::SampleBlock block = daq::RecordedBlock(b);
       if (!origin) origin = block.monotonic_ns.front();
-      ToSimulatedTime(block, *origin, rig.server->options().speed);
+      daq::ToRecordedTime(block, *origin, rig.server->options().speed);
       recorder.Append(block);
       recorded += b.size();
     }

@@ -29,7 +29,10 @@
 #include "strut/rig/matrix_runner.h"
 #include "strut/rig/safety.h"
 #include "strut/sim/can_module.h"
+#include "strut/sim/recorded_truth.h"
+#include "strut/sim/rig_server.h"
 #include "strut/sim/simulated_rig.h"
+#include "truth_options.h"
 
 namespace strut::tools {
 namespace {
@@ -54,6 +57,9 @@ std::string Percent(double margin) {
   return fmt::format("{:.0f}%", 100.0 * margin);
 }
 
+//! How fast --rig sim runs unless told: well inside what the served rig keeps up with.
+constexpr double kDefaultSimSpeed = 50.0;
+
 struct RigRunCommand {
   std::string rig_spec, daq_spec, matrix_path, serial, operator_name, limits_path, fit_path, output;
   std::optional<double> daq_rate;
@@ -62,8 +68,35 @@ struct RigRunCommand {
   double static_rate = 0.01;
   int timeout_ms = 500;
   bool resume = false, force = false, no_progress = false;
+  std::optional<double> speed;  // --rig sim only
+  double drift_window = rig::SteadyStateTolerances{}.drift_window;
+  TruthOptions truth_options;   // --rig sim only
 
   void Run() {
+    // --rig sim: the simulated rig in this process, behind the same protocols as a real one.
+    const bool simulated = rig_spec == "sim";
+    if (simulated) {
+      if (!daq_spec.empty() && daq_spec != "sim")
+        throw std::invalid_argument(fmt::format("--daq {}: with --rig sim the acquisition is the simulated rig's own "
+                                                "(give --daq sim or nothing)", daq_spec));
+    } else {
+      if (daq_spec.empty()) throw std::invalid_argument("--daq: the acquisition module is needed (can:IFACE or udp:HOST:PORT)");
+      if (daq_spec == "sim") throw std::invalid_argument("--daq sim: the simulated acquisition comes with --rig sim only");
+      if (speed) throw std::invalid_argument("--speed: only the simulated rig (--rig sim) runs faster than real time");
+      if (!truth_options.truth_path.empty() || truth_options.draw_seed || truth_options.ideal_actuator ||
+          truth_options.base_option->count() > 0 || truth_options.effect_option->count() > 0)
+        throw std::invalid_argument(
+            "--truth, --draw, --base, --effect and --ideal-actuator describe the simulated rig (--rig sim)");
+    }
+    std::optional<sim::Truth> truth;
+    if (simulated) {
+      truth = truth_options.Load();
+      if (daq_rate && std::abs(*daq_rate - truth->acquisition.sample_rate) > 1e-9 * *daq_rate)
+        throw std::invalid_argument(fmt::format("--daq-rate {} Hz: the simulated rig samples at its truth's {} Hz",
+                                                *daq_rate, truth->acquisition.sample_rate));
+      daq_rate = truth->acquisition.sample_rate;
+      if (serial.empty() && !resume) serial = truth->damper_serial;
+    }
     // Everything that can be refused is checked before anything connects or moves.
     std::vector<std::string> inputs;
     for (const std::string* p : {&matrix_path, &limits_path, &fit_path})
@@ -102,6 +135,8 @@ struct RigRunCommand {
     options.ramp_cycles = ramp_cycles;
     options.static_rate = static_rate;
     options.reset_heartbeat_fault = resume;
+    options.stream_speed = simulated ? speed.value_or(kDefaultSimSpeed) : 1.0;
+    options.steady.drift_window = drift_window;
     std::string error;
     if (!options.IsValid(&error)) throw std::invalid_argument(error);
 
@@ -142,14 +177,30 @@ struct RigRunCommand {
 
     // The devices.
     daq::ModbusControllerOptions modbus;
-    modbus.endpoint = daq::ParseModbusEndpoint(rig_spec);
+    if (!simulated) modbus.endpoint = daq::ParseModbusEndpoint(rig_spec);
     modbus.response_timeout = std::chrono::milliseconds(timeout_ms);
     daq::CanAcquisitionOptions can;
-    can.layout.channels = 3;
-    can.layout.module = 1;
-    can.sample_rate = rate;
-    can.channels = sim::CanChannels(sim::SensorSet{});
-    daq::CanAcquisition acquisition(daq::OpenCanTransport(daq_spec, /*listen=*/true), can);
+    std::unique_ptr<daq::CanTransport> transport;
+    std::unique_ptr<sim::RigServer> server;  // --rig sim: stopped when the run ends, however it ends
+    if (simulated) {
+      transport = daq::OpenCanTransport("udp:127.0.0.1:0", /*listen=*/true);
+      sim::RigServerOptions served;
+      served.speed = options.stream_speed;
+      served.can = transport->name();
+      server = std::make_unique<sim::RigServer>(*truth, served);
+      modbus.endpoint = server->modbus_endpoint();
+      can = server->ReceiverOptions();
+      server->Start();
+      spdlog::info("simulated rig: controller at {}, sensors to {}, {}x real time", server->modbus_endpoint().host,
+                   transport->name(), served.speed);
+    } else {
+      can.layout.channels = 3;
+      can.layout.module = 1;
+      can.sample_rate = rate;
+      can.channels = sim::CanChannels(sim::SensorSet{});
+      transport = daq::OpenCanTransport(daq_spec, /*listen=*/true);
+    }
+    daq::CanAcquisition acquisition(std::move(transport), can);
     daq::ModbusController controller(modbus);
 
     if (resume) {
@@ -160,6 +211,16 @@ struct RigRunCommand {
       daq::RecordingMetadata m;
       m.damper_serial = serial;
       m.rig = controller.Describe() + " + " + daq_spec;
+      if (simulated) {
+        m.rig = fmt::format("{} [simulated in-process at {}x real time: {}]", truth->rig, options.stream_speed,
+                            truth->source);
+        const sim::SimulatedRig plant(*truth);
+        ident::ParameterSet parameters = plant.model().defaults();
+        parameters.values() = plant.theta();
+        daq::Session truth_holder;
+        sim::RecordTruth(*truth, parameters, plant.model().composition(), truth_holder);
+        m.groups = truth_holder.metadata;
+      }
       m.operator_name = operator_name;
       m.matrix = matrix_text;
       m.limits = {{"stroke_min", safety.stroke.lower},      {"stroke_max", safety.stroke.upper},
@@ -233,10 +294,17 @@ void RegisterRigRunCommand(CLI::App& rig) {
   CLI::App* run = rig.add_subcommand(
       "run", "Run the test matrix on the rig and record it: controller over Modbus TCP, acquisition over CAN "
              "(docs/rig-run.md)");
-  run->add_option("--rig", c->rig_spec, "Actuator controller, modbus-tcp://HOST:PORT (or HOST:PORT).")->required();
-  run->add_option("--daq", c->daq_spec,
-                  "Acquisition module: can:IFACE (SocketCAN) or udp:HOST:PORT (the UDP transport; listens there).")
+  run->add_option("--rig", c->rig_spec,
+                  "Actuator controller, modbus-tcp://HOST:PORT (or HOST:PORT), or sim: the simulated rig in this "
+                  "process, served over Modbus TCP and CAN frames on loopback as strut rig serve-sim serves it.")
       ->required();
+  run->add_option("--daq", c->daq_spec,
+                  "Acquisition module: can:IFACE (SocketCAN) or udp:HOST:PORT (the UDP transport; listens there); "
+                  "sim (or nothing) with --rig sim.");
+  run->add_option("--speed", c->speed,
+                  fmt::format("With --rig sim: simulated seconds per wall second (default {}; about 100 is what "
+                              "this machine keeps up with, docs/simulated-rig.md).", kDefaultSimSpeed))
+      ->check(Between(0.01, 1000.0));
   run->add_option("--daq-rate", c->daq_rate, "Sample sets per second the module sends (default: the matrix file's "
                                              "sample_rate, else 200 Hz).")
       ->check(Positive("Hz"));
@@ -259,11 +327,17 @@ void RegisterRigRunCommand(CLI::App& rig) {
   run->add_option("--static-rate", c->static_rate, "Rate limit of moves to a static position, m/s.")
       ->check(Positive("m/s"))
       ->capture_default_str();
+  run->add_option("--drift-window", c->drift_window,
+                  "Seconds over which the mean pressure must have stopped drifting (2e-4 of it) before an "
+                  "experiment counts as steady; 0 switches that test off (docs/rig-run.md).")
+      ->check(Between(0.0, 500.0, "s"))
+      ->capture_default_str();
   run->add_option("--timeout", c->timeout_ms, "Modbus response timeout, ms.")->check(Between(1, 60000))->capture_default_str();
   run->add_option("-o,--output", c->output, "Session file (HDF5) to record.")->required();
   run->add_flag("--resume", c->resume, "Go on with an interrupted run into the same session (its journal).");
   run->add_flag("--force", c->force, "Replace an existing session or journal at the output.");
   run->add_flag("--no-progress", c->no_progress, "No live progress line on a terminal.");
+  c->truth_options.Add(*run, /*with_actuator=*/true);
   run->callback([c] { c->Run(); });
 }
 

@@ -648,6 +648,12 @@ ExperimentDescriptor AcquiredExperiment(Experiment header, const StreamDescripti
   return d;
 }
 
+void ToRecordedTime(SampleBlock& block, std::int64_t origin_ns, double speed) {
+  if (speed == 1.0) return;
+  for (std::int64_t& t : block.monotonic_ns)
+    t = origin_ns + static_cast<std::int64_t>(std::llround(static_cast<double>(t - origin_ns) * speed));
+}
+
 SampleBlock RecordedBlock(const AcquiredBlock& block, std::size_t begin, std::size_t end) {
   end = std::min(end, block.size());
   SampleBlock b;

@@ -534,4 +534,12 @@ void CheckSession(const Session& session, DefectList& defects) {
 }
 
 }  // namespace detail
+bool IsRecordingChannel(const Channel& channel) {
+  if (channel.units != "1") return false;
+  const std::string_view name = channel.name;
+  constexpr std::string_view kCounts = "_counts";
+  return name == "sequence" || name == "status" ||
+         (name.size() > kCounts.size() && name.substr(name.size() - kCounts.size()) == kCounts);
+}
+
 }  // namespace strut::daq

@@ -201,7 +201,7 @@ std::vector<ExperimentData> Prepare(const daq::Session& session, const std::stri
     d.phases.resize(points);
     for (int i = 0; i < points; ++i) d.phases[i] = static_cast<double>(i) / points;
     for (const daq::Channel& c : e.channels) {
-      if (issues) {
+      if (issues && !daq::IsRecordingChannel(c)) {
         auto found = InspectChannel(e, c);
         issues->insert(issues->end(), found.begin(), found.end());
       }

@@ -41,6 +41,8 @@ bool RunnerOptions::IsValid(std::string* error) const {
   if (pressure_reference != "gauge" && pressure_reference != "absolute")
     return fail(fmt::format("pressure_reference '{}' is neither \"gauge\" nor \"absolute\"", pressure_reference));
   if (!(position_tolerance > 0.0)) return fail("position_tolerance must be positive");
+  if (!(stream_speed > 0.0 && std::isfinite(stream_speed)))
+    return fail(fmt::format("stream_speed {} must be positive", stream_speed));
   std::string steady_error;
   if (!steady.IsValid(&steady_error)) return fail(steady_error);
   return true;
@@ -139,6 +141,8 @@ struct MatrixRunner::Impl {
     bool summarising = false;
     bool open = false;  // begun in the recorder
     long recorded = 0;
+    std::optional<std::int64_t> time_origin;    // the first recorded sample's stream time
+    std::optional<std::int64_t> stream_origin;  // the first summarised sample's stream time
     long first_recorded_cycle = -1;
     bool finished = false;
   };
@@ -269,10 +273,20 @@ struct MatrixRunner::Impl {
       const std::size_t k = std::min<std::size_t>(n - pos, static_cast<std::size_t>(c.spp - c.summariser->filled()));
       if (c.open) {
         const std::size_t take = std::min<std::size_t>(k, static_cast<std::size_t>(c.wanted - c.recorded));
-        recorder.Append(daq::RecordedBlock(block, pos, pos + take));
+        daq::SampleBlock recorded = daq::RecordedBlock(block, pos, pos + take);
+        if (!c.time_origin && !recorded.monotonic_ns.empty()) c.time_origin = recorded.monotonic_ns.front();
+        if (c.time_origin) daq::ToRecordedTime(recorded, *c.time_origin, options.stream_speed);
+        recorder.Append(recorded);
         c.recorded += static_cast<long>(take);
       }
-      const auto done = c.summariser->Add(std::span<const std::int64_t>(block.time_ns).subspan(pos, k),
+      // The cycles' times on the recorded clock, so the detector's seconds are the damper's.
+      if (!c.stream_origin) c.stream_origin = block.time_ns[pos];
+      std::vector<std::int64_t> times(block.time_ns.begin() + static_cast<std::ptrdiff_t>(pos),
+                                      block.time_ns.begin() + static_cast<std::ptrdiff_t>(pos + k));
+      for (std::int64_t& t : times)
+        t = *c.stream_origin +
+            static_cast<std::int64_t>(std::llround(static_cast<double>(t - *c.stream_origin) * options.stream_speed));
+      const auto done = c.summariser->Add(times,
                                           slice(stroke_k, pos, k), slice(force_k, pos, k), slice(pressure_k, pos, k));
       pos += k;
       for (const CycleSummary& cycle : done) OnCycle(cycle);
@@ -304,7 +318,12 @@ struct MatrixRunner::Impl {
     h.group = c.item.entry.group;
     h.extra_attributes["matrix_label"] = c.item.entry.label;
     h.extra_attributes["attempt"] = std::to_string(c.item.attempt);
+    h.sample_rate = RecordedRate();
     return daq::AcquiredExperiment(std::move(h), acquisition.description(), options.pressure_reference);
+  }
+
+  //! The rate the session states: the stream's, on the recorded clock.
+  double RecordedRate() const { return acquisition.description().sample_rate / options.stream_speed;
   }
 
   void BeginRecording() {
@@ -431,7 +450,7 @@ struct MatrixRunner::Impl {
     current.emplace();
     Current& c = *current;
     c.item = item;
-    c.spp = *WholeSamplesPerCycle(acquisition.description().sample_rate, e.frequency);
+    c.spp = *WholeSamplesPerCycle(RecordedRate(), e.frequency);
     c.wanted = c.spp * options.periods;
     progress = Progress{};
     progress.experiment = item.label();
@@ -555,7 +574,7 @@ RunReport MatrixRunner::Run(const std::vector<RunItem>& items) {
   m.report = &report;
   m.safing = false;
   m.controller_lost = m.acquisition_lost = false;
-  const double rate = m.acquisition.description().sample_rate;
+  const double rate = m.RecordedRate();
   for (const RunItem& item : items) {
     if (!WholeSamplesPerCycle(rate, item.entry.frequency)) {
       report.outcome = RunOutcome::kAborted;

@@ -24,6 +24,10 @@ bool SteadyStateTolerances::IsValid(std::string* error) const {
     return fail(fmt::format("steady_state.max_cycles = {} is outside {}..100000", max_cycles, consecutive + 1));
   if (!(time_limit > 0.0 && std::isfinite(time_limit)))
     return fail(fmt::format("steady_state.time_limit = {} s must be positive", time_limit));
+  if (!(drift_window >= 0.0 && drift_window < time_limit))
+    return fail(fmt::format("steady_state.drift_window = {} s is outside 0 .. time_limit ({} s)", drift_window, time_limit));
+  if (!(pressure_drift > 0.0 && pressure_drift < 1.0))
+    return fail(fmt::format("steady_state.pressure_drift = {} is outside (0, 1)", pressure_drift));
   return true;
 }
 
@@ -65,14 +69,28 @@ const SteadyStateVerdict& SteadyStateDetector::Add(const CycleSummary& cycle) {
     verdict_.measure = ChangeBetween(cycles_[cycles_.size() - 2], cycle, tolerances_).worst_ratio(tolerances_);
     verdict_.agreeing = verdict_.measure < 1.0 ? verdict_.agreeing + 1 : 0;
   }
-  if (verdict_.agreeing >= tolerances_.consecutive) {
+  const double elapsed = (cycle.end_ns - cycles_.front().start_ns) * 1e-9;
+  if (verdict_.agreeing >= tolerances_.consecutive && elapsed >= tolerances_.drift_window && !Drifting()) {
     verdict_.steady = true;
     verdict_.steady_at = cycle.cycle;
     return verdict_;
   }
-  const double elapsed = (cycle.end_ns - cycles_.front().start_ns) * 1e-9;
   if (verdict_.cycles >= tolerances_.max_cycles || elapsed >= tolerances_.time_limit) verdict_.timed_out = true;
   return verdict_;
+}
+
+bool SteadyStateDetector::Drifting() const {
+  const CycleSummary& last = cycles_.back();
+  if (tolerances_.drift_window <= 0.0 || std::isnan(last.pressure_mean)) return false;
+  const CycleSummary* earlier = nullptr;
+  for (auto it = cycles_.rbegin() + 1; it != cycles_.rend(); ++it)
+    if ((last.end_ns - it->end_ns) * 1e-9 >= tolerances_.drift_window) {
+      earlier = &*it;
+      break;
+    }
+  if (!earlier) return true;
+  const double reference = std::max(std::abs(last.pressure_mean), tolerances_.pressure_floor);
+  return std::abs(last.pressure_mean - earlier->pressure_mean) > tolerances_.pressure_drift * reference;
 }
 
 SteadyStateVerdict DetectSteadyState(std::span<const CycleSummary> cycles, const SteadyStateTolerances& tolerances) {
@@ -162,6 +180,8 @@ daq::MetadataGroup CyclesGroup(const std::string& name, std::span<const CycleSum
   g.attributes["consecutive"] = static_cast<long long>(t.consecutive);
   g.attributes["max_cycles"] = static_cast<long long>(t.max_cycles);
   g.attributes["time_limit"] = t.time_limit;
+  g.attributes["pressure_drift"] = t.pressure_drift;
+  g.attributes["drift_window"] = t.drift_window;
   for (const CycleSummary& c : cycles) {
     daq::MetadataGroup s{fmt::format("{:06}", c.cycle), {}, {}};
     s.attributes["start_ns"] = static_cast<long long>(c.start_ns);
@@ -217,6 +237,9 @@ SteadyStateTolerances TolerancesFromGroup(const daq::MetadataGroup& g) {
   t.consecutive = static_cast<int>(get("consecutive"));
   t.max_cycles = static_cast<int>(get("max_cycles"));
   t.time_limit = get("time_limit");
+  // Not stored before the drift test existed: such runs were judged without it.
+  t.pressure_drift = g.number("pressure_drift").value_or(0.999);
+  t.drift_window = g.number("drift_window").value_or(0.0);
   return t;
 }
 

@@ -133,12 +133,6 @@ daq::CanAcquisitionOptions RigServer::ReceiverOptions() const {
   return o;
 }
 
-void ToSimulatedTime(daq::SampleBlock& block, std::int64_t origin_ns, double speed) {
-  if (speed == 1.0) return;
-  for (std::int64_t& t : block.monotonic_ns)
-    t = origin_ns + static_cast<std::int64_t>(std::llround(static_cast<double>(t - origin_ns) * speed));
-}
-
 RigServerStats RigServer::stats() const {
   RigServerStats s;
   const SimulatedControllerStats c = controller_.stats();

@@ -84,6 +84,12 @@ ExperimentDescriptor AcquiredExperiment(Experiment header, const StreamDescripti
 SampleBlock RecordedBlock(const AcquiredBlock& block, std::size_t begin = 0,
                           std::size_t end = static_cast<std::size_t>(-1));
 
+//! A block of a stream that runs `speed` times faster than the time it records (a simulated rig
+//! served at --speed X) put on the recorded clock: every timestamp t becomes
+//! origin + (t - origin) * speed, so that its steps are 1 / the recorded sample rate as the
+//! Recorder requires (speed 1 leaves the block as it is).
+void ToRecordedTime(SampleBlock& block, std::int64_t origin_ns, double speed);
+
 //! How an experiment ended. kNotSteady: recorded in full but the response never settled
 //! (stored as status "complete" with recording_end = "not-steady").
 enum class EndStatus { kComplete, kAborted, kNotSteady };

@@ -41,6 +41,11 @@ struct Channel {
   std::vector<double> samples;
 };
 
+//! True for a channel strut's recorder keeps beside the measurements (docs/recording.md): raw
+//! counts `<channel>_counts`, the acquisition's `sequence` index and `status` word, all with
+//! units "1". Not a measurement: checks of measured signals (dropouts, clipping) skip it.
+bool IsRecordingChannel(const Channel& channel);
+
 //! One experiment (/experiments/<label>).
 struct Experiment {
   std::string label;

@@ -50,6 +50,11 @@ struct RunnerOptions {
   //! run stopped beating: a crash, kill -9) is reset at the start, with an event, instead of refused.
   //! For resumed runs; any other fault is always refused.
   bool reset_heartbeat_fault = false;
+  //! Recorded seconds per second of the stream's clock: a simulated rig served at --speed X
+  //! streams X times its recorded sample rate. The runner records at the stream's rate / this,
+  //! with the samples' times put on the recorded clock (daq::ToRecordedTime); its own waits and
+  //! the safety detectors stay on the wall clock. 1 for a real rig.
+  double stream_speed = 1.0;
   bool IsValid(std::string* error) const;
 };
 

@@ -109,9 +109,4 @@ class RigServer {
   std::thread thread_;
 };
 
-//! A block of an accelerated stream put on the simulated clock: every timestamp t becomes
-//! origin + (t - origin) * speed, so that its steps are 1 / simulated_sample_rate() as a recorder
-//! stating that rate requires (speed 1 leaves the block as it is).
-void ToSimulatedTime(daq::SampleBlock& block, std::int64_t origin_ns, double speed);
-
 }  // namespace strut::sim

@@ -84,7 +84,8 @@ struct PlanCommand {
     const std::string text = qc::MatrixFileText(
         qc::QcMatrix(),
         "The QC matrix of strut (docs/qc.md): four experiments, about 2.5 minutes on the rig with settling.\n"
-        "Run it with `strut sim matrix --matrix FILE` (or the rig), then `strut qc SESSION.h5 --reference REF`.");
+        "Run it with `strut rig run --matrix FILE` (or `strut sim matrix --matrix FILE`), then\n"
+        "`strut qc SESSION.h5 --reference REF`.");
     if (output.empty())
       std::cout << text;
     else

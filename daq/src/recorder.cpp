@@ -648,10 +648,14 @@ ExperimentDescriptor AcquiredExperiment(Experiment header, const StreamDescripti
   return d;
 }
 
-void ToRecordedTime(SampleBlock& block, std::int64_t origin_ns, double speed) {
+void ToRecordedTime(std::span<std::int64_t> times_ns, std::int64_t origin_ns, double speed) {
   if (speed == 1.0) return;
-  for (std::int64_t& t : block.monotonic_ns)
+  for (std::int64_t& t : times_ns)
     t = origin_ns + static_cast<std::int64_t>(std::llround(static_cast<double>(t - origin_ns) * speed));
+}
+
+void ToRecordedTime(SampleBlock& block, std::int64_t origin_ns, double speed) {
+  ToRecordedTime(std::span<std::int64_t>(block.monotonic_ns), origin_ns, speed);
 }
 
 SampleBlock RecordedBlock(const AcquiredBlock& block, std::size_t begin, std::size_t end) {

@@ -283,9 +283,7 @@ struct MatrixRunner::Impl {
       if (!c.stream_origin) c.stream_origin = block.time_ns[pos];
       std::vector<std::int64_t> times(block.time_ns.begin() + static_cast<std::ptrdiff_t>(pos),
                                       block.time_ns.begin() + static_cast<std::ptrdiff_t>(pos + k));
-      for (std::int64_t& t : times)
-        t = *c.stream_origin +
-            static_cast<std::int64_t>(std::llround(static_cast<double>(t - *c.stream_origin) * options.stream_speed));
+      daq::ToRecordedTime(times, *c.stream_origin, options.stream_speed);
       const auto done = c.summariser->Add(times,
                                           slice(stroke_k, pos, k), slice(force_k, pos, k), slice(pressure_k, pos, k));
       pos += k;
@@ -323,8 +321,7 @@ struct MatrixRunner::Impl {
   }
 
   //! The rate the session states: the stream's, on the recorded clock.
-  double RecordedRate() const { return acquisition.description().sample_rate / options.stream_speed;
-  }
+  double RecordedRate() const { return acquisition.description().sample_rate / options.stream_speed; }
 
   void BeginRecording() {
     Current& c = *current;

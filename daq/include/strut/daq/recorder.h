@@ -88,6 +88,7 @@ SampleBlock RecordedBlock(const AcquiredBlock& block, std::size_t begin = 0,
 //! served at --speed X) put on the recorded clock: every timestamp t becomes
 //! origin + (t - origin) * speed, so that its steps are 1 / the recorded sample rate as the
 //! Recorder requires (speed 1 leaves the block as it is).
+void ToRecordedTime(std::span<std::int64_t> times_ns, std::int64_t origin_ns, double speed);
 void ToRecordedTime(SampleBlock& block, std::int64_t origin_ns, double speed);
 
 //! How an experiment ended. kNotSteady: recorded in full but the response never settled

@@ -214,11 +214,8 @@ struct RigRunCommand {
       if (simulated) {
         m.rig = fmt::format("{} [simulated in-process at {}x real time: {}]", truth->rig, options.stream_speed,
                             truth->source);
-        const sim::SimulatedRig plant(*truth);
-        ident::ParameterSet parameters = plant.model().defaults();
-        parameters.values() = plant.theta();
         daq::Session truth_holder;
-        sim::RecordTruth(*truth, parameters, plant.model().composition(), truth_holder);
+        sim::RecordTruth(*truth, truth_holder);
         m.groups = truth_holder.metadata;
       }
       m.operator_name = operator_name;

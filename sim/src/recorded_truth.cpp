@@ -16,6 +16,11 @@ daq::MetadataGroup Group(std::string name) {
 
 }  // namespace
 
+void RecordTruth(const Truth& truth, daq::Session& session) {
+  const ident::Model model = truth.BuildModel(ident::Causality::kStrokeInput);
+  RecordTruth(truth, truth.Parameters(model), model.composition(), session);
+}
+
 void RecordTruth(const Truth& truth, const ident::ParameterSet& parameters, const std::string& composition,
                  daq::Session& session) {
   daq::MetadataGroup root = Group(std::string(kTruthGroup));

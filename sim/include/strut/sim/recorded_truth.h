@@ -29,6 +29,9 @@ struct RecordedTruth {
 //! unit and value (float64).
 void RecordTruth(const Truth& truth, const ident::ParameterSet& parameters, const std::string& composition,
                  daq::Session& session);
+//! The same with the truth's own model (stroke input) and parameter values, as a simulated rig
+//! records them.
+void RecordTruth(const Truth& truth, daq::Session& session);
 
 //! The truth recorded in a session; nullopt when it has no `/truth` group (a measured session, or
 //! one written before strut recorded truths). Throws TruthError naming the session file and the

@@ -3,6 +3,8 @@
 
 #include <cmath>
 #include <fstream>
+#include <map>
+#include <regex>
 #include <nlohmann/json.hpp>
 
 #include "strut/ident/session_fit.h"
@@ -57,6 +59,21 @@ TEST(SessionFit, DefaultsIdentifyADrawnUnitToItsNoiseFloor) {
       if (spec.index != 12 && spec.index != 2 && spec.index != 17)
         EXPECT_GT(std::abs(t / spec.default_value - 1.0), 1e-3) << spec.key() << " left at its default by the draw";
     }
+    // Correlated parameters are warned about once per group: the stroke zero's direction links
+    // theta5, theta6, theta12 and theta16 (|r| > 0.99 pairwise), one warning, not six.
+    std::map<std::string, int> mentions;
+    int correlation_warnings = 0;
+    for (const std::string& w : fit.summary.warnings) {
+      if (w.find("are correlated") == std::string::npos) continue;
+      ++correlation_warnings;
+      for (int i : fit.summary.estimated_positions) {
+        const std::string key = fit.summary.parameters.spec(i).key();
+        if (std::regex_search(w, std::regex("\\b" + key + "\\b"))) ++mentions[key];
+      }
+    }
+    EXPECT_GE(correlation_warnings, 1) << fit.summary.FullReport();
+    for (const auto& [key, count] : mentions) EXPECT_EQ(count, 1) << key << " in more than one correlation warning";
+    for (const char* key : {"theta5", "theta6", "theta12"}) EXPECT_EQ(mentions[key], 1) << key;
   }
 }
 

@@ -364,12 +364,40 @@ FitSummary Estimator::Fit(const std::vector<ExperimentData>& data, const Paramet
       summary.warnings.push_back(fmt::format(
           "the data cannot determine{} (near-singular information matrix); fix one of them or add experiments", names));
     }
+    // Strongly correlated parameters, one warning per group (connected through |r| > 0.99): the
+    // stroke zero's direction alone links four parameters, which pair by pair read as six warnings.
+    std::vector<int> group(l);
+    for (int a = 0; a < l; ++a) group[a] = a;
+    const auto root = [&](int a) {
+      while (group[a] != a) a = group[a];
+      return a;
+    };
     for (int a = 0; a < l; ++a)
       for (int b = a + 1; b < l; ++b)
-        if (std::abs(summary.correlation(a, b)) > 0.99)
-          summary.warnings.push_back(fmt::format("{} and {} are correlated {:.3f}: the data barely tell them apart",
-                                                 initial.spec(est[a]).key(), initial.spec(est[b]).key(),
-                                                 summary.correlation(a, b)));
+        if (std::abs(summary.correlation(a, b)) > 0.99) group[root(b)] = root(a);
+    for (int g = 0; g < l; ++g) {
+      std::vector<int> members;
+      for (int a = 0; a < l; ++a)
+        if (root(a) == g) members.push_back(a);
+      if (members.size() < 2) continue;
+      std::string names;
+      double lo = 1.0, hi = 0.0;
+      for (std::size_t i = 0; i < members.size(); ++i) {
+        names += (i == 0 ? "" : i + 1 == members.size() ? " and " : ", ") + initial.spec(est[members[i]]).key();
+        for (std::size_t j = i + 1; j < members.size(); ++j) {
+          const double r = std::abs(summary.correlation(members[i], members[j]));
+          if (r > 0.99) lo = std::min(lo, r);
+          hi = std::max(hi, r);
+        }
+      }
+      summary.warnings.push_back(
+          members.size() == 2
+              ? fmt::format("{} are correlated {:.3f}: the data barely tell them apart", names,
+                            summary.correlation(members[0], members[1]))
+              : fmt::format("{} are correlated (|r| {:.3f} to {:.3f} between pairs): the data barely tell them "
+                            "apart",
+                            names, lo, hi));
+    }
   }
 
   // Statistics per channel and per experiment.

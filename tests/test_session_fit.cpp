@@ -77,6 +77,58 @@ TEST(SessionFit, DefaultsIdentifyADrawnUnitToItsNoiseFloor) {
   }
 }
 
+TEST(SessionFit, CalibrationPartOfEachSdIsWhatAGainErrorMovesTheEstimateBy) {
+  // The independent reference: refit the same session with one transducer reading 0.2 % high (the
+  // gauge pressure's reading, not the absolute pressure) and compare each estimate's shift with the
+  // calibration part of its sd for a gain sd of 0.2 %.
+  const daq::Session session = DrawnSession(23);
+  const Model model = Model::Build("2dof", Causality::kStrokeInput);
+  constexpr double kGain = 0.002;
+  SessionFitOptions none;
+  none.estimator.gain_sd.clear();
+  const SessionFit base = FitPrepared(PrepareFitData(session, "drawn", model, none.estimator.n), model, none);
+  ASSERT_EQ(base.summary.Verdict(), FitVerdict::kAtNoiseFloor) << base.summary.FullReport();
+  for (const char* channel : {"force", "pressure"}) {
+    SCOPED_TRACE(channel);
+    daq::Session scaled = session;
+    for (auto& e : scaled.experiments)
+      for (auto& c : e.channels)
+        if (c.name == channel)
+          for (double& v : c.samples) v *= 1.0 + kGain;
+    SessionFitOptions options;
+    options.estimator.gain_sd = {{channel, kGain}};
+    const SessionFit with = FitPrepared(PrepareFitData(session, "drawn", model, options.estimator.n), model, options);
+    const SessionFit moved = FitPrepared(PrepareFitData(scaled, "scaled", model, none.estimator.n), model, none);
+    ASSERT_TRUE(moved.summary.converged);
+    int compared = 0;
+    for (int i : base.summary.estimated_positions) {
+      const double shift = std::abs(moved.summary.parameters.value(i) - base.summary.parameters.value(i));
+      const double predicted = with.summary.calibration_sd[i];
+      const std::string key = base.summary.parameters.spec(i).key();
+      // The sd with the calibration is the sd without it and the calibration part in quadrature.
+      EXPECT_NEAR(with.summary.sd[i], std::hypot(base.summary.sd[i], predicted), 1e-6 * with.summary.sd[i]) << key;
+      if (shift < 0.05 * base.summary.sd[i]) continue;  // below the fits' own convergence tolerance
+      EXPECT_NEAR(shift / predicted, 1.0, 0.1) << key << " moved " << shift << ", predicted " << predicted;
+      ++compared;
+    }
+    EXPECT_GE(compared, 3);
+  }
+}
+
+TEST(SessionFit, CalibrationOptionReadsPercentOrFractionAndNamesBadItems) {
+  EXPECT_EQ(ParseGainSd("force=0.1%,pressure=0.002"), (std::map<std::string, double>{{"force", 0.001}, {"pressure", 0.002}}));
+  EXPECT_TRUE(ParseGainSd("none").empty());
+  for (const char* bad : {"force", "force=", "force=-1%", "force=0.1%%", "=0.1", "force=0.1,"}) {
+    SCOPED_TRACE(bad);
+    EXPECT_THROW(ParseGainSd(bad), std::invalid_argument);
+  }
+  test::TempDir dir;
+  std::ofstream(dir.file("s.h5")) << "not read: the option is refused first";
+  const auto r = test::RunStrut("identify " + dir.file("s.h5") + " --calibration force=abc");
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.output.find("--calibration: calibration 'force=abc'"), std::string::npos) << r.output;
+}
+
 TEST(SessionFit, WhatNoExperimentReachesIsFixedAndNamed) {
   // An end stop 30 mm outside the stroke the matrix uses: nothing in the data can size it.
   const daq::Session session = DrawnSession(23);

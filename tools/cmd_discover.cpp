@@ -103,7 +103,7 @@ void RegisterDiscoverCommand(CLI::App& app) {
       "the mismatch, add the catalogue term that explains it (BIC and cross-validation), and show the fit improve.");
   sub->add_option("sessions", command->sessions, "Session files (HDF5) to fit together.")->required()->check(CLI::ExistingFile);
   command->model.Add(*sub);
-  command->model.AddExclude(*sub);
+  command->model.AddSessionFit(*sub);
   sub->add_option("--json", command->json_path, "Write the findings as JSON to this file.");
   sub->add_option("--report", command->report_path, "Write a self-contained HTML report to this file.");
   sub->add_option("--n", command->n, "Grid points per period of the periodic solver.")->check(Between(16, 100000))->capture_default_str();

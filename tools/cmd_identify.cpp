@@ -108,7 +108,7 @@ void RegisterIdentifyCommand(CLI::App& app) {
   sub->add_option("--estimate", command->estimate,
                   "Parameters to estimate: a list such as theta4,theta6,theta16, or 'paper' for the paper's set. "
                   "Default: every parameter the data can determine, with a prior on the stroke sensor's zero.");
-  command->model.AddExclude(*sub);
+  command->model.AddSessionFit(*sub);
   sub->add_option("--json", command->json_path, "Write the fit as JSON to this file.");
   sub->add_option("--report", command->report_path, "Write a self-contained HTML report to this file.");
   sub->add_option("--n", command->n, "Grid points per period of the periodic solver.")->check(Between(16, 100000))->capture_default_str();

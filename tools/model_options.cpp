@@ -55,11 +55,14 @@ ident::ParameterSet ModelOptions::Parameters(const ident::Model& model) const {
   return parameters;
 }
 
-void ModelOptions::AddExclude(CLI::App& command) {
+void ModelOptions::AddSessionFit(CLI::App& command) {
   command
       .add_option("--exclude", exclude,
                   "Leave out an experiment (LABEL) or one of its channels (LABEL:CHANNEL); repeat or separate by commas.")
       ->delimiter(',');
+  command.add_option("--calibration", calibration,
+                     "Relative sd of the transducers' gains, carried into every interval: CHANNEL=SD,... (force=0.1%) "
+                     "or 'none' (default: force=0.2%,pressure=0.2%; docs/identification.md).");
 }
 
 ident::SessionFitOptions ModelOptions::FitOptions(int n) const {
@@ -70,6 +73,13 @@ ident::SessionFitOptions ModelOptions::FitOptions(int n) const {
   options.assignments = assignments;
   options.exclude = exclude;
   options.estimator.n = n;
+  if (!calibration.empty()) {
+    try {
+      options.estimator.gain_sd = ident::ParseGainSd(calibration);
+    } catch (const std::invalid_argument& e) {
+      throw std::invalid_argument(std::string("--calibration: ") + e.what());
+    }
+  }
   return options;
 }
 

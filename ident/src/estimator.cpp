@@ -337,6 +337,35 @@ FitSummary Estimator::Fit(const std::vector<ExperimentData>& data, const Paramet
           "beyond any interval",
           channels, widest));
     }
+    // Transducer calibration (EstimatorOptions::gain_sd): a channel reading (1 + g) times the truth
+    // adds g y to its residuals and moves the estimate by g H^-1 J^T W y (the estimated inputs
+    // eliminated as in the Bard step); a gain known to sd s adds s^2 v v^T to the covariance.
+    if (!options_.gain_sd.empty()) {
+      Eigen::MatrixXd calibration = Eigen::MatrixXd::Zero(l, l);
+      for (const auto& [channel, gain_sd] : options_.gain_sd) {
+        const auto& fitted = problem.channels();
+        const auto it = std::find(fitted.begin(), fitted.end(), channel);
+        if (it == fitted.end() || !(gain_sd > 0)) continue;  // an input, or not in these data
+        const FitProblem::GainGradient gain = problem.GainGradients(static_cast<int>(it - fitted.begin()), variance);
+        Eigen::MatrixXd h = eq.information;
+        h.diagonal() += priors.precision;
+        Eigen::VectorXd g = gain.parameters;
+        std::vector<NuisanceBlock> inputs = eq.inputs;
+        for (std::size_t a = 0; a < inputs.size(); ++a)
+          if (!inputs[a].empty())
+            inputs[a].gradient = a < gain.inputs.size() && gain.inputs[a].size() == inputs[a].gradient.size()
+                                     ? gain.inputs[a]
+                                     : Eigen::VectorXd::Zero(inputs[a].gradient.size());
+        EliminateNuisance(inputs, h, g);
+        const Eigen::VectorXd v = h.completeOrthogonalDecomposition().solve(g);
+        if (!v.allFinite()) continue;
+        calibration.noalias() += gain_sd * gain_sd * v * v.transpose();
+        summary.calibration += fmt::format("{}{} {:.3g} %", summary.calibration.empty() ? "" : ", ", channel, 100 * gain_sd);
+      }
+      covariance += calibration;
+      summary.calibration_sd.assign(np, NAN);
+      for (int a = 0; a < l; ++a) summary.calibration_sd[est[a]] = std::sqrt(std::max(calibration(a, a), 0.0)) * scale[est[a]];
+    }
     summary.contributions = Contributions(problem.experiment_labels(), eq, priors, est, scale, np);
     if ((options_.input_noise && eq.input_noise.size() > 0) || !eq.inputs.empty()) {
       summary.input_noise_sd_factor.assign(np, NAN);
@@ -485,13 +514,24 @@ std::string FitSummary::BriefReport() const {
                      converged ? "converged" : "NOT converged", iterations, loglik, bic, warnings.size());
 }
 
+double FitSummary::NoiseSd(int i) const {
+  const double c = i < static_cast<int>(calibration_sd.size()) && std::isfinite(calibration_sd[i]) ? calibration_sd[i] : 0.0;
+  return std::sqrt(std::max(sd[i] * sd[i] - c * c, 0.0));
+}
+
 std::string FitSummary::FullReport() const {
   std::string out = BriefReport() + "\n" + VerdictText() + "\n\nparameters:\n";
   for (int i = 0; i < parameters.size(); ++i) {
     const auto& spec = parameters.spec(i);
+    const double calibration_part = i < static_cast<int>(calibration_sd.size()) ? calibration_sd[i] : NAN;
     out += fmt::format("  {:<8} {:<28} {:>14.7g} {:<10} {}\n", spec.key(), spec.name, parameters.value(i), spec.unit,
-                       estimated[i] ? fmt::format("+- {:.3g} (estimated)", sd[i]) : std::string("(fixed)"));
+                       !estimated[i]                       ? std::string("(fixed)")
+                       : calibration_part > 0.3 * sd[i] ? fmt::format("+- {:.3g} (estimated; calibration {:.3g})", sd[i], calibration_part)
+                                                           : fmt::format("+- {:.3g} (estimated)", sd[i]));
   }
+  if (!calibration.empty())
+    out += fmt::format("  (each sd holds the transducers' calibration, gain sd {}; shown where it is a large part)\n",
+                       calibration);
   out += "\nchannels:\n";
   for (const auto& c : channels)
     out += fmt::format("  {:<12} rms {:.4g}  variance {:.4g}  noise floor {:.4g}  noise ratio {:.3g}\n", c.name, c.rms,
@@ -523,17 +563,18 @@ std::string FitSummary::FullReport() const {
     if (c.kind == "periodic") continue;
     std::vector<std::pair<double, int>> gains;
     for (int i = 0; i < parameters.size(); ++i)
-      if (estimated[i] && sd[i] > 0 && c.sd_without[i] > 1.05 * sd[i]) gains.emplace_back(c.sd_without[i] / sd[i], i);
+      if (estimated[i] && NoiseSd(i) > 0 && c.sd_without[i] > 1.05 * NoiseSd(i))
+        gains.emplace_back(c.sd_without[i] / NoiseSd(i), i);
     std::sort(gains.rbegin(), gains.rend());
     std::string list;
     for (std::size_t k = 0; k < std::min<std::size_t>(gains.size(), 6); ++k)
       list += (k ? "; " : "") +
               (std::isinf(gains[k].first)
                    ? fmt::format("{} undetermined without it, sd {:.3g} with", parameters.spec(gains[k].second).key(),
-                                 sd[gains[k].second])
+                                 NoiseSd(gains[k].second))
                    : fmt::format("{} sd {:.3g} without it, {:.3g} with ({:.2g} times sharper)",
                                  parameters.spec(gains[k].second).key(), c.sd_without[gains[k].second],
-                                 sd[gains[k].second], gains[k].first));
+                                 NoiseSd(gains[k].second), gains[k].first));
     out += fmt::format("{} '{}' adds: {}\n", c.kind, c.label,
                        list.empty() ? "no parameter sharper by more than 5 %" : list);
   }

@@ -209,6 +209,7 @@ std::vector<ExperimentData> Prepare(const daq::Session& session, const std::stri
       const Eigen::MatrixXd per_phase = PeriodSynchronousSamples(samples, e.sample_rate, e.frequency, e.periods, points);
       GridChannel g;
       g.mean = per_phase.rowwise().mean();
+      if (c.name == "pressure" && c.reference == "gauge") g.reading_offset = daq::kGaugeReferencePa;
       if (e.periods >= 2) {
         g.noise_variance =
             (per_phase.colwise() - g.mean).squaredNorm() / (static_cast<double>(points) * (e.periods - 1));

@@ -43,6 +43,8 @@ nlohmann::json FitToJson(const FitSummary& fit) {
                                {"sd_misfit_factor",
                                 Number(static_cast<std::size_t>(i) < fit.misfit_sd_factor.size() ? fit.misfit_sd_factor[i]
                                                                                                  : NAN)},
+                               {"sd_calibration",
+                                Number(static_cast<std::size_t>(i) < fit.calibration_sd.size() ? fit.calibration_sd[i] : NAN)},
                                {"estimated", static_cast<bool>(fit.estimated[i])}});
   }
   j["channels"] = nlohmann::json::array();

@@ -778,6 +778,23 @@ NormalEquations FitProblem::Linearise(const std::vector<double>& theta, const st
   return eq;
 }
 
+FitProblem::GainGradient FitProblem::GainGradients(int b, const std::vector<double>& variance) const {
+  GainGradient g;
+  g.parameters.setZero(static_cast<Eigen::Index>(estimated_.size()));
+  g.inputs.resize(experiments_.size());
+  if (b < 0 || b >= periodic_channels_) return g;  // a drop's channel: not covered
+  for (std::size_t a = 0; a < experiments_.size(); ++a) {
+    const Experiment& s = experiments_[a];
+    if (!s.active || !s.channel_fitted[b] || static_cast<int>(s.sensitivities_at_phases.size()) <= b) continue;
+    const GridChannel& measured = s.data->channels.at(channels_[b]);
+    const Eigen::VectorXd y = measured.mean.array() - measured.reading_offset;  // what the gain scales
+    g.parameters.noalias() += s.sensitivities_at_phases[b].transpose() * y / variance[b];
+    if (s.estimate && static_cast<int>(s.estimate->sensitivities_at_phases.size()) > b)
+      g.inputs[a] = s.estimate->sensitivities_at_phases[b].transpose() * y / variance[b];
+  }
+  return g;
+}
+
 std::vector<double> FitProblem::NoiseRatios() const {
   const int all = static_cast<int>(channels_.size());
   const int nc = periodic_channels_;

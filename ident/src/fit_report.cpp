@@ -81,11 +81,11 @@ void AddParameterTable(HtmlReport& report, const FitSummary& fit) {
   std::vector<std::string> header{"index", "name", "value ± sd", "unit", "95 % interval"};
   if (widened) header.push_back("sd widened for the misfit");
   header.push_back("");
-  report.AddTable(
-      header, rows,
-      widened ? "Above the noise floor: every sd and interval is widened for the misfit (the factor beside it), and "
-                "the estimates of a model that lacks physics are biased beyond them."
-              : "The sd is the posterior standard deviation; the interval is ± 1.96 sd.");
+  std::string caption = widened ? "Above the noise floor: every sd and interval is widened for the misfit (the factor "
+                                  "beside it), and the estimates of a model that lacks physics are biased beyond them."
+                                : "The sd is the posterior standard deviation; the interval is ± 1.96 sd.";
+  if (!fit.calibration.empty()) caption += " Each sd holds the transducers' calibration (gain sd " + fit.calibration + ").";
+  report.AddTable(header, rows, caption);
 }
 
 void AddChannelTable(HtmlReport& report, const FitSummary& fit) {

@@ -22,6 +22,35 @@ std::pair<std::string, std::string> SplitExclusion(const std::string& item) {
 
 }  // namespace
 
+std::map<std::string, double> ParseGainSd(const std::string& text) {
+  std::map<std::string, double> out;
+  if (text == "none") return out;
+  std::size_t begin = 0;
+  while (begin <= text.size()) {
+    const std::size_t end = std::min(text.find(',', begin), text.size());
+    const std::string item = text.substr(begin, end - begin);
+    begin = end + 1;
+    const std::size_t eq = item.find('=');
+    if (eq == std::string::npos || eq == 0)
+      throw std::invalid_argument(fmt::format("calibration '{}': expected CHANNEL=SD (force=0.2%) or 'none'", item));
+    std::string value = item.substr(eq + 1);
+    const bool percent = !value.empty() && value.back() == '%';
+    if (percent) value.pop_back();
+    std::size_t used = 0;
+    double sd = NAN;
+    try {
+      sd = std::stod(value, &used);
+    } catch (const std::exception&) {
+      used = 0;
+    }
+    if (used == 0 || used != value.size() || !(sd >= 0) || !std::isfinite(sd))
+      throw std::invalid_argument(
+          fmt::format("calibration '{}': the gain sd must be a number >= 0 (0.002 or 0.2%)", item));
+    out[item.substr(0, eq)] = percent ? sd / 100.0 : sd;
+  }
+  return out;
+}
+
 bool SessionFitOptions::IsValid(std::string* error) const {
   if (!estimator.IsValid(error)) return false;
   for (const std::string& item : exclude)

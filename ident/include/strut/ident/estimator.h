@@ -4,6 +4,7 @@
 
 #include <Eigen/Dense>
 #include <functional>
+#include <map>
 #include <memory>
 #include <optional>
 #include <string>
@@ -65,6 +66,12 @@ struct EstimatorOptions {
   //! Output channels to fit; empty: the outputs of the causality (stroke and pressure for force
   //! input, force and pressure for stroke input; y for a generic oscillator driven by u).
   std::vector<std::string> channels;
+  //! Relative sd of each fitted channel's transducer gain, by channel name (0.002: a load cell
+  //! calibrated to 0.2 % of reading). The posterior adds what such gain errors move the estimate by
+  //! (linearised), so intervals hold the calibration's uncertainty beside the noise's; channels
+  //! not fitted (the input) are not covered. Empty: the noise alone (SessionFitOptions sets the
+  //! lab default, kLabGainSd).
+  std::map<std::string, double> gain_sd;
   //! How outputs and sensitivities are predicted; empty: the periodic solver with `scheme`.
   //! (`strut bench identify` plugs in transient integration to compare.)
   std::function<std::unique_ptr<PeriodicPredictor>(const Model&)> predictor;
@@ -174,6 +181,10 @@ struct FitSummary {
   //! Above the noise floor: how much each sd was widened for the misfit (ExperimentSandwich); empty
   //! at the noise floor, NaN when fixed.
   std::vector<double> misfit_sd_factor;
+  //! What the transducers' calibration (EstimatorOptions::gain_sd) alone contributes to each sd (the
+  //! sd includes it: sd^2 = the rest^2 + this^2); empty without a calibration, NaN when fixed.
+  std::vector<double> calibration_sd;
+  std::string calibration;  //!< the gains it holds, in words ("force 0.2 %, pressure 0.2 %"); empty without
   std::vector<int> estimated_positions;
   Eigen::MatrixXd correlation;       //!< among the estimated parameters
   std::vector<FitChannel> channels;
@@ -188,6 +199,8 @@ struct FitSummary {
 
   std::string BriefReport() const;
   std::string FullReport() const;
+  //! Parameter i's sd without the calibration's part (what the data and the model give).
+  double NoiseSd(int i) const;
   bool IsSolutionUsable() const;
   FitVerdict Verdict() const;
   //! The verdict in one or two sentences: converged or not, at the noise floor or how far above it

@@ -39,6 +39,9 @@ struct GridChannel {
   Eigen::VectorXd mean;          //!< period-synchronous average at the experiment's phases (SI, pressure absolute)
   double noise_variance = NAN;   //!< per-sample noise variance from the spread between periods (NaN: 1 period)
   double mean_noise_variance = NAN;  //!< noise variance of the averaged values: noise_variance / periods
+  //! What was added to the transducer's reading to make `mean` (a gauge pressure's 101325 Pa): a
+  //! gain error scales `mean - reading_offset`.
+  double reading_offset = 0.0;
 };
 
 //! A data-quality finding (clipping, dropout, outlier) on one channel of one experiment.

@@ -121,6 +121,16 @@ class FitProblem {
   NormalEquations Linearise(const std::vector<double>& theta, const std::vector<double>& variance,
                             LinearisationMode mode);
 
+  //! What a transducer gain error does to eq. 19's sums: for periodic channel b, the gradient the
+  //! measured signal itself makes, sum J^T W y (a channel reading (1 + g) times the truth adds g y to
+  //! every residual), and per experiment its estimated input's share J_c^T W y (to eliminate as the
+  //! Bard step does). From the sensitivities of the last Linearise (call it first, with inputs).
+  struct GainGradient {
+    Eigen::VectorXd parameters;
+    std::vector<Eigen::VectorXd> inputs;  //!< per periodic experiment; empty where no input is estimated
+  };
+  GainGradient GainGradients(int channel, const std::vector<double>& variance) const;
+
   //! Per fitted channel: pooled residual mean square over each experiment's noise variance of the
   //! averaged data, sum_a sum_mu e^2 / s_a^2 over the count (about 1 at the noise floor). NaN where
   //! no experiment knows its noise.

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <functional>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -12,6 +13,14 @@
 #include "strut/ident/model.h"
 
 namespace strut::ident {
+
+//! The calibration a test lab has, as the relative sd of each transducer's gain: load cell and
+//! gas-pressure transducer each known to 0.2 % of reading (docs/identification.md, calibration).
+inline const std::map<std::string, double> kLabGainSd = {{"force", 0.002}, {"pressure", 0.002}};
+
+//! "force=0.2%,pressure=0.1%" (a value with % is in percent, without it a fraction) or "none" into
+//! EstimatorOptions::gain_sd. Throws std::invalid_argument naming the item.
+std::map<std::string, double> ParseGainSd(const std::string& text);
 
 struct SessionFitOptions {
   std::string composition = "2dof";
@@ -25,7 +34,11 @@ struct SessionFitOptions {
   std::string assignments;  //!< "NAME=VALUE,...": starting values over the data's and the file's
   //! Experiments or channels left out: "c" (experiment c), "c:force" (its force channel).
   std::vector<std::string> exclude;
-  EstimatorOptions estimator;
+  EstimatorOptions estimator = [] {
+    EstimatorOptions o;
+    o.gain_sd = kLabGainSd;  // intervals hold the lab's calibration by default
+    return o;
+  }();
   bool IsValid(std::string* error) const;
 };
 

@@ -170,12 +170,14 @@ struct BenchRig {
         n, truth.BuildModel(ident::Causality::kStrokeInput).composition(), truth.source, repeats,
         repeats > 1 ? "s" : "");
     std::cout << fmt::format("strut sim matrix (sim::SimulatedRig::RunMatrix + write): {:.1f} s simulated ({:.1f} s "
-                             "recorded) in {:.2f} s wall, {:.2f} s CPU: {:.0f} simulated s per CPU s\n\n",
-                             matrix_simulated, matrix_recorded, matrix_wall, matrix_cpu, 1.0 / matrix_cpu_per_sim);
-    std::cout << fmt::format("{:>6} {:>7} {:>7} {:>7} {:>8} {:>7} {:>9} {:>9} {:>8} {:>8} {:>6} {:>5} {:>7} {:>9} {:>9} "
-                             "{:>8}\n",
+                             "recorded) in {:.2f} s wall, {:.2f} s CPU: {:.0f} simulated s per CPU s, {:.2f} CPU ms per "
+                             "simulated s\n\n",
+                             matrix_simulated, matrix_recorded, matrix_wall, matrix_cpu, 1.0 / matrix_cpu_per_sim,
+                             1e3 * matrix_cpu_per_sim);
+    std::cout << fmt::format("{:>6} {:>7} {:>7} {:>7} {:>8} {:>7} {:>9} {:>9} {:>8} {:>8} {:>6} {:>5} {:>7} {:>8} {:>8} "
+                             "{:>7} {:>7}\n",
                              "speed", "wall s", "CPU s", "plant", "sim s", "rec s", "sim/wall", "sim/CPU", "behind",
-                             "complete", "lost", "gaps", "kept up", "CPU/sim", "x matrix", "wall x");
+                             "complete", "lost", "gaps", "kept up", "CPUms/s", "x matrix", "CPU x", "wall x");
     nlohmann::json json;
     json["truth"] = truth.source;
     json["composition"] = truth.BuildModel(ident::Causality::kStrokeInput).composition();
@@ -209,11 +211,13 @@ struct BenchRig {
       if (kept_up && (!fastest || row.speed > *fastest)) fastest = row.speed;
       // CPU per simulated second against sim matrix's; wall time for a session against its wall time.
       const double cpu_ratio = (cpu / simulated) / matrix_cpu_per_sim;
+      const double session_cpu_ratio = cpu / matrix_cpu;
       const double wall_ratio = wall / matrix_wall;
       std::cout << fmt::format("{:>5g}x {:>7.1f} {:>7.1f} {:>7.1f} {:>8.0f} {:>7.0f} {:>9.1f} {:>9.1f} {:>8.2f} {:>5}/{:<2} "
-                               "{:>6} {:>5} {:>3}/{:<3} {:>9.4f} {:>9.2f} {:>8.1f}\n",
+                               "{:>6} {:>5} {:>3}/{:<3} {:>8.2f} {:>8.1f} {:>7.1f} {:>7.1f}\n",
                                row.speed, wall, cpu, plant, simulated, recorded, per_wall, per_cpu, behind, complete, n,
-                               lost, gaps, kept, row.runs.size(), cpu / simulated, cpu_ratio, wall_ratio);
+                               lost, gaps, kept, row.runs.size(), 1e3 * cpu / simulated, cpu_ratio, session_cpu_ratio,
+                               wall_ratio);
       nlohmann::json runs = nlohmann::json::array();
       for (const RigFigures& f : row.runs) {
         runs.push_back({{"wall_s", f.wall},          {"cpu_s", f.cpu},           {"plant_cpu_s", f.plant_cpu},
@@ -233,14 +237,15 @@ struct BenchRig {
                                 {"max_lateness_s", behind},
                                 {"kept_up", kept_up},
                                 {"cpu_per_simulated_s_vs_sim_matrix", cpu_ratio},
+                                {"cpu_vs_sim_matrix", session_cpu_ratio},
                                 {"wall_vs_sim_matrix", wall_ratio},
                                 {"runs", runs}});
     }
     std::cout << fmt::format(
         "\nsim s: the served rig's clock (moves, settling, records); rec s: seconds in the session; plant: CPU s of the "
         "simulation thread;\nbehind: s the stream was ever late; kept up: runs with all {} experiments complete and "
-        "steady, no lost sample set, no gap;\nx matrix: CPU per simulated s against sim matrix's; wall x: wall time "
-        "for the session against sim matrix's.\nfastest speed that kept up: {}\n",
+        "steady, no lost sample set, no gap;\nCPUms/s: CPU ms per simulated s; x matrix: that against sim matrix's; "
+        "CPU x, wall x: CPU and wall time for the session against sim matrix's.\nfastest speed that kept up: {}\n",
         n, fastest ? fmt::format("{:g}x", *fastest) : "none");
     json["fastest_kept_up"] = fastest ? nlohmann::json(*fastest) : nlohmann::json(nullptr);
     if (!json_path.empty()) {

@@ -16,6 +16,7 @@
 #include <chrono>
 #include <cmath>
 #include <fstream>
+#include <iostream>
 #include <nlohmann/json.hpp>
 #include <regex>
 #include <thread>
@@ -70,6 +71,8 @@ void ExpectMatrixIdentifiesItsTruth(const std::string& session, const TempDir& d
   // Every estimated parameter within 4 sd of the truth (the record's timing follows the wall
   // clock, so the realisation is not fixed; on the runs measured the largest |z| was 3.0).
   int checked = 0;
+  double largest = 0.0;
+  std::string largest_key;
   for (const auto& p : j.at("parameters")) {
     if (!p.at("estimated").get<bool>() || p.at("sd").is_null()) continue;
     const std::string key = p.at("index");
@@ -78,9 +81,15 @@ void ExpectMatrixIdentifiesItsTruth(const std::string& session, const TempDir& d
     const double truth_value = recorded_truth->parameters.value(*position);
     const double z = (p.at("value").get<double>() - truth_value) / p.at("sd").get<double>();
     EXPECT_LT(std::abs(z), 4.0) << key << " " << p.at("value") << " truth " << truth_value;
+    if (std::abs(z) > largest) largest = std::abs(z), largest_key = key;
     ++checked;
   }
   EXPECT_GE(checked, 12);
+  std::string ratios;
+  for (const auto& c : j.at("channels"))
+    ratios += fmt::format(" {} {:.3f}", c.at("name").get<std::string>(), c.at("noise_ratio").get<double>());
+  std::cout << fmt::format("{}: noise ratios{}; largest |z| {:.2f} ({}) of {} parameters\n", session, ratios, largest,
+                           largest_key, checked);
 }
 
 TEST(RigSimEndToEnd, TheStandardMatrixRecordedOverTheDriversIdentifiesTheDrawnUnitsTruth) {

@@ -194,10 +194,10 @@ struct RigRunCommand {
       if (channel_map) {
         can.layout = channel_map->layout;
         can.channels = channel_map->channels;
-      } else {  // the simulated rig's module: what serve-sim and the tests' plants stream
+      } else {  // the simulated rig's module: what serve-sim (of this truth) and the tests' plants stream
         can.layout.channels = 3;
         can.layout.module = 1;
-        can.channels = sim::CanChannels(sim::SensorSet{});
+        can.channels = sim::CanChannels(truth ? truth->sensors : sim::SensorSet{});
       }
       can.sample_rate = rate * stream_speed;
       devices = ConnectRig(daq::ParseModbusEndpoint(rig_spec), timeout, daq_spec, std::move(can));

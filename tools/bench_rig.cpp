@@ -45,6 +45,8 @@ struct RigFigures {
   std::size_t complete = 0, not_steady = 0, aborted = 0;
   bool finished = false;  //!< the run ended complete
   std::uint64_t lost_sets = 0, gaps = 0;
+  //! Frames the receiver refused: ahead of its clock, late (behind the stream) or corrupt.
+  std::uint64_t refused_frames = 0;
   double max_lateness = 0.0;  //!< s the stream was ever behind its schedule
   bool kept_up(std::size_t experiments) const {
     return finished && complete == experiments && not_steady == 0 && aborted == 0 && lost_sets == 0 && gaps == 0;
@@ -102,6 +104,8 @@ struct BenchRig {
       f.max_lateness = served.max_lateness;
       f.lost_sets = devices.acquisition->stats().lost_sample_sets;
       f.gaps = devices.acquisition->stats().gaps;
+      const daq::AcquisitionStats& a = devices.acquisition->stats();
+      f.refused_frames = a.ahead_of_clock + a.late_frames + a.corrupt_frames;
       f.finished = report.outcome == rig::RunOutcome::kComplete;
       f.complete = report.complete.size();
       f.not_steady = report.not_steady.size();
@@ -178,10 +182,10 @@ struct BenchRig {
                              "simulated s\n\n",
                              matrix_simulated, matrix_recorded, matrix_wall, matrix_cpu, 1.0 / matrix_cpu_per_sim,
                              1e3 * matrix_cpu_per_sim);
-    std::cout << fmt::format("{:>6} {:>7} {:>7} {:>7} {:>8} {:>7} {:>9} {:>9} {:>8} {:>8} {:>6} {:>5} {:>7} {:>8} {:>8} "
+    std::cout << fmt::format("{:>6} {:>7} {:>7} {:>7} {:>8} {:>7} {:>9} {:>9} {:>8} {:>8} {:>6} {:>5} {:>8} {:>7} {:>8} {:>8} "
                              "{:>7} {:>7}\n",
                              "speed", "wall s", "CPU s", "plant", "sim s", "rec s", "sim/wall", "sim/CPU", "behind",
-                             "complete", "lost", "gaps", "kept up", "CPUms/s", "x matrix", "CPU x", "wall x");
+                             "complete", "lost", "gaps", "refused", "kept up", "CPUms/s", "x matrix", "CPU x", "wall x");
     nlohmann::json json;
     json["truth"] = truth.source;
     json["composition"] = truth.BuildModel(ident::Causality::kStrokeInput).composition();
@@ -204,11 +208,12 @@ struct BenchRig {
       const double per_wall = m([](const RigFigures& f) { return f.simulated / f.wall; });
       const double per_cpu = m([](const RigFigures& f) { return f.simulated / f.cpu; });
       std::size_t complete = n, kept = 0;
-      std::uint64_t lost = 0, gaps = 0;
+      std::uint64_t lost = 0, gaps = 0, refused = 0;
       for (const RigFigures& f : row.runs) {
         complete = std::min(complete, f.complete);
         lost = std::max(lost, f.lost_sets);
         gaps = std::max(gaps, f.gaps);
+        refused = std::max(refused, f.refused_frames);
         kept += f.kept_up(n) ? 1 : 0;
       }
       const bool kept_up = kept == row.runs.size();
@@ -218,16 +223,16 @@ struct BenchRig {
       const double session_cpu_ratio = cpu / matrix_cpu;
       const double wall_ratio = wall / matrix_wall;
       std::cout << fmt::format("{:>5g}x {:>7.1f} {:>7.1f} {:>7.1f} {:>8.0f} {:>7.0f} {:>9.1f} {:>9.1f} {:>8.2f} {:>5}/{:<2} "
-                               "{:>6} {:>5} {:>3}/{:<3} {:>8.2f} {:>8.1f} {:>7.1f} {:>7.1f}\n",
+                               "{:>6} {:>5} {:>8} {:>3}/{:<3} {:>8.2f} {:>8.1f} {:>7.1f} {:>7.1f}\n",
                                row.speed, wall, cpu, plant, simulated, recorded, per_wall, per_cpu, behind, complete, n,
-                               lost, gaps, kept, row.runs.size(), 1e3 * cpu / simulated, cpu_ratio, session_cpu_ratio,
+                               lost, gaps, refused, kept, row.runs.size(), 1e3 * cpu / simulated, cpu_ratio, session_cpu_ratio,
                                wall_ratio);
       nlohmann::json runs = nlohmann::json::array();
       for (const RigFigures& f : row.runs) {
         runs.push_back({{"wall_s", f.wall},          {"cpu_s", f.cpu},           {"plant_cpu_s", f.plant_cpu},
                         {"simulated_s", f.simulated}, {"recorded_s", f.recorded}, {"complete", f.complete},
                         {"not_steady", f.not_steady}, {"aborted", f.aborted},     {"finished", f.finished},
-                        {"lost_sets", f.lost_sets},   {"gaps", f.gaps},           {"max_lateness_s", f.max_lateness},
+                        {"lost_sets", f.lost_sets},   {"gaps", f.gaps},           {"refused_frames", f.refused_frames},           {"max_lateness_s", f.max_lateness},
                         {"kept_up", f.kept_up(n)}});
       }
       json["speeds"].push_back({{"speed", row.speed},
@@ -247,7 +252,8 @@ struct BenchRig {
     }
     std::cout << fmt::format(
         "\nsim s: the served rig's clock (moves, settling, records); rec s: seconds in the session; plant: CPU s of the "
-        "simulation thread;\nbehind: s the stream was ever late; kept up: runs with all {} experiments complete and "
+        "simulation thread;\nbehind: s the stream was ever late; lost, gaps, refused: the worst run's lost sample sets, gaps "
+        "and frames the receiver refused (ahead of its clock, late or corrupt);\nkept up: runs with all {} experiments complete and "
         "steady, no lost sample set, no gap;\nCPUms/s: CPU ms per simulated s; x matrix: that against sim matrix's; "
         "CPU x, wall x: CPU and wall time for the session against sim matrix's.\nfastest speed that kept up: {}\n",
         n, fastest ? fmt::format("{:g}x", *fastest) : "none");

@@ -352,15 +352,15 @@ TEST(SafetyMonitor, FollowingErrorHeartbeatFaultStaleAndUnderPeak) {
   const auto stale = m.CheckStale(59'000'000);
   ASSERT_TRUE(stale);
   EXPECT_EQ(stale->detector, "stale-data");
-  // A stream that runs behind its nominal rate is not silent: samples timed 0..9 ms (the linear
-  // time rule) whose last frame arrived at 40 ms keep it alive until 90 ms.
+  // A stream that runs behind its nominal rate is silent by its samples' times, however recently
+  // their frames arrived: samples timed 0..9 ms whose last frame came at 40 ms trip at 59 ms.
   SafetyMonitor behind(c);
   behind.Arm(0);
   daq::AcquiredBlock late = Block(std::vector<double>(10, 0.1), std::vector<double>(10, 0.0));
   late.last_frame_ns = 40'000'000;
   behind.CheckBlock(late, {"stroke", "force"});
-  EXPECT_FALSE(behind.CheckStale(89'000'000));
-  EXPECT_TRUE(behind.CheckStale(90'000'000));
+  EXPECT_FALSE(behind.CheckStale(58'000'000));
+  EXPECT_TRUE(behind.CheckStale(59'000'000));
   // Under-peak: 0.85 of the commanded amplitude for two cycles.
   CycleSummary cycle;
   cycle.stroke_min = 0.1 - 0.0085;

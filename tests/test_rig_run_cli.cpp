@@ -50,9 +50,12 @@ int FreeUdpPort() {
 
 // The rig of another process: the plant's controller over Modbus TCP, its module over UDP.
 struct RemoteRig {
-  explicit RemoteRig(PlantOptions o = {}) : plant(o), server(plant), udp_port(FreeUdpPort()) {
+  explicit RemoteRig(PlantOptions o = {}, daq::CanFrameLayout layout = test::PlantCanStreamer::Layout(),
+                     std::vector<daq::ChannelDescriptor> channels = test::PlantChannels())
+      : plant(o), server(plant), udp_port(FreeUdpPort()) {
     streamer = std::make_unique<test::PlantCanStreamer>(
-        plant, daq::UdpCanTransport::Connect("127.0.0.1", static_cast<std::uint16_t>(udp_port)));
+        plant, daq::UdpCanTransport::Connect("127.0.0.1", static_cast<std::uint16_t>(udp_port)), layout,
+        std::move(channels));
   }
   std::string Args() const {
     // --drift-window 0: the plant has no thermal drift and the test runs in real time.
@@ -189,6 +192,170 @@ TEST(RigRunCli, KillNineMidExperimentThenResumeCompletesTheMatrixIntoTheSameFile
   const auto again = test::RunStrut(common.substr(std::string(STRUT_BINARY).size() + 1) + " --serial K9");
   EXPECT_EQ(again.exit_code, 1);
   EXPECT_NE(again.output.find("--force"), std::string::npos) << again.output;
+}
+
+// One 5 Hz experiment, quick moves: a run of a few seconds on the plant.
+const char* kOneExperiment = "periods = 4\n[[experiment]]\nlabel = \"a\"\nfrequency = 5.0\nstatic_position = 0.12\n"
+                             "amplitude = 0.01\n";
+
+// Largest |recorded force - the plant's force of the recorded stroke| over the record, and the
+// force's half range (backward differences for the velocity, as the plant's own).
+std::pair<double, double> ForceMismatch(const daq::Experiment& e, const Plant& plant) {
+  const auto& stroke = e.channel("stroke").samples;
+  const auto& force = e.channel("force").samples;
+  double worst = 0.0;
+  for (std::size_t i = 1; i < stroke.size(); ++i) {
+    const double v = (stroke[i] - stroke[i - 1]) * e.sample_rate;
+    worst = std::max(worst, std::abs(force[i] - plant.ForceOf(stroke[i], v, 0.0)));
+  }
+  const auto [lo, hi] = std::minmax_element(force.begin(), force.end());
+  return {worst, 0.5 * (*hi - *lo)};
+}
+
+TEST(RigRunCli, AChannelFileRecordsAModuleOfAnotherLayoutAndCalibration) {
+  TempDir dir;
+  WriteFile(dir.file("m.toml"), kOneExperiment);
+  // Module 7 sends CAN FD frames of four readings: pressure, a temperature nobody records, force
+  // and stroke, calibrated in bar, kN and mm; the file says so in the calibration sheet's units.
+  daq::CanFrameLayout layout;
+  layout.module = 7;
+  layout.fd = true;
+  layout.channels = 4;
+  const daq::Calibration stroke{5e-6, 0.15, -0.01, 0.31}, force{2.0, 0.0, -6e4, 6e4}, pressure{400.0, 1e7, -1e5, 2e7};
+  RemoteRig rig({}, layout, {{"pressure", "Pa", pressure}, {"temperature", "K", {}}, {"force", "N", force},
+                             {"stroke", "m", stroke}});
+  WriteFile(dir.file("channels.toml"), R"(module = 7
+frame = "fd"
+channels = 4
+[stroke]
+index = 3
+unit = "mm"
+gain = 0.005
+offset = 150.0
+[force]
+index = 2
+unit = "kN"
+gain = 0.002
+[pressure]
+index = 0
+unit = "bar"
+gain = 0.004
+offset = 100.0
+range_min = -1.0
+range_max = 200.0
+)");
+  const std::string args = fmt::format("rig run {} --matrix {} --ramp-cycles 1 --static-rate 0.5 --serial CH1 --no-progress",
+                                       rig.Args(), dir.file("m.toml"));
+  const auto with_file = test::RunStrut(fmt::format("{} --channels {} -o {}", args, dir.file("channels.toml"),
+                                                    dir.file("with.h5")));
+  ASSERT_EQ(with_file.exit_code, 0) << with_file.output;
+  const daq::Session s = daq::ReadSession(dir.file("with.h5"));
+  ASSERT_EQ(s.experiments.size(), 1u);
+  const daq::Experiment& e = s.experiments.front();
+  EXPECT_EQ(e.status, "complete");
+  const auto& strokes = e.channel("stroke").samples;
+  const auto [lo, hi] = std::minmax_element(strokes.begin(), strokes.end());
+  EXPECT_NEAR(0.5 * (*hi - *lo), 0.01, 1e-5);  // 5 um a count
+  EXPECT_NEAR(0.5 * (*hi + *lo), 0.12, 1e-5);
+  // Counts of 2 N and 5 um x 4 kN s/m / 1 ms: 22 N at worst.
+  EXPECT_LT(ForceMismatch(e, rig.plant).first, 25.0);
+  const auto& p = e.channel("pressure").samples;
+  for (std::size_t i = 0; i < p.size(); i += 13)
+    EXPECT_NEAR(p[i], rig.plant.options().pressure0 + rig.plant.options().pressure_per_m * strokes[i], 450.0) << i;
+  // The reading nobody named is kept in counts.
+  EXPECT_EQ(e.channel("channel1").samples.front(), 1234.0);
+
+  // Without the file the run expects module 1's classic frames: nothing it can decode arrives, the
+  // stale-data detector stops the run (exit 5) before anything is recorded.
+  const auto without = test::RunStrut(fmt::format("{} -o {}", args, dir.file("without.h5")));
+  EXPECT_EQ(without.exit_code, 5) << without.output;
+  EXPECT_NE(without.output.find("stale"), std::string::npos) << without.output;
+  EXPECT_NE(without.output.find("remaining: a"), std::string::npos) << without.output;
+}
+
+TEST(RigRunCli, WithoutItsChannelFileAnotherCalibrationIsMisRecorded) {
+  TempDir dir;
+  WriteFile(dir.file("m.toml"), kOneExperiment);
+  // The default layout (module 1, classic, stroke force pressure) but a load cell of 2 N a count
+  // about zero, where the default calibration has 120 kN / 65535 counts about 0.92 N.
+  std::vector<daq::ChannelDescriptor> channels = test::PlantChannels();
+  channels[1].calibration = {2.0, 0.0, -6e4, 6e4};
+  RemoteRig rig({}, test::PlantCanStreamer::Layout(), channels);
+  std::string file = "module = 1\nframe = \"classic\"\n";
+  for (std::size_t k = 0; k < channels.size(); ++k) {
+    const daq::ChannelDescriptor& c = channels[k];
+    file += fmt::format("[{}]\nindex = {}\nunit = \"{}\"\ngain = {:.17g}\noffset = {:.17g}\n", c.name, k, c.unit,
+                        c.calibration.gain, c.calibration.offset);
+  }
+  WriteFile(dir.file("channels.toml"), file);
+  const std::string args = fmt::format("rig run {} --matrix {} --ramp-cycles 1 --static-rate 0.5 --serial CH2 --no-progress",
+                                       rig.Args(), dir.file("m.toml"));
+  const auto without = test::RunStrut(fmt::format("{} -o {}", args, dir.file("without.h5")));
+  ASSERT_EQ(without.exit_code, 0) << without.output;
+  const auto with_file = test::RunStrut(fmt::format("{} --channels {} -o {}", args, dir.file("channels.toml"),
+                                                    dir.file("with.h5")));
+  ASSERT_EQ(with_file.exit_code, 0) << with_file.output;
+  const daq::Experiment wrong = daq::ReadSession(dir.file("without.h5")).experiments.at(0);
+  const daq::Experiment right = daq::ReadSession(dir.file("with.h5")).experiments.at(0);
+  EXPECT_LT(ForceMismatch(right, rig.plant).first, 25.0);
+  // Read with the default gain, every force is 1.8311 / 2 of itself: 8.4 % of the swing off.
+  const auto [mismatch, swing] = ForceMismatch(wrong, rig.plant);
+  const double default_gain = daq::Calibration::FromRange16(-60e3, 60e3).gain;
+  EXPECT_GT(mismatch, 0.5 * (1.0 - default_gain / 2.0) * swing);
+  const auto& f_counts = wrong.channel("force_counts").samples;
+  const auto& f_wrong = wrong.channel("force").samples;
+  for (std::size_t i = 0; i < f_counts.size(); i += 17)
+    EXPECT_NEAR(f_wrong[i], daq::Calibration::FromRange16(-60e3, 60e3).ToSi(static_cast<std::int32_t>(f_counts[i])), 1e-9);
+}
+
+TEST(RigRunCli, BadChannelFilesAreRefusedNamingTheFileLineAndKey) {
+  TempDir dir;
+  RemoteRig rig;
+  const auto refused = [&](const std::string& text) {
+    WriteFile(dir.file("c.toml"), text);
+    const auto r = test::RunStrut(
+        fmt::format("rig run {} --channels {} --serial S1 -o {}", rig.Args(), dir.file("c.toml"), dir.file("s.h5")));
+    EXPECT_EQ(r.exit_code, 1) << r.output;
+    EXPECT_FALSE(fs::exists(dir.file("s.h5")));
+    return r.output;
+  };
+  const std::string f = dir.file("c.toml");
+  const std::string ok_force = "[force]\nindex = 1\nunit = \"N\"\ngain = 2.0\n";
+  EXPECT_NE(refused("frame = \"classic\"\n[stroke]\nindex = 0\nunit = \"m\"\ngain = 1e-5\n" + ok_force)
+                .find(f + ": module: the module number (0..63) is needed"),
+            std::string::npos);
+  EXPECT_NE(refused("module = 1\nframe = \"classic\"\n[stroke]\nindex = 0\nunit = \"inch\"\ngain = 1e-5\n" + ok_force)
+                .find(f + ":5: [stroke] unit \"inch\": give one of m, mm"),
+            std::string::npos);
+  EXPECT_NE(refused("module = 1\nframe = \"classic\"\n[stroke]\nindex = 1\nunit = \"m\"\ngain = 1e-5\n" + ok_force)
+                .find(f + ":8: [force] index 1 is [stroke]'s already"),
+            std::string::npos);
+  EXPECT_NE(refused("module = 1\nframe = \"classic\"\n[stroke]\nindex = 4\nunit = \"m\"\ngain = 1e-5\n" + ok_force)
+                .find(f + ":2: classic frames of 5 readings per sample set"),
+            std::string::npos);
+  EXPECT_NE(refused("module = 1\nframe = \"classic\"\nchannels = 2\n[stroke]\nindex = 2\nunit = \"m\"\ngain = 1e-5\n" +
+                    ok_force)
+                .find(f + ":5: [stroke] index 2 is beyond the 2 readings of a sample set"),
+            std::string::npos);
+  EXPECT_NE(refused("module = 1\nframe = \"classic\"\n[stroke]\nindex = 0\nunit = \"m\"\ngian = 1e-5\n" + ok_force)
+                .find(f + ":6: [stroke] unknown key 'gian'"),
+            std::string::npos);
+  EXPECT_NE(refused("module = 1\nframe = \"can\"\n[stroke]\nindex = 0\nunit = \"m\"\ngain = 1e-5\n" + ok_force)
+                .find(f + ":2: frame \"can\": give \"classic\" or \"fd\""),
+            std::string::npos);
+  EXPECT_NE(refused("module = 1\nframe = \"classic\"\n[stroke]\nindex = 0\nunit = \"m\"\ngain = 1e-5\n")
+                .find(f + ": [force] is missing"),
+            std::string::npos);
+  EXPECT_NE(refused("module = 1\nframe = \"classic\"\n[stroke]\nindex = 0\nunit = \"m\"\ngain = 0\n" + ok_force)
+                .find(f + ":6: [stroke] gain must not be zero"),
+            std::string::npos);
+  EXPECT_NE(refused("module = 1\nframe = \"classic\"\n[stroke\nindex = 0\n").find(f + ":3:"), std::string::npos);
+  // --rig sim has its own module.
+  const auto sim = test::RunStrut(fmt::format("rig run --rig sim --channels {} -o {}", f, dir.file("s.h5")));
+  EXPECT_EQ(sim.exit_code, 1);
+  EXPECT_NE(sim.output.find("--channels " + f + ": with --rig sim the acquisition is the simulated rig's own"),
+            std::string::npos)
+      << sim.output;
 }
 
 }  // namespace

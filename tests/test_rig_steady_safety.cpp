@@ -12,6 +12,7 @@
 #include "strut/ident/fit_report.h"
 #include "strut/ident/model.h"
 #include "strut/ident/periodic.h"
+#include "strut/rig/channel_file.h"
 #include "strut/rig/safety.h"
 #include "strut/rig/steady_state.h"
 #include "test_support.h"
@@ -171,6 +172,77 @@ TEST(SteadyState, CyclesRoundTripThroughASessionGroupAndGiveTheSameVerdict) {
   EXPECT_THROW(SteadyStateDetector{bad}, std::invalid_argument);
 }
 
+TEST(ChannelFile, ConvertsTheCalibrationSheetsUnitsToSiAndPlacesEveryReading) {
+  const ChannelMap m = ParseChannelFile(R"(module = 7
+frame = "fd"
+channels = 5
+[stroke]
+index = 3
+unit = "mm"
+gain = 0.005
+offset = 150.0
+[force]
+index = 2
+unit = "kN"
+gain = -0.002
+[pressure]
+index = 0
+unit = "bar"
+gain = 0.004
+offset = 100.0
+range_min = -1.0
+range_max = 200.0
+reference = "absolute"
+)", "c.toml");
+  EXPECT_EQ(m.layout.module, 7);
+  EXPECT_TRUE(m.layout.fd);
+  EXPECT_EQ(m.layout.channels, 5);
+  ASSERT_EQ(m.channels.size(), 5u);
+  EXPECT_EQ(m.channels[0].name, "pressure");
+  EXPECT_EQ(m.channels[1].name, "channel1");
+  EXPECT_EQ(m.channels[2].name, "force");
+  EXPECT_EQ(m.channels[3].name, "stroke");
+  EXPECT_EQ(m.channels[4].name, "channel4");
+  EXPECT_EQ(m.pressure_reference, "absolute");
+  // 0.005 mm = 5 um a count about 150 mm; the range the 16-bit counts span: 150 mm -+ 32768 x 5 um.
+  const daq::Calibration& stroke = m.channels[3].calibration;
+  EXPECT_EQ(m.channels[3].unit, "m");
+  EXPECT_DOUBLE_EQ(stroke.gain, 5e-6);
+  EXPECT_DOUBLE_EQ(stroke.offset, 0.15);
+  EXPECT_DOUBLE_EQ(stroke.range_min, 0.15 - 32768 * 5e-6);
+  EXPECT_DOUBLE_EQ(stroke.range_max, 0.15 + 32767 * 5e-6);
+  EXPECT_DOUBLE_EQ(stroke.ToSi(1000), 0.155);
+  // A negative gain (a load cell wired the other way) keeps the range ordered.
+  const daq::Calibration& force = m.channels[2].calibration;
+  EXPECT_DOUBLE_EQ(force.gain, -2.0);
+  EXPECT_DOUBLE_EQ(force.range_min, -2.0 * 32767);
+  EXPECT_DOUBLE_EQ(force.range_max, 2.0 * 32768);
+  // 1 bar = 1e5 Pa; the given range in bar.
+  const daq::Calibration& pressure = m.channels[0].calibration;
+  EXPECT_EQ(m.channels[0].unit, "Pa");
+  EXPECT_DOUBLE_EQ(pressure.gain, 400.0);
+  EXPECT_DOUBLE_EQ(pressure.offset, 1e7);
+  EXPECT_DOUBLE_EQ(pressure.range_min, -1e5);
+  EXPECT_DOUBLE_EQ(pressure.range_max, 2e7);
+  // The readings nobody named are kept in counts.
+  EXPECT_DOUBLE_EQ(m.channels[1].calibration.ToSi(1234), 1234.0);
+  EXPECT_EQ(m.channels[1].unit, "1");
+  // The receiver takes the map as it is.
+  daq::CanAcquisitionOptions o;
+  o.layout = m.layout;
+  o.channels = m.channels;
+  std::string error;
+  EXPECT_TRUE(o.IsValid(&error)) << error;
+  // Pressure is optional; without `channels` the set ends at the highest index.
+  const ChannelMap two = ParseChannelFile(
+      "module = 0\nframe = \"classic\"\n[force]\nindex = 0\nunit = \"N\"\ngain = 1.0\n[stroke]\nindex = 1\nunit = "
+      "\"m\"\ngain = 1e-5\n", "d.toml");
+  EXPECT_EQ(two.layout.channels, 2);
+  EXPECT_FALSE(two.layout.fd);
+  EXPECT_EQ(two.pressure_reference, "gauge");
+  EXPECT_THROW(ParseChannelFile("module = 64\nframe = \"fd\"\n", "e.toml"), ChannelFileError);
+}
+
 TEST(SafetyConfig, ReadsALimitsFileAndNamesTheLineOfEveryMistake) {
   const SafetyConfig c = ParseSafetyConfig(R"(
 [stroke]
@@ -280,6 +352,15 @@ TEST(SafetyMonitor, FollowingErrorHeartbeatFaultStaleAndUnderPeak) {
   const auto stale = m.CheckStale(59'000'000);
   ASSERT_TRUE(stale);
   EXPECT_EQ(stale->detector, "stale-data");
+  // A stream that runs behind its nominal rate is silent by its samples' times, however recently
+  // their frames arrived: samples timed 0..9 ms whose last frame came at 40 ms trip at 59 ms.
+  SafetyMonitor behind(c);
+  behind.Arm(0);
+  daq::AcquiredBlock late = Block(std::vector<double>(10, 0.1), std::vector<double>(10, 0.0));
+  late.last_frame_ns = 40'000'000;
+  behind.CheckBlock(late, {"stroke", "force"});
+  EXPECT_FALSE(behind.CheckStale(58'000'000));
+  EXPECT_TRUE(behind.CheckStale(59'000'000));
   // Under-peak: 0.85 of the commanded amplitude for two cycles.
   CycleSummary cycle;
   cycle.stroke_min = 0.1 - 0.0085;

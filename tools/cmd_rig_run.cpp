@@ -22,15 +22,13 @@
 #include "commands.h"
 #include "option_checks.h"
 #include "output_files.h"
-#include "strut/daq/can_acquisition.h"
-#include "strut/daq/modbus_controller.h"
+#include "rig_devices.h"
 #include "strut/daq/recorder.h"
 #include "strut/ident/fit_report.h"
+#include "strut/rig/channel_file.h"
 #include "strut/rig/matrix_runner.h"
 #include "strut/rig/safety.h"
 #include "strut/sim/can_module.h"
-#include "strut/sim/recorded_truth.h"
-#include "strut/sim/rig_server.h"
 #include "strut/sim/simulated_rig.h"
 #include "truth_options.h"
 
@@ -61,35 +59,38 @@ std::string Percent(double margin) {
 constexpr double kDefaultSimSpeed = 50.0;
 
 struct RigRunCommand {
-  std::string rig_spec, daq_spec, matrix_path, serial, operator_name, limits_path, fit_path, output;
+  std::string rig_spec, daq_spec, channels_path, matrix_path, serial, operator_name, limits_path, fit_path, output;
   std::optional<double> daq_rate;
   std::optional<long> periods;
   int ramp_cycles = 2;
   double static_rate = 0.01;
   int timeout_ms = 500;
   bool resume = false, force = false, no_progress = false;
-  std::optional<double> speed;  // --rig sim only
+  std::optional<double> speed;  // a simulated rig's clock: in-process, or served at that speed
   double drift_window = rig::SteadyStateTolerances{}.drift_window;
-  TruthOptions truth_options;   // --rig sim only
+  TruthOptions truth_options;   // a simulated rig's truth: in-process, or served with the same options
 
   void Run() {
     // --rig sim: the simulated rig in this process, behind the same protocols as a real one.
     const bool simulated = rig_spec == "sim";
+    const bool truth_given = !truth_options.truth_path.empty() || truth_options.draw_seed ||
+                             truth_options.ideal_actuator || truth_options.base_option->count() > 0 ||
+                             truth_options.effect_option->count() > 0;
     if (simulated) {
       if (!daq_spec.empty() && daq_spec != "sim")
         throw std::invalid_argument(fmt::format("--daq {}: with --rig sim the acquisition is the simulated rig's own "
                                                 "(give --daq sim or nothing)", daq_spec));
+      if (!channels_path.empty())
+        throw std::invalid_argument(fmt::format("--channels {}: with --rig sim the acquisition is the simulated rig's "
+                                                "own", channels_path));
     } else {
       if (daq_spec.empty()) throw std::invalid_argument("--daq: the acquisition module is needed (can:IFACE or udp:HOST:PORT)");
       if (daq_spec == "sim") throw std::invalid_argument("--daq sim: the simulated acquisition comes with --rig sim only");
-      if (speed) throw std::invalid_argument("--speed: only the simulated rig (--rig sim) runs faster than real time");
-      if (!truth_options.truth_path.empty() || truth_options.draw_seed || truth_options.ideal_actuator ||
-          truth_options.base_option->count() > 0 || truth_options.effect_option->count() > 0)
-        throw std::invalid_argument(
-            "--truth, --draw, --base, --effect and --ideal-actuator describe the simulated rig (--rig sim)");
     }
+    // The truth of a simulated rig: run here (--rig sim), or served by `strut rig serve-sim` with the
+    // same options, which the runner cannot ask; either way the session records it.
     std::optional<sim::Truth> truth;
-    if (simulated) {
+    if (simulated || truth_given) {
       truth = truth_options.Load();
       if (daq_rate && std::abs(*daq_rate - truth->acquisition.sample_rate) > 1e-9 * *daq_rate)
         throw std::invalid_argument(fmt::format("--daq-rate {} Hz: the simulated rig samples at its truth's {} Hz",
@@ -97,9 +98,14 @@ struct RigRunCommand {
       daq_rate = truth->acquisition.sample_rate;
       if (serial.empty() && !resume) serial = truth->damper_serial;
     }
+    const double stream_speed = speed.value_or(simulated ? kDefaultSimSpeed : 1.0);
+    if (!simulated && stream_speed != 1.0)
+      spdlog::warn("--speed {}: the stream is taken to arrive {} times faster than it is recorded, as from `strut rig "
+                   "serve-sim --speed {}`; a real rig streams in real time",
+                   stream_speed, stream_speed, stream_speed);
     // Everything that can be refused is checked before anything connects or moves.
     std::vector<std::string> inputs;
-    for (const std::string* p : {&matrix_path, &limits_path, &fit_path})
+    for (const std::string* p : {&matrix_path, &limits_path, &fit_path, &channels_path})
       if (!p->empty()) inputs.push_back(*p);
     const std::string journal = daq::JournalPath(output);
     if (resume) {
@@ -130,12 +136,15 @@ struct RigRunCommand {
       throw std::invalid_argument(fmt::format("--daq-rate {} Hz: the matrix {} wants sample_rate {} Hz", rate,
                                               matrix_path, *plan.sample_rate));
     const rig::SafetyConfig safety = limits_path.empty() ? rig::SafetyConfig{} : rig::ReadSafetyConfig(limits_path);
+    std::optional<rig::ChannelMap> channel_map;
+    if (!channels_path.empty()) channel_map = rig::ReadChannelFile(channels_path);
     rig::RunnerOptions options;
+    if (channel_map) options.pressure_reference = channel_map->pressure_reference;
     options.periods = periods.value_or(plan.periods.value_or(3));
     options.ramp_cycles = ramp_cycles;
     options.static_rate = static_rate;
     options.reset_heartbeat_fault = resume;
-    options.stream_speed = simulated ? speed.value_or(kDefaultSimSpeed) : 1.0;
+    options.stream_speed = stream_speed;
     options.steady.drift_window = drift_window;
     std::string error;
     if (!options.IsValid(&error)) throw std::invalid_argument(error);
@@ -176,62 +185,42 @@ struct RigRunCommand {
     }
 
     // The devices.
-    daq::ModbusControllerOptions modbus;
-    if (!simulated) modbus.endpoint = daq::ParseModbusEndpoint(rig_spec);
-    modbus.response_timeout = std::chrono::milliseconds(timeout_ms);
-    daq::CanAcquisitionOptions can;
-    std::unique_ptr<daq::CanTransport> transport;
-    std::unique_ptr<sim::RigServer> server;  // --rig sim: stopped when the run ends, however it ends
+    const auto timeout = std::chrono::milliseconds(timeout_ms);
+    RigDevices devices;
     if (simulated) {
-      transport = daq::OpenCanTransport("udp:127.0.0.1:0", /*listen=*/true);
-      sim::RigServerOptions served;
-      served.speed = options.stream_speed;
-      served.can = transport->name();
-      server = std::make_unique<sim::RigServer>(*truth, served);
-      modbus.endpoint = server->modbus_endpoint();
-      can = server->ReceiverOptions();
-      server->Start();
-      spdlog::info("simulated rig: controller at {}, sensors to {}, {}x real time", server->modbus_endpoint().host,
-                   transport->name(), served.speed);
+      devices = ServeSimulatedRig(*truth, stream_speed, timeout);
     } else {
-      can.layout.channels = 3;
-      can.layout.module = 1;
-      can.sample_rate = rate;
-      can.channels = sim::CanChannels(sim::SensorSet{});
-      transport = daq::OpenCanTransport(daq_spec, /*listen=*/true);
+      daq::CanAcquisitionOptions can;
+      if (channel_map) {
+        can.layout = channel_map->layout;
+        can.channels = channel_map->channels;
+      } else {  // the simulated rig's module: what serve-sim (of this truth) and the tests' plants stream
+        can.layout.channels = 3;
+        can.layout.module = 1;
+        can.channels = sim::CanChannels(truth ? truth->sensors : sim::SensorSet{});
+      }
+      can.sample_rate = rate * stream_speed;
+      devices = ConnectRig(daq::ParseModbusEndpoint(rig_spec), timeout, daq_spec, std::move(can));
     }
-    daq::CanAcquisition acquisition(std::move(transport), can);
-    daq::ModbusController controller(modbus);
 
     if (resume) {
       daq::Session so_far;
       recorder.emplace(daq::Recorder::Resume(output, {}, "strut rig run --resume", &so_far));
       spdlog::info("resuming {}: {} experiments recorded, {} to go", output, so_far.experiments.size(), items.size());
     } else {
-      daq::RecordingMetadata m;
-      m.damper_serial = serial;
-      m.rig = controller.Describe() + " + " + daq_spec;
-      if (simulated) {
-        m.rig = fmt::format("{} [simulated in-process at {}x real time: {}]", truth->rig, options.stream_speed,
-                            truth->source);
-        daq::Session truth_holder;
-        sim::RecordTruth(*truth, truth_holder);
-        m.groups = truth_holder.metadata;
-      }
-      m.operator_name = operator_name;
-      m.matrix = matrix_text;
-      m.limits = {{"stroke_min", safety.stroke.lower},      {"stroke_max", safety.stroke.upper},
-                  {"force_min", safety.force.lower},        {"force_max", safety.force.upper},
-                  {"pressure_min", safety.pressure.lower},  {"pressure_max", safety.pressure.upper},
-                  {"following_error", safety.following.max_error}, {"max_velocity", safety.actuator.max_velocity},
-                  {"max_flow", safety.actuator.max_flow}};
+      std::string rig_text = devices.controller->Describe() + " + " + devices.daq_spec;
+      if (simulated)
+        rig_text = fmt::format("{} [simulated in-process at {}x real time: {}]", truth->rig, stream_speed, truth->source);
+      else if (truth)
+        rig_text += fmt::format(" [{} served at {}x real time: {}]", truth->rig, stream_speed, truth->source);
       daq::RecorderOptions ro;
       ro.force = force;
-      recorder.emplace(daq::Recorder::Open(output, m, ro));
+      recorder.emplace(daq::Recorder::Open(
+          output, RunMetadata(serial, rig_text, operator_name, matrix_text, safety, truth), ro));
     }
     if (fit) recorder->Event(daq::MonotonicNs(), "note", fmt::format("matrix checked against the fit {}", fit_path));
 
-    rig::MatrixRunner runner(controller, acquisition, *recorder, safety, options);
+    rig::MatrixRunner runner(*devices.controller, *devices.acquisition, *recorder, safety, options);
     const bool tty = !no_progress && isatty(fileno(stderr));
     std::string last_line;
     runner.on_progress = [&](const rig::Progress& p) {
@@ -293,15 +282,26 @@ void RegisterRigRunCommand(CLI::App& rig) {
              "(docs/rig-run.md)");
   run->add_option("--rig", c->rig_spec,
                   "Actuator controller, modbus-tcp://HOST:PORT (or HOST:PORT), or sim: the simulated rig in this "
-                  "process, served over Modbus TCP and CAN frames on loopback as strut rig serve-sim serves it.")
+                  "process, served over Modbus TCP and CAN frames on loopback as strut rig serve-sim serves it. "
+                  "--truth, --draw, --base, --effect and --ideal-actuator give the simulated rig's truth: the one "
+                  "run here, or, with a rig served by strut rig serve-sim, the options it was given (the runner "
+                  "cannot ask it), which the session records as /truth.")
       ->required();
   run->add_option("--daq", c->daq_spec,
                   "Acquisition module: can:IFACE (SocketCAN) or udp:HOST:PORT (the UDP transport; listens there); "
                   "sim (or nothing) with --rig sim.");
   run->add_option("--speed", c->speed,
-                  fmt::format("With --rig sim: simulated seconds per wall second (default {}; about 100 is what "
-                              "this machine keeps up with, docs/simulated-rig.md).", kDefaultSimSpeed))
+                  fmt::format("Simulated seconds per wall second of a simulated rig: with --rig sim (default {}; about "
+                              "100 is what this machine keeps up with, docs/simulated-rig.md), or with a rig served by "
+                              "`strut rig serve-sim --speed X` (give the same X: the stream arrives X times faster "
+                              "than it is recorded). A real rig streams in real time (1, the default).",
+                              kDefaultSimSpeed))
       ->check(Between(0.01, 1000.0));
+  run->add_option("--channels", c->channels_path,
+                  "Channel file (TOML, docs/rig-run.md): the acquisition module's number, frame kind and, per "
+                  "channel, its place in the sample set and calibration; default the simulated rig's module "
+                  "(module 1, classic frames, stroke force pressure in 16-bit counts over its sensors' ranges).")
+      ->check(CLI::ExistingFile);
   run->add_option("--daq-rate", c->daq_rate, "Sample sets per second the module sends (default: the matrix file's "
                                              "sample_rate, else 200 Hz).")
       ->check(Positive("Hz"));

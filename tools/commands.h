@@ -36,6 +36,8 @@ void RegisterBenchRecorder(CLI::App& bench);
 //! Adds `drop` (drop prediction from shaker fits of drawn units) under the `bench` subcommand.
 void RegisterBenchDrop(CLI::App& bench);
 void RegisterBenchDropFit(CLI::App& bench);
+//! Adds `rig` (the standard matrix through the drivers on the simulated rig, tools/bench_rig.cpp) under `bench`.
+void RegisterBenchRig(CLI::App& bench);
 //! `predict drop`: drop-test prediction from a fit.
 void RegisterPredictCommand(CLI::App& app);
 

@@ -59,6 +59,7 @@ int main(int argc, char** argv) {
   strut::tools::RegisterRecoverCommand(app);
   strut::tools::RegisterReplayCommand(app);
   strut::tools::RegisterBenchReplay(*app.get_subcommand("bench"));
+  strut::tools::RegisterBenchRig(*app.get_subcommand("bench"));
   strut::tools::RegisterQcCommand(app);
   strut::tools::RegisterPredictCommand(app);
 

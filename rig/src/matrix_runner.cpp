@@ -105,6 +105,9 @@ std::vector<RunItem> RemainingExperiments(const std::vector<MatrixEntry>& matrix
 }
 
 struct MatrixRunner::Impl {
+  //! Blocks read in one loop at most: a second of the stream at the default block size.
+  static constexpr int kMaxBlocksPerLoop = 100;
+
   Impl(MatrixRunner& owner, daq::ActuatorController& c, daq::AcquisitionModule& a, daq::Recorder& r, SafetyConfig s,
        RunnerOptions o)
       : owner(owner), controller(c), acquisition(a), recorder(r), safety(std::move(s)), options(std::move(o)) {}
@@ -226,20 +229,30 @@ struct MatrixRunner::Impl {
   }
 
   void Step() {
-    daq::AcquiredBlock block;
     if (!acquisition_lost) {
-      try {
-        block = acquisition.Read(options.loop);
-      } catch (const daq::DeviceError& e) {
-        acquisition_lost = true;
-        Trip trip{"acquisition-lost", SafetyAction::kStop, Now(), fmt::format("the acquisition stream failed: {}", e.what())};
-        if (!safing) throw Interrupt{trip};
-        Event("trip", trip.detector + ": " + trip.text);
+      // Every block that has arrived, not one a loop: a block is 10 ms of the stream, and a loop
+      // with a controller round trip can take longer (an accelerated stream, a loaded machine);
+      // reading one a loop let the backlog grow until the samples were stale and the cycles were
+      // cut from samples older than the controller's status. Bounded, so the heartbeat goes on.
+      std::chrono::nanoseconds wait = options.loop;
+      for (int k = 0; k < kMaxBlocksPerLoop; ++k) {
+        daq::AcquiredBlock block;
+        try {
+          block = acquisition.Read(wait);
+        } catch (const daq::DeviceError& e) {
+          acquisition_lost = true;
+          Trip trip{"acquisition-lost", SafetyAction::kStop, Now(), fmt::format("the acquisition stream failed: {}", e.what())};
+          if (!safing) throw Interrupt{trip};
+          Event("trip", trip.detector + ": " + trip.text);
+          break;
+        }
+        HandleBlock(block);
+        if (block.empty()) break;
+        wait = std::chrono::nanoseconds(0);
       }
     } else {
       std::this_thread::sleep_for(options.loop);
     }
-    HandleBlock(block);
     PollController();
     if (!acquisition_lost) {
       if (auto t = safety.CheckStale(Now())) Handle(*t);

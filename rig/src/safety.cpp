@@ -259,6 +259,10 @@ std::optional<Trip> SafetyMonitor::CheckLimit(const char* detector, const char* 
 std::vector<Trip> SafetyMonitor::CheckBlock(const daq::AcquiredBlock& block, const std::vector<std::string>& channels) {
   std::vector<Trip> trips;
   if (block.empty()) return trips;
+  // The samples' times (the linear time rule), not their frames' arrival: a stream half a second
+  // behind its nominal rate counts as silent, because the runner's cycles start at the block that
+  // arrives after the controller reports full amplitude and must not be the ramp's
+  // (docs/rig-run.md "Benchmark").
   last_sample_ns_ = std::max(last_sample_ns_, block.time_ns.back());
   for (std::size_t k = 0; k < channels.size() && k < block.values.size(); ++k) {
     const ChannelLimit* l = nullptr;

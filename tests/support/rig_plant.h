@@ -423,12 +423,15 @@ class PlantAcquisition final : public daq::AcquisitionModule {
 };
 
 //! The plant's acquisition as a CAN module on a transport (UDP for a runner in another process):
-//! every few ms the samples due are sent as classic frames of 3 channels (PlantChannels), a status
-//! frame every 20 sets.
+//! every few ms the samples due are sent, a status frame every 20 sets. By default classic frames
+//! of 3 channels (PlantChannels); another `layout` and `channels` (in frame order, each encoded
+//! with its calibration; a channel other than stroke, force and pressure reads 1234 counts) make
+//! a module of another make.
 class PlantCanStreamer {
  public:
-  PlantCanStreamer(Plant& plant, std::unique_ptr<daq::CanTransport> transport)
-      : plant_(plant), sender_(std::move(transport), Layout(), 20) {
+  PlantCanStreamer(Plant& plant, std::unique_ptr<daq::CanTransport> transport, daq::CanFrameLayout layout = Layout(),
+                   std::vector<daq::ChannelDescriptor> channels = PlantChannels())
+      : plant_(plant), sender_(std::move(transport), layout, 20), channels_(std::move(channels)) {
     sender_.flush_sets = 8;
     thread_ = std::thread([this] { Loop(); });
   }
@@ -445,13 +448,17 @@ class PlantCanStreamer {
 
  private:
   void Loop() {
-    const auto channels = PlantChannels();
+    std::vector<std::int16_t> set(channels_.size());
     while (!stop_) {
       try {
         for (const PlantSample& s : plant_.TakeSamples()) {
-          const std::int16_t set[3] = {channels[0].calibration.ToCounts16(s.stroke),
-                                       channels[1].calibration.ToCounts16(s.force),
-                                       channels[2].calibration.ToCounts16(s.pressure)};
+          for (std::size_t k = 0; k < channels_.size(); ++k) {
+            const daq::ChannelDescriptor& c = channels_[k];
+            set[k] = c.name == "stroke"     ? c.calibration.ToCounts16(s.stroke)
+                     : c.name == "force"    ? c.calibration.ToCounts16(s.force)
+                     : c.name == "pressure" ? c.calibration.ToCounts16(s.pressure)
+                                            : std::int16_t{1234};
+          }
           sender_.Add(set);
         }
         sender_.Flush();
@@ -463,6 +470,7 @@ class PlantCanStreamer {
   }
   Plant& plant_;
   daq::CanAcquisitionSender sender_;
+  std::vector<daq::ChannelDescriptor> channels_;
   std::atomic<bool> stop_{false};
   std::thread thread_;
 };

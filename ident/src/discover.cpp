@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <climits>
 #include <cmath>
 #include <fmt/format.h>
 #include <numeric>
@@ -176,8 +177,9 @@ namespace {
 
 // The held-out noise ratios of fold k of `folds` (experiments a with a % folds == k), all channels
 // pooled per experiment; empty when the refit or a prediction has no solution.
+// `iterations`: the refit's.
 std::optional<std::vector<double>> HeldOutRatios(const FitData& data, const Model& model, const FitSummary& fit,
-                                                 const EstimatorOptions& estimator, int folds, int k) {
+                                                 const EstimatorOptions& estimator, int folds, int k, int& iterations) {
   std::vector<ParameterChoice> choices(fit.parameters.size());
   for (int i = 0; i < fit.parameters.size(); ++i) {
     choices[i].estimate = fit.estimated[i];
@@ -193,6 +195,7 @@ std::optional<std::vector<double>> HeldOutRatios(const FitData& data, const Mode
   std::vector<double> ratios;
   try {
     const FitSummary refit = Estimator(model, refit_options).Fit(train, fit.parameters, choices, data.issues);
+    iterations = refit.iterations;
     if (!refit.IsSolutionUsable()) return std::nullopt;
     const FitSummary predicted = Estimator(model, refit_options).Fit(held, refit.parameters, fixed, data.issues);
     for (const ExperimentFit& e : predicted.experiments) {
@@ -246,10 +249,11 @@ std::vector<double> CrossValidate(const FitData& data, const std::vector<CrossVa
   // static-position group or frequency away and the refit need not extrapolate.
   std::vector<std::optional<std::vector<double>>> ratios(models.size() * folds);
   std::vector<double> seconds(ratios.size());
+  std::vector<int> iterations(ratios.size());
   ParallelFor(static_cast<int>(ratios.size()), threads, [&](int task) {
     const Stopwatch watch;
     const CrossValidation& m = models[task / folds];
-    ratios[task] = HeldOutRatios(data, *m.model, *m.fit, estimator, folds, task % folds);
+    ratios[task] = HeldOutRatios(data, *m.model, *m.fit, estimator, folds, task % folds, iterations[task]);
     seconds[task] = watch.Seconds();
   });
   std::vector<double> out;
@@ -257,8 +261,9 @@ std::vector<double> CrossValidate(const FitData& data, const std::vector<CrossVa
     const auto first = ratios.begin() + static_cast<std::ptrdiff_t>(m * folds);
     out.push_back(MedianHeldOut({first, first + folds}));
     std::string fold_times;
-    for (int k = 0; k < folds; ++k) fold_times += fmt::format(" {:.2f}", seconds[m * folds + k]);
-    spdlog::debug("timing: cross-validation of {}, folds{} s", models[m].model->composition(), fold_times);
+    for (int k = 0; k < folds; ++k)
+      fold_times += fmt::format(" {:.2f} s ({} iterations)", seconds[m * folds + k], iterations[m * folds + k]);
+    spdlog::debug("timing: cross-validation of {}, folds:{}", models[m].model->composition(), fold_times);
   }
   return out;
 }
@@ -356,6 +361,7 @@ DiscoveryResult Discover(const FitData& data, const SessionFitOptions& fit_optio
   const auto& catalogue = Catalogue();
   double current_cv = NAN;  // held-out noise ratio of `current`, computed when a candidate needs it
   bool current_cv_known = false;
+  std::map<std::string, int> last_iterations;  // per term, its refit's in the round before
   for (int round = 0; round < options.max_terms && worst_ratio(ratio) >= options.noise_ratio_threshold; ++round) {
     const std::vector<Finding> findings = LocateMismatch(current);
     const Model model = Model::Build(current.model, causality);
@@ -375,8 +381,18 @@ DiscoveryResult Discover(const FitData& data, const SessionFitOptions& fit_optio
     std::vector<FitSummary> fits(candidates.size());
     std::vector<double> seconds(candidates.size());
     const Stopwatch round_watch;
-    // A thread takes the next candidate as it finishes one (refits differ in length several times).
-    ParallelFor(static_cast<int>(candidates.size()), options.threads, [&](int c) {
+    // A thread takes the next candidate as it finishes one (refits differ in length several times),
+    // the longest first as far as the last round tells (its iterations), so that a long one does
+    // not start last. Only the order of the work changes: each result has its own slot.
+    std::vector<int> queue(candidates.size());
+    std::iota(queue.begin(), queue.end(), 0);
+    const auto expected = [&](int c) {
+      const auto it = last_iterations.find(candidates[c].first);
+      return it == last_iterations.end() ? INT_MAX : it->second;
+    };
+    std::stable_sort(queue.begin(), queue.end(), [&](int a, int b) { return expected(a) > expected(b); });
+    ParallelFor(static_cast<int>(candidates.size()), options.threads, [&](int k) {
+      const int c = queue[k];
       const Stopwatch watch;
       results[c].term = candidates[c].first;
       try {
@@ -391,6 +407,7 @@ DiscoveryResult Discover(const FitData& data, const SessionFitOptions& fit_optio
       seconds[c] = watch.Seconds();
     });
     const double refits_seconds = round_watch.Seconds();
+    for (std::size_t c = 0; c < candidates.size(); ++c) last_iterations[candidates[c].first] = fits[c].iterations;
     candidate_seconds += refits_seconds;
     for (std::size_t c = 0; c < candidates.size(); ++c)
       spdlog::debug("timing: round {} candidate {} {:.2f} s ({} iterations)", round + 1, candidates[c].first,

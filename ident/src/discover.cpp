@@ -320,6 +320,7 @@ DiscoveryResult Discover(const FitData& data, const SessionFitOptions& fit_optio
     // (an unconverged baseline beside a plain end stop): go on from where it stalled (fresh
     // sensitivities and damping), and else fit from the data's own starting values as `strut
     // identify` does. The converged fit with the higher likelihood is kept.
+    const Stopwatch retry_watch;
     std::vector<FitSummary> tries{fitter.Fit(data.experiments, fit.parameters, choices, data.issues)};
     if (!tries.front().converged) {
       SessionFitOptions own = session_options;
@@ -328,8 +329,9 @@ DiscoveryResult Discover(const FitData& data, const SessionFitOptions& fit_optio
     }
     for (const FitSummary& t : tries)
       if (t.converged && (!fit.converged || t.loglik > fit.loglik)) fit = t;
-    spdlog::debug("candidate {}: stalled from the current fit; {}", term,
-                  fit.converged ? "converged on a second try" : "not converged on a second try either");
+    spdlog::debug("candidate {}: stalled from the current fit; {} (timing: {} more fits, {:.2f} s)", term,
+                  fit.converged ? "converged on a second try" : "not converged on a second try either", tries.size(),
+                  retry_watch.Seconds());
     return fit;
   };
   const auto worst_ratio = [](const std::map<std::string, double>& ratio) {

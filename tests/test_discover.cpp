@@ -1,6 +1,7 @@
 // Finding the missing physics on simulated sessions whose truth is known.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <fstream>
 #include <nlohmann/json.hpp>
 
@@ -58,6 +59,50 @@ TEST(Discover, AddsNothingWhenTheModelHoldsTheTruthsPhysics) {
   EXPECT_TRUE(r.nothing_missing) << r.conclusion;
   EXPECT_TRUE(r.missing.empty());
   EXPECT_EQ(r.final_model, "2dof");
+}
+
+// Candidates, cross-validation folds and each fit's experiments run side by side on `threads`
+// threads; the answer must not depend on how many.
+TEST(Discover, GivesTheSameAnswerOnOneAndTwoThreads) {
+  // An effect to find, so that every stage runs: baseline, candidates, folds of the current model
+  // and of the kept candidate.
+  const auto data = Simulate("2dof+oil-compressibility", "theta26=8.333333333e-10", 11);
+  DiscoverOptions one = Options();
+  one.max_terms = 1;
+  one.threads = 1;
+  DiscoverOptions two = one;
+  two.threads = 2;
+  const DiscoveryResult a = Discover(data, Baseline("2dof"), one);
+  const DiscoveryResult b = Discover(data, Baseline("2dof"), two);
+  ASSERT_EQ(a.missing, std::vector<std::string>{"oil-compressibility"}) << a.conclusion;
+  EXPECT_EQ(a.missing, b.missing);
+  EXPECT_EQ(a.conclusion, b.conclusion);
+  const auto same = [](double x, double y, const std::string& what) {
+    if (std::isnan(x) && std::isnan(y)) return;
+    EXPECT_NEAR(x, y, 1e-9 * std::max(1.0, std::abs(x))) << what;
+  };
+  same(a.baseline.bic, b.baseline.bic, "baseline BIC");
+  same(a.final_fit.bic, b.final_fit.bic, "final BIC");
+  ASSERT_EQ(a.steps.size(), b.steps.size());
+  for (std::size_t s = 0; s < a.steps.size(); ++s) {
+    same(a.steps[s].delta_bic, b.steps[s].delta_bic, "step ΔBIC");
+    same(a.steps[s].cv_before, b.steps[s].cv_before, "held-out ratio before");
+    same(a.steps[s].cv_after, b.steps[s].cv_after, "held-out ratio after");
+    ASSERT_EQ(a.steps[s].candidates.size(), b.steps[s].candidates.size());
+    for (std::size_t c = 0; c < a.steps[s].candidates.size(); ++c) {
+      const CandidateFit &x = a.steps[s].candidates[c], &y = b.steps[s].candidates[c];
+      EXPECT_EQ(x.term, y.term);
+      EXPECT_EQ(x.verdict, y.verdict) << x.term;
+      same(x.delta_bic, y.delta_bic, x.term + " ΔBIC");
+      same(x.cv_ratio, y.cv_ratio, x.term + " held-out ratio");
+    }
+  }
+  ASSERT_EQ(a.final_fit.parameters.size(), b.final_fit.parameters.size());
+  for (int i = 0; i < a.final_fit.parameters.size(); ++i) {
+    const std::string key = a.final_fit.parameters.spec(i).key();
+    same(a.final_fit.parameters.value(i), b.final_fit.parameters.value(i), key);
+    same(a.final_fit.sd[i], b.final_fit.sd[i], key + " sd");
+  }
 }
 
 struct Concealed {

@@ -222,7 +222,7 @@ void RegisterDemoCommand(CLI::App& app) {
       ->capture_default_str();
   sub->add_option("--seed", command->seed, "The seed of the rig's noise: the same seed gives the same session.")
       ->capture_default_str();
-  sub->add_option("--threads", command->threads, "Run this many candidate refits of discovery in parallel.")
+  sub->add_option("--threads", command->threads, "Threads of discovery: candidate refits, cross-validation folds and the experiments of each fit side by side.")
       ->check(Between(1, 64))
       ->capture_default_str();
   sub->callback([command, out] {

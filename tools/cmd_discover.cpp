@@ -107,7 +107,7 @@ void RegisterDiscoverCommand(CLI::App& app) {
   sub->add_option("--json", command->json_path, "Write the findings as JSON to this file.");
   sub->add_option("--report", command->report_path, "Write a self-contained HTML report to this file.");
   sub->add_option("--n", command->n, "Grid points per period of the periodic solver.")->check(Between(16, 100000))->capture_default_str();
-  sub->add_option("--threads", command->threads, "Run this many candidate refits in parallel.")
+  sub->add_option("--threads", command->threads, "Threads: candidate refits, cross-validation folds and the experiments of each fit side by side (the answers do not depend on it).")
       ->check(Between(1, 64))
       ->capture_default_str();
   sub->callback([command] { command->Run(); });

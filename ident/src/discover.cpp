@@ -1,12 +1,15 @@
 #include "strut/ident/discover.h"
 
 #include <algorithm>
+#include <chrono>
+#include <climits>
 #include <cmath>
 #include <fmt/format.h>
-#include <future>
 #include <numeric>
+#include <optional>
 #include <spdlog/spdlog.h>
 
+#include "parallel.h"
 #include "strut/ident/initial_values.h"
 #include "strut/ident/term_start.h"
 #include "terms.h"
@@ -47,6 +50,12 @@ double TStatistic(const Eigen::VectorXd& z, const Eigen::VectorXd& x) {
 }
 
 std::string Group(const ExperimentFit& e) { return e.group.empty() ? "(none)" : e.group; }
+
+// Wall time of a stage, for the timing lines of the debug log.
+struct Stopwatch {
+  std::chrono::steady_clock::time_point start = std::chrono::steady_clock::now();
+  double Seconds() const { return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(); }
+};
 
 }  // namespace
 
@@ -164,43 +173,56 @@ std::vector<Finding> LocateMismatch(const FitSummary& fit) {
   return findings;
 }
 
-double CrossValidatedNoiseRatio(const FitData& data, const Model& model, const FitSummary& fit,
-                                const EstimatorOptions& estimator, int folds) {
-  const int count = static_cast<int>(data.experiments.size());
-  folds = std::min(folds, count);
-  if (folds < 2) return NAN;
+namespace {
+
+// The held-out noise ratios of fold k of `folds` (experiments a with a % folds == k), all channels
+// pooled per experiment; empty when the refit or a prediction has no solution.
+// `iterations`: the refit's.
+std::optional<std::vector<double>> HeldOutRatios(const FitData& data, const Model& model, const FitSummary& fit,
+                                                 const EstimatorOptions& estimator, int folds, int k, int& iterations) {
   std::vector<ParameterChoice> choices(fit.parameters.size());
   for (int i = 0; i < fit.parameters.size(); ++i) {
     choices[i].estimate = fit.estimated[i];
     if (fit.estimated[i] && fit.parameters.spec(i).prior_sd > 0) choices[i].prior_sd = fit.parameters.spec(i).prior_sd;
   }
   const std::vector<ParameterChoice> fixed(fit.parameters.size());
-  std::vector<double> held_ratios;  // one per held-out experiment, all channels pooled
-  // Folds interleave the experiments (a, e, i, m; b, f, j, n; ...), so no fold takes a whole
-  // static-position group or frequency away and the refit need not extrapolate.
-  for (int k = 0; k < folds; ++k) {
-    std::vector<ExperimentData> train, held;
-    for (int a = 0; a < count; ++a) (a % folds == k ? held : train).push_back(data.experiments[a]);
-    try {
-      const FitSummary refit = Estimator(model, estimator).Fit(train, fit.parameters, choices, data.issues);
-      if (!refit.IsSolutionUsable()) return NAN;
-      const FitSummary predicted = Estimator(model, estimator).Fit(held, refit.parameters, fixed, data.issues);
-      for (const ExperimentFit& e : predicted.experiments) {
-        if (!e.converged) return NAN;
-        double sum = 0.0;
-        long n = 0;
-        for (const auto& [channel, r] : e.residual) {
-          const double variance = e.noise_variance.at(channel);
-          if (!(variance > 0)) continue;
-          sum += r.squaredNorm() / variance;
-          n += r.size();
-        }
-        if (n > 0) held_ratios.push_back(sum / n);
+  // Only the refit's estimate is used: no posterior at its end.
+  EstimatorOptions refit_options = estimator;
+  refit_options.uncertainty = false;
+  std::vector<ExperimentData> train, held;
+  for (int a = 0; a < static_cast<int>(data.experiments.size()); ++a)
+    (a % folds == k ? held : train).push_back(data.experiments[a]);
+  std::vector<double> ratios;
+  try {
+    const FitSummary refit = Estimator(model, refit_options).Fit(train, fit.parameters, choices, data.issues);
+    iterations = refit.iterations;
+    if (!refit.IsSolutionUsable()) return std::nullopt;
+    const FitSummary predicted = Estimator(model, refit_options).Fit(held, refit.parameters, fixed, data.issues);
+    for (const ExperimentFit& e : predicted.experiments) {
+      if (!e.converged) return std::nullopt;
+      double sum = 0.0;
+      long n = 0;
+      for (const auto& [channel, r] : e.residual) {
+        const double variance = e.noise_variance.at(channel);
+        if (!(variance > 0)) continue;
+        sum += r.squaredNorm() / variance;
+        n += r.size();
       }
-    } catch (const std::exception& e) {
-      spdlog::debug("cross-validation fold {} of {}: {}", k + 1, model.composition(), e.what());
-      return NAN;
+      if (n > 0) ratios.push_back(sum / n);
     }
+  } catch (const std::exception& e) {
+    spdlog::debug("cross-validation fold {} of {}: {}", k + 1, model.composition(), e.what());
+    return std::nullopt;
+  }
+  return ratios;
+}
+
+// The median of the held-out ratios over all folds' experiments; NaN when a fold had no solution.
+double MedianHeldOut(const std::vector<std::optional<std::vector<double>>>& folds) {
+  std::vector<double> held_ratios;  // one per held-out experiment, all channels pooled
+  for (const auto& fold : folds) {
+    if (!fold) return NAN;
+    held_ratios.insert(held_ratios.end(), fold->begin(), fold->end());
   }
   if (held_ratios.empty()) return NAN;
   // The median over the held-out experiments: an effect that only one experiment shows (an end
@@ -212,12 +234,60 @@ double CrossValidatedNoiseRatio(const FitData& data, const Model& model, const F
   return 0.5 * (*middle + *std::max_element(held_ratios.begin(), middle));
 }
 
+// A model and its fit whose held-out noise ratio is wanted.
+struct CrossValidation {
+  const Model* model;
+  const FitSummary* fit;
+};
+
+// The held-out noise ratios of several models at once: all their folds' refits, `threads` at a time.
+std::vector<double> CrossValidate(const FitData& data, const std::vector<CrossValidation>& models,
+                                  const EstimatorOptions& estimator, int folds, int threads) {
+  folds = std::min(folds, static_cast<int>(data.experiments.size()));
+  if (folds < 2) return std::vector<double>(models.size(), NAN);
+  // Folds interleave the experiments (a, e, i, m; b, f, j, n; ...), so no fold takes a whole
+  // static-position group or frequency away and the refit need not extrapolate.
+  std::vector<std::optional<std::vector<double>>> ratios(models.size() * folds);
+  std::vector<double> seconds(ratios.size());
+  std::vector<int> iterations(ratios.size());
+  ParallelFor(static_cast<int>(ratios.size()), threads, [&](int task) {
+    const Stopwatch watch;
+    const CrossValidation& m = models[task / folds];
+    ratios[task] = HeldOutRatios(data, *m.model, *m.fit, estimator, folds, task % folds, iterations[task]);
+    seconds[task] = watch.Seconds();
+  });
+  std::vector<double> out;
+  for (std::size_t m = 0; m < models.size(); ++m) {
+    const auto first = ratios.begin() + static_cast<std::ptrdiff_t>(m * folds);
+    out.push_back(MedianHeldOut({first, first + folds}));
+    std::string fold_times;
+    for (int k = 0; k < folds; ++k)
+      fold_times += fmt::format(" {:.2f} s ({} iterations)", seconds[m * folds + k], iterations[m * folds + k]);
+    spdlog::debug("timing: cross-validation of {}, folds:{}", models[m].model->composition(), fold_times);
+  }
+  return out;
+}
+
+}  // namespace
+
+double CrossValidatedNoiseRatio(const FitData& data, const Model& model, const FitSummary& fit,
+                                const EstimatorOptions& estimator, int folds, int threads) {
+  return CrossValidate(data, {{&model, &fit}}, estimator, folds, threads).front();
+}
+
 DiscoveryResult Discover(const FitData& data, const SessionFitOptions& fit_options, const DiscoverOptions& options,
                          const std::function<void(const std::string&)>& progress) {
   std::string error;
   if (!options.IsValid(&error) || !fit_options.IsValid(&error)) throw std::invalid_argument("discover options: " + error);
   const Causality causality = fit_options.causality;
-  const EstimatorOptions& estimator = fit_options.estimator;
+  // Every fit also solves its experiments on `threads` threads, beside the candidates and folds run
+  // side by side: the baseline, and the last candidate of a round, still use every core. A fit sums
+  // its experiments in order, so the answers do not depend on the count.
+  SessionFitOptions session_options = fit_options;
+  session_options.estimator.threads = options.threads;
+  const EstimatorOptions& estimator = session_options.estimator;
+  const Stopwatch total_watch;
+  double baseline_seconds = 0.0, candidate_seconds = 0.0, cv_seconds = 0.0;
   const auto say = [&](const std::string& text) {
     spdlog::info("{}", text);
     if (progress) progress(text);
@@ -250,16 +320,18 @@ DiscoveryResult Discover(const FitData& data, const SessionFitOptions& fit_optio
     // (an unconverged baseline beside a plain end stop): go on from where it stalled (fresh
     // sensitivities and damping), and else fit from the data's own starting values as `strut
     // identify` does. The converged fit with the higher likelihood is kept.
+    const Stopwatch retry_watch;
     std::vector<FitSummary> tries{fitter.Fit(data.experiments, fit.parameters, choices, data.issues)};
     if (!tries.front().converged) {
-      SessionFitOptions own = fit_options;
+      SessionFitOptions own = session_options;
       own.composition = composition;
       tries.push_back(FitPrepared(data, model, own).summary);
     }
     for (const FitSummary& t : tries)
       if (t.converged && (!fit.converged || t.loglik > fit.loglik)) fit = t;
-    spdlog::debug("candidate {}: stalled from the current fit; {}", term,
-                  fit.converged ? "converged on a second try" : "not converged on a second try either");
+    spdlog::debug("candidate {}: stalled from the current fit; {} (timing: {} more fits, {:.2f} s)", term,
+                  fit.converged ? "converged on a second try" : "not converged on a second try either", tries.size(),
+                  retry_watch.Seconds());
     return fit;
   };
   const auto worst_ratio = [](const std::map<std::string, double>& ratio) {
@@ -277,7 +349,10 @@ DiscoveryResult Discover(const FitData& data, const SessionFitOptions& fit_optio
   bool exhausted = false;  // stopped because no candidate qualified (not because of max_terms)
   const std::string base = fit_options.composition;
   say(fmt::format("fitting the baseline {} (every parameter the data can determine)", base));
-  result.baseline = FitPrepared(data, Model::Build(base, causality), fit_options).summary;
+  const Stopwatch baseline_watch;
+  result.baseline = FitPrepared(data, Model::Build(base, causality), session_options).summary;
+  baseline_seconds = baseline_watch.Seconds();
+  spdlog::debug("timing: baseline {} {:.2f} s ({} iterations)", base, baseline_seconds, result.baseline.iterations);
   result.mismatch = LocateMismatch(result.baseline);
   FitSummary current = result.baseline;
   std::map<std::string, double> ratio = PooledNoiseRatio(current);
@@ -287,6 +362,8 @@ DiscoveryResult Discover(const FitData& data, const SessionFitOptions& fit_optio
 
   const auto& catalogue = Catalogue();
   double current_cv = NAN;  // held-out noise ratio of `current`, computed when a candidate needs it
+  bool current_cv_known = false;
+  std::map<std::string, int> last_iterations;  // per term, its refit's in the round before
   for (int round = 0; round < options.max_terms && worst_ratio(ratio) >= options.noise_ratio_threshold; ++round) {
     const std::vector<Finding> findings = LocateMismatch(current);
     const Model model = Model::Build(current.model, causality);
@@ -304,23 +381,41 @@ DiscoveryResult Discover(const FitData& data, const SessionFitOptions& fit_optio
     say(fmt::format("round {}: {} candidates refitted, {} at a time", round + 1, candidates.size(), options.threads));
     std::vector<CandidateFit> results(candidates.size());
     std::vector<FitSummary> fits(candidates.size());
-    for (std::size_t start = 0; start < candidates.size(); start += options.threads) {
-      std::vector<std::future<void>> running;
-      for (std::size_t c = start; c < std::min(candidates.size(), start + options.threads); ++c)
-        running.push_back(std::async(std::launch::async, [&, c] {
-          results[c].term = candidates[c].first;
-          try {
-            fits[c] = candidate_fit(candidates[c].first, candidates[c].second, current);
-            results[c].ok = fits[c].IsSolutionUsable() && fits[c].converged;
-            if (!results[c].ok) results[c].error = fits[c].VerdictText();
-            results[c].delta_bic = fits[c].bic - current.bic;
-            results[c].noise_ratio = PooledNoiseRatio(fits[c]);
-          } catch (const std::exception& e) {
-            results[c].error = e.what();
-          }
-        }));
-      for (auto& r : running) r.get();
-    }
+    std::vector<double> seconds(candidates.size());
+    const Stopwatch round_watch;
+    // A thread takes the next candidate as it finishes one (refits differ in length several times),
+    // the longest first as far as the last round tells (its iterations), so that a long one does
+    // not start last. Only the order of the work changes: each result has its own slot.
+    std::vector<int> queue(candidates.size());
+    std::iota(queue.begin(), queue.end(), 0);
+    const auto expected = [&](int c) {
+      const auto it = last_iterations.find(candidates[c].first);
+      return it == last_iterations.end() ? INT_MAX : it->second;
+    };
+    std::stable_sort(queue.begin(), queue.end(), [&](int a, int b) { return expected(a) > expected(b); });
+    ParallelFor(static_cast<int>(candidates.size()), options.threads, [&](int k) {
+      const int c = queue[k];
+      const Stopwatch watch;
+      results[c].term = candidates[c].first;
+      try {
+        fits[c] = candidate_fit(candidates[c].first, candidates[c].second, current);
+        results[c].ok = fits[c].IsSolutionUsable() && fits[c].converged;
+        if (!results[c].ok) results[c].error = fits[c].VerdictText();
+        results[c].delta_bic = fits[c].bic - current.bic;
+        results[c].noise_ratio = PooledNoiseRatio(fits[c]);
+      } catch (const std::exception& e) {
+        results[c].error = e.what();
+      }
+      seconds[c] = watch.Seconds();
+    });
+    const double refits_seconds = round_watch.Seconds();
+    for (std::size_t c = 0; c < candidates.size(); ++c) last_iterations[candidates[c].first] = fits[c].iterations;
+    candidate_seconds += refits_seconds;
+    for (std::size_t c = 0; c < candidates.size(); ++c)
+      spdlog::debug("timing: round {} candidate {} {:.2f} s ({} iterations)", round + 1, candidates[c].first,
+                    seconds[c], fits[c].iterations);
+    spdlog::debug("timing: round {} candidates {:.2f} s wall, {:.2f} s summed", round + 1, refits_seconds,
+                  std::accumulate(seconds.begin(), seconds.end(), 0.0));
     for (CandidateFit& c : results) {
       const auto entry = std::find_if(catalogue.begin(), catalogue.end(), [&](const TermEntry& e) { return e.name == c.term; });
       for (const Finding& f : findings)
@@ -348,10 +443,16 @@ DiscoveryResult Discover(const FitData& data, const SessionFitOptions& fit_optio
         best = static_cast<int>(c);
         break;
       }
-      if (!std::isfinite(current_cv))
-        current_cv = CrossValidatedNoiseRatio(data, model, current, estimator, options.cv_folds);
+      // The current model's folds beside the first candidate's, when it has none yet.
+      const Stopwatch cv_watch;
       const Model candidate_model = Model::Build(candidates[c].second, causality);
-      results[c].cv_ratio = CrossValidatedNoiseRatio(data, candidate_model, fits[c], estimator, options.cv_folds);
+      std::vector<CrossValidation> wanted{{&candidate_model, &fits[c]}};
+      if (!current_cv_known) wanted.push_back({&model, &current});
+      const std::vector<double> cv = CrossValidate(data, wanted, estimator, options.cv_folds, options.threads);
+      results[c].cv_ratio = cv[0];
+      if (!current_cv_known) current_cv = cv[1], current_cv_known = true;
+      cv_seconds += cv_watch.Seconds();
+      spdlog::debug("timing: round {} cross-validation {:.2f} s", round + 1, cv_watch.Seconds());
       spdlog::info("  {:<20} cross-validated noise ratio {:.3f} against {:.3f}", results[c].term, results[c].cv_ratio,
                    current_cv);
       if (std::isfinite(results[c].cv_ratio) &&
@@ -394,6 +495,7 @@ DiscoveryResult Discover(const FitData& data, const SessionFitOptions& fit_optio
     result.steps.push_back(std::move(step));
     current = chosen;
     current_cv = results[best].cv_ratio;
+    current_cv_known = options.cv_folds > 0;
     ratio = PooledNoiseRatio(current);
   }
 
@@ -424,6 +526,8 @@ DiscoveryResult Discover(const FitData& data, const SessionFitOptions& fit_optio
                          : fmt::format(" Stopped after {} terms; the strongest feature left: ", options.max_terms)) +
                   result.unexplained.front().detail + ".");
   }
+  spdlog::debug("timing: discover {:.2f} s: baseline {:.2f} s, candidates {:.2f} s, cross-validation {:.2f} s",
+                total_watch.Seconds(), baseline_seconds, candidate_seconds, cv_seconds);
   // The conclusion is the result, which the caller prints as data (stdout); logging it as well
   // showed it twice on a terminal.
   spdlog::debug("{}", result.conclusion);

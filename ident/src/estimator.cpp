@@ -307,7 +307,7 @@ FitSummary Estimator::Fit(const std::vector<ExperimentData>& data, const Paramet
   const std::vector<double> variance = current.Variances(l);
   const std::vector<double> ratios = problem.NoiseRatios();
   summary.sd.assign(np, NAN);
-  if (l > 0) {
+  if (l > 0 && options_.uncertainty) {
     const NormalEquations eq = problem.Linearise(theta, variance, {true, false, options_.input_noise, estimating_inputs});
     const Posterior posterior = PosteriorCovariance(eq.information, eq.input_noise, priors, eq.inputs);
     Eigen::MatrixXd covariance = posterior.covariance;

@@ -12,6 +12,7 @@
 #include <thread>
 #include <unsupported/Eigen/FFT>
 
+#include "parallel.h"
 #include "strut/ident/estimator.h"
 
 namespace strut::ident {
@@ -136,34 +137,6 @@ std::optional<PeriodicSolution> MeasuredStrokeStart(const Model& model, const Mo
     return std::nullopt;
   }
 }
-
-// Runs f(0) .. f(count - 1) on up to `threads` threads; the first exception is rethrown.
-void ParallelFor(int count, int threads, const std::function<void(int)>& f) {
-  threads = std::min(threads, count);
-  if (threads <= 1) {
-    for (int i = 0; i < count; ++i) f(i);
-    return;
-  }
-  std::atomic<int> next{0};
-  std::exception_ptr error;
-  std::mutex error_mutex;
-  const auto work = [&] {
-    for (int i = next++; i < count; i = next++) {
-      try {
-        f(i);
-      } catch (...) {
-        const std::lock_guard lock(error_mutex);
-        if (!error) error = std::current_exception();
-      }
-    }
-  };
-  std::vector<std::thread> pool;
-  for (int t = 1; t < threads; ++t) pool.emplace_back(work);
-  work();
-  for (auto& t : pool) t.join();
-  if (error) std::rethrow_exception(error);
-}
-
 
 //! The highest harmonic of an experiment's input the fit estimates (errors in variables; -1: none).
 int EstimatedInputHarmonics(const Model& model, const EstimatorOptions& options, const ExperimentData& d) {

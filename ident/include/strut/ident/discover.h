@@ -27,7 +27,9 @@ struct DiscoverOptions {
   int cv_folds = 4;
   double cv_improvement = 0.98;
   int max_terms = 8;
-  int threads = 2;  //!< candidate refits in parallel
+  //! Threads: candidate refits and cross-validation folds side by side, and each fit's experiments
+  //! too (EstimatorOptions::threads). The answers are the same for any count.
+  int threads = 2;
   bool IsValid(std::string* error) const;
 };
 
@@ -84,9 +86,9 @@ std::vector<Finding> LocateMismatch(const FitSummary& fit);
 //! predicts them. Each held-out experiment's residuals over the noise of the averaged data, all
 //! channels pooled, give its noise ratio; the result is the median of those over all experiments
 //! (robust to the one experiment that alone shows an effect). NaN when a refit or a prediction has
-//! no solution.
+//! no solution. The folds are refitted `threads` at a time (the same answer for any count).
 double CrossValidatedNoiseRatio(const FitData& data, const Model& model, const FitSummary& fit,
-                                const EstimatorOptions& estimator, int folds);
+                                const EstimatorOptions& estimator, int folds, int threads = 1);
 
 //! Runs discovery from the baseline `fit.composition` (any composition; its fit is the full default
 //! fit of SessionFitOptions) on prepared experiments.

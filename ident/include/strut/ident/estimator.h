@@ -63,6 +63,10 @@ struct EstimatorOptions {
   int input_harmonics = 20;
   //! Step halvings per iteration when the objective does not improve.
   int max_halvings = 12;
+  //! The posterior at the end (sd, correlations, contributions: a linearisation with exact
+  //! sensitivities and the input's noise). Off for a fit whose estimate alone is used (the refits
+  //! of cross-validation); the estimate does not depend on it.
+  bool uncertainty = true;
   //! Output channels to fit; empty: the outputs of the causality (stroke and pressure for force
   //! input, force and pressure for stroke input; y for a generic oscillator driven by u).
   std::vector<std::string> channels;

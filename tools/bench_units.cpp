@@ -31,6 +31,7 @@ struct BenchUnits {
   std::string base = "2dof";
   bool servo = false;
   bool shipped_calibration = false;
+  bool drawn_gains = false;  //!< each unit's force and pressure gains drawn around 1 with the lab's sd
   double start_off = 0.3;
   std::vector<std::string> effects;  //!< physics the units have and the fitted model lacks
   std::string json_path;
@@ -57,14 +58,23 @@ struct BenchUnits {
     nlohmann::json rows = nlohmann::json::array();
     std::cout << fmt::format("identification of {} drawn {} units (seeds {}..), {} actuator, {} calibration, stroke "
                              "input, default choices:\n",
-                             units, base, first_seed, servo ? "servo" : "ideal", shipped_calibration ? "shipped" : "perfect");
+                             units, base, first_seed, servo ? "servo" : "ideal",
+                             shipped_calibration ? "shipped" : drawn_gains ? "drawn force and pressure gain" : "perfect");
     if (!effects.empty())
       std::cout << fmt::format("the units also have {}, which the fitted model {} lacks: the fits stay above the noise "
                                "floor and the coverage is that of the widened intervals\n",
                                fmt::join(effects, " and "), base);
     for (int u = 0; u < units; ++u) {
       const unsigned long seed = first_seed + u;
-      const sim::Truth truth = sim::DrawUnit(around, draw, seed);
+      sim::Truth truth = sim::DrawUnit(around, draw, seed);
+      if (drawn_gains) {
+        // Transducers off by what the fit's default calibration says they may be (kLabGainSd): the
+        // intervals, which hold that calibration, must still cover the truth at their rate.
+        std::mt19937_64 stream(seed * 7919 + 17);
+        std::normal_distribution<double> normal;
+        truth.sensors.force.gain_error = ident::kLabGainSd.at("force") * normal(stream);
+        truth.sensors.pressure.gain_error = ident::kLabGainSd.at("pressure") * normal(stream);
+      }
       const sim::SimulatedRig rig(truth);
       sim::RigRunOptions run;
       run.seed = seed;
@@ -191,6 +201,9 @@ void RegisterBenchUnits(CLI::App& bench) {
   sub->add_flag("--servo", command->servo, "Drive the damper through the servo actuator (default: an ideal actuator).");
   sub->add_flag("--shipped-calibration", command->shipped_calibration,
                 "Keep the shipped transducers' zero and gain errors (default: perfect calibration).");
+  sub->add_flag("--drawn-gains", command->drawn_gains,
+                "Draw each unit's force and pressure transducer gain errors from the lab calibration the fit assumes "
+                "(normal, sd 0.2 %): the coverage of intervals that hold the calibration.");
   sub->add_option("--start-off", command->start_off, "Largest relative offset of the restart in every parameter.")
       ->check(Between(0.0, 0.9))
       ->capture_default_str();

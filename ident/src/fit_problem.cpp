@@ -228,14 +228,17 @@ struct FitProblem::Experiment {
   // j0 - 1 .. j0 + 2 (mod n). Linear interpolation would bias the fit by h^2 y''/8, comparable to
   // the parameter uncertainty at n = 800.
   std::vector<int> j0;
+  std::vector<std::array<int, 4>> taps;  // the grid points j0 - 1 .. j0 + 2, wrapped (no modulo per use)
   std::vector<std::array<double, 4>> weights;
 
   void MapPhases(int n) {
     j0.resize(data->phases.size());
+    taps.resize(data->phases.size());
     weights.resize(data->phases.size());
     for (std::size_t i = 0; i < data->phases.size(); ++i) {
       const double position = data->phases[i] * n;
       j0[i] = static_cast<int>(std::floor(position)) % n;
+      for (int k = 0; k < 4; ++k) taps[i][k] = (j0[i] + k - 1 + n) % n;
       const double t = position - std::floor(position);
       weights[i] = {-t * (t - 1) * (t - 2) / 6, (t + 1) * (t - 1) * (t - 2) / 2, -(t + 1) * t * (t - 2) / 2,
                     (t + 1) * t * (t - 1) / 6};
@@ -244,11 +247,10 @@ struct FitProblem::Experiment {
   //! A grid function (n values, any stride) at the data phases.
   template <class Grid>
   Eigen::VectorXd AtPhases(const Grid& grid) const {
-    const int n = static_cast<int>(grid.size());
     Eigen::VectorXd out(j0.size());
     for (std::size_t i = 0; i < j0.size(); ++i) {
       double v = 0.0;
-      for (int k = 0; k < 4; ++k) v += weights[i][k] * grid((j0[i] + k - 1 + n) % n);
+      for (int k = 0; k < 4; ++k) v += weights[i][k] * grid(taps[i][k]);
       out[i] = v;
     }
     return out;
@@ -256,14 +258,20 @@ struct FitProblem::Experiment {
   //! Every column of an n-row matrix at the data phases.
   Eigen::MatrixXd AtPhasesColumns(const Eigen::MatrixXd& grid) const {
     Eigen::MatrixXd out(static_cast<Eigen::Index>(j0.size()), grid.cols());
-    for (Eigen::Index c = 0; c < grid.cols(); ++c) out.col(c) = AtPhases(grid.col(c));
+    for (Eigen::Index c = 0; c < grid.cols(); ++c) {
+      const double* g = grid.col(c).data();
+      double* o = out.col(c).data();
+      for (std::size_t i = 0; i < j0.size(); ++i)
+        o[i] = weights[i][0] * g[taps[i][0]] + weights[i][1] * g[taps[i][1]] + weights[i][2] * g[taps[i][2]] +
+               weights[i][3] * g[taps[i][3]];
+    }
     return out;
   }
   //! The transpose of AtPhases: values at the data phases spread back onto the n grid points.
   Eigen::VectorXd ToGrid(const Eigen::VectorXd& at_phases, int n) const {
     Eigen::VectorXd grid = Eigen::VectorXd::Zero(n);
     for (std::size_t i = 0; i < j0.size(); ++i)
-      for (int k = 0; k < 4; ++k) grid[(j0[i] + k - 1 + n) % n] += weights[i][k] * at_phases[static_cast<int>(i)];
+      for (int k = 0; k < 4; ++k) grid[taps[i][k]] += weights[i][k] * at_phases[static_cast<int>(i)];
     return grid;
   }
   double InputDof(int b) const {

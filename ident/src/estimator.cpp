@@ -203,7 +203,7 @@ FitSummary Estimator::Fit(const std::vector<ExperimentData>& data, const Paramet
   // inputs would take up the model's misfit (from 20 % off the friction's sign flipped through
   // sharpness 0 on the standard matrix), near it they take up what the series truncates.
   bool estimating_inputs = false;
-  // At a converged iterate: true when the fit goes on with the inputs estimated.
+  // At an iterate within reach of the first round's optimum: true when the fit goes on with the inputs estimated.
   // `sensitivities_current`: the last Linearise was at this iterate, so the joint problem's first one
   // keeps its parameter sensitivities and adds the inputs'.
   const auto estimate_inputs_now = [&](bool sensitivities_current) {

@@ -183,6 +183,9 @@ struct FitProblem::Experiment {
     Eigen::VectorXd xi;
     //! Per fitted channel, d(prediction at the phases)/d xi, reused as the parameters' are.
     std::vector<Eigen::MatrixXd> sensitivities_at_phases;
+    //! Per fitted channel, unweighted products of the sensitivities above: J_c^T J_c (lower triangle)
+    //! and J^T J_c with the parameters' of the same call; kept while both are reused.
+    std::vector<Eigen::MatrixXd> gram, coupling;
     //! Per fitted channel, the residual degrees of freedom the estimate takes (of the last Linearise).
     std::vector<double> dof;
   };
@@ -198,14 +201,17 @@ struct FitProblem::Experiment {
   // j0 - 1 .. j0 + 2 (mod n). Linear interpolation would bias the fit by h^2 y''/8, comparable to
   // the parameter uncertainty at n = 800.
   std::vector<int> j0;
+  std::vector<std::array<int, 4>> taps;  // the grid points j0 - 1 .. j0 + 2, wrapped (no modulo per use)
   std::vector<std::array<double, 4>> weights;
 
   void MapPhases(int n) {
     j0.resize(data->phases.size());
+    taps.resize(data->phases.size());
     weights.resize(data->phases.size());
     for (std::size_t i = 0; i < data->phases.size(); ++i) {
       const double position = data->phases[i] * n;
       j0[i] = static_cast<int>(std::floor(position)) % n;
+      for (int k = 0; k < 4; ++k) taps[i][k] = (j0[i] + k - 1 + n) % n;
       const double t = position - std::floor(position);
       weights[i] = {-t * (t - 1) * (t - 2) / 6, (t + 1) * (t - 1) * (t - 2) / 2, -(t + 1) * t * (t - 2) / 2,
                     (t + 1) * t * (t - 1) / 6};
@@ -214,11 +220,10 @@ struct FitProblem::Experiment {
   //! A grid function (n values, any stride) at the data phases.
   template <class Grid>
   Eigen::VectorXd AtPhases(const Grid& grid) const {
-    const int n = static_cast<int>(grid.size());
     Eigen::VectorXd out(j0.size());
     for (std::size_t i = 0; i < j0.size(); ++i) {
       double v = 0.0;
-      for (int k = 0; k < 4; ++k) v += weights[i][k] * grid((j0[i] + k - 1 + n) % n);
+      for (int k = 0; k < 4; ++k) v += weights[i][k] * grid(taps[i][k]);
       out[i] = v;
     }
     return out;
@@ -226,14 +231,20 @@ struct FitProblem::Experiment {
   //! Every column of an n-row matrix at the data phases.
   Eigen::MatrixXd AtPhasesColumns(const Eigen::MatrixXd& grid) const {
     Eigen::MatrixXd out(static_cast<Eigen::Index>(j0.size()), grid.cols());
-    for (Eigen::Index c = 0; c < grid.cols(); ++c) out.col(c) = AtPhases(grid.col(c));
+    for (Eigen::Index c = 0; c < grid.cols(); ++c) {
+      const double* g = grid.col(c).data();
+      double* o = out.col(c).data();
+      for (std::size_t i = 0; i < j0.size(); ++i)
+        o[i] = weights[i][0] * g[taps[i][0]] + weights[i][1] * g[taps[i][1]] + weights[i][2] * g[taps[i][2]] +
+               weights[i][3] * g[taps[i][3]];
+    }
     return out;
   }
   //! The transpose of AtPhases: values at the data phases spread back onto the n grid points.
   Eigen::VectorXd ToGrid(const Eigen::VectorXd& at_phases, int n) const {
     Eigen::VectorXd grid = Eigen::VectorXd::Zero(n);
     for (std::size_t i = 0; i < j0.size(); ++i)
-      for (int k = 0; k < 4; ++k) grid[(j0[i] + k - 1 + n) % n] += weights[i][k] * at_phases[static_cast<int>(i)];
+      for (int k = 0; k < 4; ++k) grid[taps[i][k]] += weights[i][k] * at_phases[static_cast<int>(i)];
     return grid;
   }
   double InputDof(int b) const {
@@ -633,6 +644,7 @@ NormalEquations FitProblem::Linearise(const std::vector<double>& theta, const st
   ParallelFor(experiment_count(), threads_, [&](int a) {
     Experiment& s = experiments_[a];
     if (!s.active) return;
+    bool inputs_fresh = false, parameters_fresh = false;
     if (mode.inputs && s.estimate &&
         (!mode.reuse || static_cast<int>(s.estimate->sensitivities_at_phases.size()) != nc)) {
       // d(outputs)/d xi: a forward solve per coefficient with eq. 14's factorisation.
@@ -644,8 +656,15 @@ NormalEquations FitProblem::Linearise(const std::vector<double>& theta, const st
         s.estimate.reset();
       } else {
         s.estimate->sensitivities_at_phases.assign(nc, Eigen::MatrixXd());
-        for (int b = 0; b < nc; ++b)
-          if (s.channel_fitted[b]) s.estimate->sensitivities_at_phases[b] = s.AtPhasesColumns(sens[output_row_[b]]);
+        s.estimate->gram.assign(nc, Eigen::MatrixXd());
+        for (int b = 0; b < nc; ++b) {
+          if (!s.channel_fitted[b]) continue;
+          const Eigen::MatrixXd& jc = s.estimate->sensitivities_at_phases[b] = s.AtPhasesColumns(sens[output_row_[b]]);
+          Eigen::MatrixXd& g = s.estimate->gram[b];
+          g.setZero(jc.cols(), jc.cols());
+          g.selfadjointView<Eigen::Lower>().rankUpdate(jc.transpose());
+        }
+        inputs_fresh = true;
       }
     }
     const bool with_estimate = mode.inputs && s.estimate;
@@ -658,6 +677,7 @@ NormalEquations FitProblem::Linearise(const std::vector<double>& theta, const st
         j.resize(static_cast<Eigen::Index>(s.j0.size()), l);
         for (int k = 0; k < l; ++k) j.col(k) = s.AtPhases(sens[output_row_[b]].col(k)) * scale_[estimated_[k]];
       }
+      parameters_fresh = true;
     }
     // The gradient's noise from the input's: J^T W P dy = (P^T W J)^T dy on the grid (P the
     // interpolation to the phases), so the output weights P^T W J give it by one adjoint solve.
@@ -670,10 +690,15 @@ NormalEquations FitProblem::Linearise(const std::vector<double>& theta, const st
     std::vector<Eigen::MatrixXd> weights;
     if (with_input) weights.assign(s.solution.channels.size(), Eigen::MatrixXd::Zero(n, l));
     NuisanceBlock block;
-    std::vector<Eigen::MatrixXd> channel_information;  // J_c^T W J_c per channel (lower triangle)
     if (with_estimate) {
-      channel_information.assign(nc, Eigen::MatrixXd());
       const Eigen::Index k = s.estimate->xi.size();
+      // The products over the samples only when a factor changed (reused sensitivities: the same).
+      if (inputs_fresh || parameters_fresh || static_cast<int>(s.estimate->coupling.size()) != nc) {
+        s.estimate->coupling.assign(nc, Eigen::MatrixXd());
+        for (int b = 0; b < nc; ++b)
+          if (s.channel_fitted[b])
+            s.estimate->coupling[b].noalias() = s.sensitivities_at_phases[b].transpose() * s.estimate->sensitivities_at_phases[b];
+      }
       block.information = Eigen::MatrixXd::Identity(k, k);
       block.coupling = Eigen::MatrixXd::Zero(l, k);
       block.gradient = -s.estimate->xi;
@@ -688,13 +713,9 @@ NormalEquations FitProblem::Linearise(const std::vector<double>& theta, const st
       if (with_input)
         for (int k = 0; k < l; ++k) weights[output_row_[b]].col(k) += s.ToGrid(j.col(k), n) / variance[b];
       if (with_estimate) {
-        const Eigen::MatrixXd& jc = s.estimate->sensitivities_at_phases[b];
-        Eigen::MatrixXd& g = channel_information[b];
-        g.setZero(jc.cols(), jc.cols());
-        g.selfadjointView<Eigen::Lower>().rankUpdate(jc.transpose(), w);
-        block.information.triangularView<Eigen::Lower>() += g;
-        block.coupling.noalias() += w * (j.transpose() * jc);
-        block.gradient.noalias() += w * (jc.transpose() * r);
+        block.information.triangularView<Eigen::Lower>() += w * s.estimate->gram[b];
+        block.coupling += w * s.estimate->coupling[b];
+        block.gradient.noalias() += w * (s.estimate->sensitivities_at_phases[b].transpose() * r);
       }
     }
     if (with_estimate) {
@@ -707,8 +728,8 @@ NormalEquations FitProblem::Linearise(const std::vector<double>& theta, const st
       s.estimate->dof.assign(nc, 0.0);
       for (int b = 0; b < nc; ++b) {
         if (!s.channel_fitted[b]) continue;
-        const Eigen::MatrixXd g = channel_information[b].selfadjointView<Eigen::Lower>();
-        s.estimate->dof[b] = llt.solve(g).trace();
+        const Eigen::MatrixXd g = s.estimate->gram[b].selfadjointView<Eigen::Lower>();
+        s.estimate->dof[b] = llt.solve(g).trace() / variance[b];
       }
       eq.inputs[a] = std::move(block);
     }

@@ -232,14 +232,17 @@ class PeriodicSolver : public PeriodicPredictor {
   Eigen::MatrixXd ColdStart(const PeriodicInput& input, std::span<const double> theta) const;
   //! Factorises at the solution unless its Jacobian is current (a cache in the solution).
   void MakeJacobianCurrent(const PeriodicSolution& solution, const InputRates& rates, std::span<const double> theta);
-  //! -dG/dtheta at a solution for the parameters `wanted`, scaled like G (eq. 14's right-hand side).
+  //! -dG/dtheta at a solution for the parameters `wanted` (at most the Jet's directions), scaled like
+  //! G (eq. 14's right-hand side), into `rhs` (m n x wanted).
   template <class J>
-  Eigen::MatrixXd ParameterResiduals(const PeriodicSolution& solution, const InputRates& rates,
-                                     std::span<const double> theta, const std::vector<int>& wanted) const;
-  //! d outputs / d theta from dz/dtheta (eq. 15): one (n x wanted) matrix per channel.
+  void ParameterResiduals(const PeriodicSolution& solution, const InputRates& rates, std::span<const double> theta,
+                          const std::vector<int>& wanted, Eigen::Ref<Eigen::MatrixXd> rhs) const;
+  //! d outputs / d theta from dz/dtheta (eq. 15) for the parameters `wanted` (at most the Jet's
+  //! directions) into columns first_column .. of each channel's (n x all wanted) matrix in `sens`.
   template <class J>
-  std::vector<Eigen::MatrixXd> OutputDerivatives(const PeriodicSolution& solution, std::span<const double> theta,
-                                                 const std::vector<int>& wanted, const Eigen::MatrixXd& dz) const;
+  void OutputDerivatives(const PeriodicSolution& solution, std::span<const double> theta,
+                         const std::vector<int>& wanted, const Eigen::Ref<const Eigen::MatrixXd>& dz,
+                         std::vector<Eigen::MatrixXd>& sens, int first_column) const;
   //! Moves a warm start's unknowns z along its sensitivities to `theta`; false when it cannot.
   bool TangentPrediction(const PeriodicSolution& from, std::span<const double> theta, Eigen::MatrixXd& z) const;
   //! Damped Newton from z, starting with the factorisation `lu` when given (simplified steps).

@@ -24,6 +24,8 @@ constexpr double kDeepWindow = 0.02;
 // The matrix stays at least this far inside full extension (true stroke), m.
 constexpr double kTopOutMargin = 1e-3;
 constexpr double kMinCompressionRatio = 5.0, kMaxCompressionRatio = 12.0;
+// Periodic grid of an effect's signal: the fits' default, so the signal is what a fit resolves.
+constexpr int kSignalGrid = 800;
 
 const std::vector<std::string> kBases = {"1dof", "1dof+heat-exchange", "2dof"};
 const std::vector<std::string> kExtraEffects = {"viscous-damping", "stribeck-friction", "end-stop",
@@ -329,6 +331,56 @@ Truth WithIdealRig(Truth truth) {
   for (SensorOptions* s : {&truth.sensors.stroke, &truth.sensors.force, &truth.sensors.pressure})
     s->offset = s->gain_error = 0.0;
   return truth;
+}
+
+EffectSignal MeasureEffectSignal(const Truth& unit, std::string_view effect, const std::vector<rig::MatrixEntry>& matrix) {
+  if (!unit.has_effect(effect)) throw TruthError(fmt::format("{}: the unit has no effect '{}'", unit.source, effect));
+  const ident::Model model = unit.BuildModel(ident::Causality::kStrokeInput);
+  const std::vector<double> with = unit.Parameters(model).values();
+  // The effect's sizing parameters are those the unit's model has and the model without the
+  // effect has not; every catalogue effect is absent at a size of 0.
+  Truth without = unit;
+  std::erase(without.effects, std::string(effect));
+  const ident::ParameterSet reduced = without.BuildModel(ident::Causality::kStrokeInput).defaults();
+  std::vector<double> neutral = with;
+  bool sized = false;
+  for (int i = 0; i < model.parameter_count(); ++i) {
+    const ident::ParameterSpec& spec = model.defaults().spec(i);
+    if (spec.sizes_term && !reduced.find(spec.name)) {
+      neutral[i] = 0.0;
+      sized = true;
+    }
+  }
+  if (!sized) throw TruthError(fmt::format("{}: effect '{}' has no sizing parameter", unit.source, effect));
+  const std::pair<const char*, double> channels[] = {{"force", unit.sensors.force.noise},
+                                                     {"pressure", unit.sensors.pressure.noise}};
+  for (const auto& [name, sd] : channels)
+    if (!(sd > 0)) throw TruthError(fmt::format("{}: the {} channel has no noise to measure a signal in", unit.source, name));
+
+  EffectSignal signal;
+  ident::PeriodicSolver solver(model);
+  for (const rig::MatrixEntry& e : matrix) {
+    const ident::PeriodicInput input = ident::PeriodicInput::Sine(e.frequency, e.static_position, e.amplitude, kSignalGrid);
+    ident::PeriodicSolution on, off;
+    try {
+      on = solver.Solve(input, with);
+      off = solver.Solve(input, neutral, &on);
+    } catch (const ident::PeriodicSolverError& error) {
+      throw TruthError(fmt::format("{}: experiment '{}': no periodic steady state: {}", unit.source, e.label, error.what()));
+    }
+    const double samples = static_cast<double>(unit.acquisition.periods) * unit.acquisition.sample_rate / e.frequency;
+    for (const auto& [name, sd] : channels) {
+      const double mean_square = (on.channel(name) - off.channel(name)).squaredNorm() / kSignalGrid;
+      const double rms = std::sqrt(mean_square) / sd;
+      signal.chi2 += samples * mean_square / (sd * sd);
+      if (rms > signal.rms) {
+        signal.rms = rms;
+        signal.experiment = e.label;
+        signal.channel = name;
+      }
+    }
+  }
+  return signal;
 }
 
 }  // namespace strut::sim

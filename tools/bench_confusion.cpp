@@ -110,6 +110,7 @@ struct BenchConfusion {
       std::map<std::string, int> added;
       std::vector<std::pair<double, bool>> by_size;    // (size, right first term)
       std::vector<std::pair<double, bool>> by_signal;  // (signal in noise sd, right first term)
+      std::vector<std::pair<double, bool>> by_left;    // (signal the baseline leaves, right first term)
       for (int u = 0; u < units; ++u) {
         const unsigned long seed = first_seed + u;
         sim::UnitDraw draw;
@@ -154,9 +155,15 @@ struct BenchConfusion {
         nlohmann::json row{{"effect", effect}, {"seed", seed}, {"found", r.missing}, {"right_first", right_first},
                            {"seconds", seconds.back()}};
         if (signal) {
-          row["signal"] = {{"rms", signal->rms}, {"experiment", signal->experiment}, {"channel", signal->channel},
-                           {"chi2", signal->chi2}};
+          row["signal"] = {{"rms", signal->rms},
+                           {"experiment", signal->experiment},
+                           {"channel", signal->channel},
+                           {"chi2", signal->chi2},
+                           {"left_rms", signal->left_rms},
+                           {"left_experiment", signal->left_experiment},
+                           {"left_channel", signal->left_channel}};
           by_signal.emplace_back(signal->rms, right_first);
+          by_left.emplace_back(signal->left_rms, right_first);
         }
         if (study) {
           const ident::ParameterSet p = truth.Parameters(rig.model());
@@ -173,17 +180,19 @@ struct BenchConfusion {
         unit_rows.push_back(row);
       }
       // The detection size in the data (the effect's signal) and, in the study, in its parameter.
-      const double detection_signal = DetectionSize(by_signal);
+      const double detection_signal = DetectionSize(by_signal), detection_left = DetectionSize(by_left);
       const double detection_size = study ? DetectionSize(by_size) : NAN;
+      const auto shown = [](double x, std::string_view unit) {
+        return std::isfinite(x) ? fmt::format("{:.3g} {}", x, unit) : std::string("not reached");
+      };
       if (effect != "none") {
-        std::string line = fmt::format("  {}: detection signal (>= 95 % right first above it) {}", effect,
-                                       std::isfinite(detection_signal) ? fmt::format("{:.3g} sd", detection_signal)
-                                                                       : std::string("not reached"));
+        std::string line = fmt::format("  {}: detection (>= 95 % right first above it) in the signal {}, in the signal "
+                                       "left after the baseline {}",
+                                       effect, shown(detection_signal, "sd"), shown(detection_left, "sd"));
         if (study)
-          line += fmt::format("; in theta{} ({} {:.3g}..{:.3g} {}) {}", study->index,
+          line += fmt::format(", in theta{} ({} {:.3g}..{:.3g} {}) {}", study->index,
                               study->log ? "log-uniform" : "uniform", study->low, study->high, study->unit,
-                              std::isfinite(detection_size) ? fmt::format("{:.3g} {}", detection_size, study->unit)
-                                                            : std::string("not reached"));
+                              shown(detection_size, study->unit));
         detection_lines.push_back(line + "\n" + Bins(by_signal, "sd"));
       }
       std::sort(seconds.begin(), seconds.end());
@@ -195,12 +204,13 @@ struct BenchConfusion {
       nlohmann::json row{{"effect", effect}, {"units", units}, {"right_first", right}, {"extra", extra},
                          {"nothing_found", none}, {"median_seconds", seconds[seconds.size() / 2]}, {"added", added}};
       if (std::isfinite(detection_signal)) row["detection_signal"] = detection_signal;
+      if (std::isfinite(detection_left)) row["detection_left"] = detection_left;
       if (std::isfinite(detection_size)) row["detection_size"] = detection_size;
       rows.push_back(row);
     }
     if (!detection_lines.empty()) {
       std::cout << "detection (signal: the effect's largest RMS over the noise sd in one experiment and channel; "
-                   "units sorted by it in five bins):\n";
+                   "left: what the baseline's linearised refit leaves of it; units sorted by the signal in five bins):\n";
       for (const std::string& line : detection_lines) std::cout << line;
     }
     if (!json_path.empty())

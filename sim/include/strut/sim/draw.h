@@ -118,6 +118,12 @@ struct EffectSignal {
   //! The chi-square the difference adds over every recorded sample: sum over experiments and
   //! channels of (samples recorded) mean(difference^2) / sd^2.
   double chi2 = 0.0;
+  //! The largest RMS / noise sd of what is left of the difference after the baseline has absorbed
+  //! what it can: the unit's model without the effect, its default estimated parameters (and their
+  //! priors) refitted to the difference, linearised at the neutral unit (one Gauss-Newton step
+  //! from the truth, the fit's weights). A gas law absorbs most of a real gas, for instance.
+  double left_rms = 0.0;
+  std::string left_experiment, left_channel;  //!< where `left_rms` is reached
 };
 
 //! The signal of `effect` (one of the unit's extra effects, whose sizing parameters are 0 when

@@ -7,6 +7,7 @@
 #include <fstream>
 #include <functional>
 #include <map>
+#include <numbers>
 
 #include "strut/daq/session.h"
 #include "strut/ident/model.h"
@@ -230,6 +231,84 @@ TEST(SimDraw, MistakesInTheSpecAreNamed) {
   EXPECT_THROW(DrawUnit(spec, 1), TruthError);
   spec.effects = {{"viscous-damping", -3.0}};
   EXPECT_THROW(DrawUnit(spec, 1), TruthError);
+}
+
+// Viscous damping under stroke input adds theta18 q' to the force and leaves the gas alone, so its
+// signal has a closed form: RMS theta18 a 2 pi f / sqrt(2) per experiment in the load cell's sd.
+TEST(SimDraw, AnEffectsSignalIsItsDifferenceInTheDataInNoiseSd) {
+  constexpr double kDamping = 400.0;  // N s/m
+  UnitDraw spec;
+  spec.effects = {{"viscous-damping", kDamping}};
+  const Truth unit = DrawUnit(spec, 11);
+  const std::vector<rig::MatrixEntry> matrix = rig::StandardMatrix();
+  const EffectSignal signal = MeasureEffectSignal(unit, "viscous-damping", matrix);
+
+  double largest = 0.0, chi2 = 0.0;
+  std::string where;
+  for (const rig::MatrixEntry& e : matrix) {
+    const double rms = kDamping * e.amplitude * 2.0 * std::numbers::pi * e.frequency / std::sqrt(2.0);
+    const double samples = unit.acquisition.periods * unit.acquisition.sample_rate / e.frequency;
+    chi2 += samples * std::pow(rms / unit.sensors.force.noise, 2);
+    if (rms > largest) largest = rms, where = e.label;
+  }
+  // The solver's difference operators carry the rate: backward2 on 800 points to about 2e-5.
+  EXPECT_NEAR(signal.rms, largest / unit.sensors.force.noise, 1e-4 * signal.rms);
+  EXPECT_NEAR(signal.chi2, chi2, 2e-4 * chi2);
+  EXPECT_EQ(signal.experiment, where);
+  EXPECT_EQ(signal.channel, "force");
+
+  // Half the damping, half the signal; a noisier load cell, a smaller one.
+  Truth half = unit, noisy = unit;
+  half.parameters.emplace_back("theta18", kDamping / 2);  // applied after the drawn values
+  noisy.sensors.force.noise *= 4.0;
+  EXPECT_NEAR(MeasureEffectSignal(half, "viscous-damping", matrix).rms, signal.rms / 2, 1e-6 * signal.rms);
+  EXPECT_NEAR(MeasureEffectSignal(noisy, "viscous-damping", matrix).rms, signal.rms / 4, 1e-6 * signal.rms);
+}
+
+// A stop the matrix never reaches leaves no signal; one it is driven into does.
+TEST(SimDraw, AnEndStopsSignalIsHowFarTheMatrixDrivesIntoIt) {
+  const auto signal_at = [](double position) {
+    UnitDraw spec;
+    spec.effects = {{"end-stop", std::nullopt}};
+    Truth unit = DrawUnit(spec, 3);
+    unit.parameters.emplace_back("theta23", position);
+    return MeasureEffectSignal(unit, "end-stop", rig::StandardMatrix());
+  };
+  EXPECT_LT(signal_at(-0.01).rms, 1e-3);  // 10 mm beyond full extension: 100 smoothing lengths
+  const EffectSignal deep = signal_at(0.015);  // the shallowest test reaches 4 mm + 5 mm of stroke zero
+  EXPECT_GT(deep.rms, 10.0);
+  EXPECT_EQ(deep.channel, "force");
+  // A contact force at the bottom of a few experiments is nothing the baseline's terms can make.
+  EXPECT_GT(deep.left_rms, 0.5 * deep.rms);
+}
+
+// The 2 dof gas law (theta5..theta7, the stroke zero) takes up most of a virial correction: what
+// the baseline leaves is a small part of the difference (docs/discovery.md, "Detection sizes").
+TEST(SimDraw, TheBaselineAbsorbsMostOfARealGas) {
+  UnitDraw spec;
+  spec.effects = {{"real-gas", 1.0}};
+  const EffectSignal signal = MeasureEffectSignal(DrawUnit(spec, 11), "real-gas", rig::StandardMatrix());
+  EXPECT_GT(signal.rms, 5.0);
+  EXPECT_EQ(signal.channel, "pressure");
+  EXPECT_GT(signal.left_rms, 0.0);
+  EXPECT_LT(signal.left_rms, 0.2 * signal.rms);
+}
+
+TEST(SimDraw, ASignalOfAMissingEffectOrWithoutNoiseIsRefused) {
+  UnitDraw spec;
+  spec.effects = {{"real-gas", std::nullopt}};
+  Truth unit = DrawUnit(spec, 2);
+  const auto message = [&](std::string_view effect) {
+    try {
+      MeasureEffectSignal(unit, effect, rig::StandardMatrix());
+    } catch (const TruthError& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  EXPECT_NE(message("viscous-damping").find("no effect 'viscous-damping'"), std::string::npos) << message("viscous-damping");
+  unit.sensors.pressure.noise = 0.0;
+  EXPECT_NE(message("real-gas").find("pressure channel has no noise"), std::string::npos) << message("real-gas");
 }
 
 TEST(SimDraw, TheSessionRecordsTheTruthTheRigSimulated) {

@@ -6,6 +6,8 @@
 #include <algorithm>
 #include <chrono>
 #include <iostream>
+#include <map>
+#include <optional>
 #include <nlohmann/json.hpp>
 #include <cmath>
 #include <random>
@@ -47,8 +49,8 @@ const StudyRange* FindStudyRange(const std::string& effect) {
   return nullptr;
 }
 
-//! The smallest size above which at least 95 % of the units (and at least 10) had the right first
-//! term; NaN when no such size.
+//! The smallest size (or signal) above which at least 95 % of the units (and at least 10) had the
+//! right first term; NaN when no such size.
 double DetectionSize(std::vector<std::pair<double, bool>> units) {
   std::sort(units.begin(), units.end());
   for (std::size_t k = 0; k + 10 <= units.size(); ++k) {
@@ -56,6 +58,21 @@ double DetectionSize(std::vector<std::pair<double, bool>> units) {
     if (right >= 0.95 * static_cast<double>(units.size() - k)) return units[k].first;
   }
   return NAN;
+}
+
+//! The units sorted by their measure in five bins, each with its count of right first terms.
+std::string Bins(std::vector<std::pair<double, bool>> units, std::string_view unit) {
+  std::sort(units.begin(), units.end());
+  std::string bins;
+  const std::size_t count = units.size();
+  for (std::size_t b = 0; b < 5 && count > 0; ++b) {
+    const std::size_t lo = b * count / 5, hi = (b + 1) * count / 5;
+    if (hi <= lo) continue;
+    const long k = std::count_if(units.begin() + lo, units.begin() + hi, [](const auto& x) { return x.second; });
+    bins += fmt::format("    {:.3g}..{:.3g} {}: right first {}/{}\n", units[lo].first, units[hi - 1].first, unit, k,
+                        hi - lo);
+  }
+  return bins;
 }
 
 struct BenchConfusion {
@@ -66,6 +83,7 @@ struct BenchConfusion {
   bool servo = false;
   std::string sizes = "drawn";
   std::string json_path;
+  std::string sessions_dir;
 
   void Run() const {
     CheckOutputPath("--json", json_path, {});
@@ -90,7 +108,9 @@ struct BenchConfusion {
       int right = 0, extra = 0, none = 0;
       std::vector<double> seconds;
       std::map<std::string, int> added;
-      std::vector<std::pair<double, bool>> by_size;  // (size, right first term)
+      std::vector<std::pair<double, bool>> by_size;    // (size, right first term)
+      std::vector<std::pair<double, bool>> by_signal;  // (signal in noise sd, right first term)
+      std::vector<std::pair<double, bool>> by_left;    // (signal the baseline leaves, right first term)
       for (int u = 0; u < units; ++u) {
         const unsigned long seed = first_seed + u;
         sim::UnitDraw draw;
@@ -106,10 +126,19 @@ struct BenchConfusion {
           draw.effects.push_back({effect, size});
         }
         const sim::Truth truth = sim::DrawUnit(around, draw, seed);
+        // How plainly the effect shows in this unit's data, before any fit absorbs part of it.
+        std::optional<sim::EffectSignal> signal;
+        if (effect != "none") signal = sim::MeasureEffectSignal(truth, effect, sim::StandardMatrixPlan().experiments);
         const sim::SimulatedRig rig(truth);
         sim::RigRunOptions run;
         run.seed = seed;
         const daq::Session session = rig.RunMatrix(sim::StandardMatrixPlan(), run);
+        if (!sessions_dir.empty()) {
+          // Kept so that a unit can be looked at again: strut -v discover DIR/EFFECT-SEED.h5 --model BASE.
+          const std::string path = fmt::format("{}/{}-{}.h5", sessions_dir, effect, seed);
+          CheckOutputPath("--sessions", path, {});
+          daq::WriteSession(path, session);
+        }
         const auto start = std::chrono::steady_clock::now();
         const ident::DiscoveryResult r =
             ident::Discover(ident::PrepareFitData(session, fmt::format("unit {}", seed), model, fit.estimator.n), fit, {});
@@ -125,6 +154,17 @@ struct BenchConfusion {
         // Per unit: the effect's size and its candidate's first-round scores.
         nlohmann::json row{{"effect", effect}, {"seed", seed}, {"found", r.missing}, {"right_first", right_first},
                            {"seconds", seconds.back()}};
+        if (signal) {
+          row["signal"] = {{"rms", signal->rms},
+                           {"experiment", signal->experiment},
+                           {"channel", signal->channel},
+                           {"chi2", signal->chi2},
+                           {"left_rms", signal->left_rms},
+                           {"left_experiment", signal->left_experiment},
+                           {"left_channel", signal->left_channel}};
+          by_signal.emplace_back(signal->rms, right_first);
+          by_left.emplace_back(signal->left_rms, right_first);
+        }
         if (study) {
           const ident::ParameterSet p = truth.Parameters(rig.model());
           const double size = p.value(p.position_of_index(study->index));
@@ -139,24 +179,21 @@ struct BenchConfusion {
         std::cout << "unit " << row.dump() << std::endl;
         unit_rows.push_back(row);
       }
-      if (study) {
-        // Detection by size: the units sorted by size in five bins.
-        std::sort(by_size.begin(), by_size.end());
-        std::string bins;
-        const std::size_t count = by_size.size();
-        for (int b = 0; b < 5 && count > 0; ++b) {
-          const std::size_t lo = b * count / 5, hi = (b + 1) * count / 5;
-          if (hi <= lo) continue;
-          const long k = std::count_if(by_size.begin() + lo, by_size.begin() + hi, [](const auto& x) { return x.second; });
-          bins += fmt::format("    {:.3g}..{:.3g} {}: right first {}/{}\n", by_size[lo].first, by_size[hi - 1].first,
-                              study->unit, k, hi - lo);
-        }
-        const double detection = DetectionSize(by_size);
-        detection_lines.push_back(fmt::format(
-            "  {} (theta{}, {} {:.3g}..{:.3g} {}): detection size (>= 95 % right first above it) {}\n{}", effect,
-            study->index, study->log ? "log-uniform" : "uniform", study->low, study->high, study->unit,
-            std::isfinite(detection) ? fmt::format("{:.3g} {}", detection, study->unit) : std::string("not reached"),
-            bins));
+      // The detection size in the data (the effect's signal) and, in the study, in its parameter.
+      const double detection_signal = DetectionSize(by_signal), detection_left = DetectionSize(by_left);
+      const double detection_size = study ? DetectionSize(by_size) : NAN;
+      const auto shown = [](double x, std::string_view unit) {
+        return std::isfinite(x) ? fmt::format("{:.3g} {}", x, unit) : std::string("not reached");
+      };
+      if (effect != "none") {
+        std::string line = fmt::format("  {}: detection (>= 95 % right first above it) in the signal {}, in the signal "
+                                       "left after the baseline {}",
+                                       effect, shown(detection_signal, "sd"), shown(detection_left, "sd"));
+        if (study)
+          line += fmt::format(", in theta{} ({} {:.3g}..{:.3g} {}) {}", study->index,
+                              study->log ? "log-uniform" : "uniform", study->low, study->high, study->unit,
+                              shown(detection_size, study->unit));
+        detection_lines.push_back(line + "\n" + Bins(by_signal, "sd"));
       }
       std::sort(seconds.begin(), seconds.end());
       std::string what;
@@ -164,11 +201,16 @@ struct BenchConfusion {
       std::cout << fmt::format("  {:<20} {:>6} {:>12} {:>12} {:>10} {:>10.2f}  {}\n", effect, units,
                                effect == "none" ? std::string("-") : std::to_string(right), extra, none,
                                seconds[seconds.size() / 2], what);
-      rows.push_back({{"effect", effect}, {"units", units}, {"right_first", right}, {"extra", extra},
-                      {"nothing_found", none}, {"median_seconds", seconds[seconds.size() / 2]}, {"added", added}});
+      nlohmann::json row{{"effect", effect}, {"units", units}, {"right_first", right}, {"extra", extra},
+                         {"nothing_found", none}, {"median_seconds", seconds[seconds.size() / 2]}, {"added", added}};
+      if (std::isfinite(detection_signal)) row["detection_signal"] = detection_signal;
+      if (std::isfinite(detection_left)) row["detection_left"] = detection_left;
+      if (std::isfinite(detection_size)) row["detection_size"] = detection_size;
+      rows.push_back(row);
     }
     if (!detection_lines.empty()) {
-      std::cout << "detection by size (units sorted by the effect's size, five bins):\n";
+      std::cout << "detection (signal: the effect's largest RMS over the noise sd in one experiment and channel; "
+                   "left: what the baseline's linearised refit leaves of it; units sorted by the signal in five bins):\n";
       for (const std::string& line : detection_lines) std::cout << line;
     }
     if (!json_path.empty())
@@ -196,6 +238,10 @@ void RegisterBenchConfusion(CLI::App& bench) {
       ->check(CLI::IsMember({"drawn", "study"}))
       ->capture_default_str();
   sub->add_option("--json", command->json_path, "Also write the table and every unit's result as JSON to this file.");
+  sub->add_option("--sessions", command->sessions_dir,
+                  "Also write every unit's session to this existing folder as EFFECT-SEED.h5 (an existing session is "
+                  "refused), to run strut discover on it again.")
+      ->check(CLI::ExistingDirectory);
   sub->callback([command] { command->Run(); });
 }
 

@@ -9,6 +9,7 @@
 #include <random>
 
 #include "strut/daq/session.h"
+#include "strut/ident/estimator.h"
 #include "strut/ident/model.h"
 #include "strut/ident/periodic.h"
 
@@ -24,6 +25,8 @@ constexpr double kDeepWindow = 0.02;
 // The matrix stays at least this far inside full extension (true stroke), m.
 constexpr double kTopOutMargin = 1e-3;
 constexpr double kMinCompressionRatio = 5.0, kMaxCompressionRatio = 12.0;
+// Periodic grid of an effect's signal: the fits' default, so the signal is what a fit resolves.
+constexpr int kSignalGrid = 800;
 
 const std::vector<std::string> kBases = {"1dof", "1dof+heat-exchange", "2dof"};
 const std::vector<std::string> kExtraEffects = {"viscous-damping", "stribeck-friction", "end-stop",
@@ -329,6 +332,95 @@ Truth WithIdealRig(Truth truth) {
   for (SensorOptions* s : {&truth.sensors.stroke, &truth.sensors.force, &truth.sensors.pressure})
     s->offset = s->gain_error = 0.0;
   return truth;
+}
+
+EffectSignal MeasureEffectSignal(const Truth& unit, std::string_view effect, const std::vector<rig::MatrixEntry>& matrix) {
+  if (!unit.has_effect(effect)) throw TruthError(fmt::format("{}: the unit has no effect '{}'", unit.source, effect));
+  const ident::Model model = unit.BuildModel(ident::Causality::kStrokeInput);
+  const std::vector<double> with = unit.Parameters(model).values();
+  // The effect's sizing parameters are those the unit's model has and the model without the
+  // effect has not; every catalogue effect is absent at a size of 0.
+  Truth without = unit;
+  std::erase(without.effects, std::string(effect));
+  const ident::ParameterSet reduced = without.BuildModel(ident::Causality::kStrokeInput).defaults();
+  std::vector<double> neutral = with;
+  bool sized = false;
+  for (int i = 0; i < model.parameter_count(); ++i) {
+    const ident::ParameterSpec& spec = model.defaults().spec(i);
+    if (spec.sizes_term && !reduced.find(spec.name)) {
+      neutral[i] = 0.0;
+      sized = true;
+    }
+  }
+  if (!sized) throw TruthError(fmt::format("{}: effect '{}' has no sizing parameter", unit.source, effect));
+  const std::pair<const char*, double> channels[] = {{"force", unit.sensors.force.noise},
+                                                     {"pressure", unit.sensors.pressure.noise}};
+  for (const auto& [name, sd] : channels)
+    if (!(sd > 0)) throw TruthError(fmt::format("{}: the {} channel has no noise to measure a signal in", unit.source, name));
+
+  // What the baseline estimates (by name in the unit's model), scaled as the estimator scales.
+  const std::vector<ident::ParameterChoice> choices = ident::DefaultChoices(reduced);
+  std::vector<int> estimated;
+  std::vector<double> scale, prior_weight;
+  for (int i = 0; i < reduced.size(); ++i) {
+    if (!choices[i].estimate) continue;
+    const int position = *model.defaults().find(reduced.spec(i).name);
+    estimated.push_back(position);
+    scale.push_back(std::max(std::abs(neutral[position]), reduced.spec(i).typical_size()));
+    prior_weight.push_back(choices[i].prior_sd ? scale.back() / *choices[i].prior_sd : 0.0);
+  }
+  const int k = static_cast<int>(estimated.size()), blocks = static_cast<int>(matrix.size()) * 2;
+  // Rows in the fit's weights: each grid point over the averaged data's noise sd (sd / sqrt(periods)).
+  const double per_average = std::sqrt(static_cast<double>(unit.acquisition.periods));
+  Eigen::MatrixXd sensitivity = Eigen::MatrixXd::Zero(blocks * kSignalGrid + k, k);
+  Eigen::VectorXd difference = Eigen::VectorXd::Zero(blocks * kSignalGrid + k);
+
+  EffectSignal signal;
+  ident::PeriodicSolver solver(model);
+  for (std::size_t a = 0; a < matrix.size(); ++a) {
+    const rig::MatrixEntry& e = matrix[a];
+    const ident::PeriodicInput input = ident::PeriodicInput::Sine(e.frequency, e.static_position, e.amplitude, kSignalGrid);
+    ident::PeriodicSolution on, off;
+    std::vector<Eigen::MatrixXd> d_outputs;
+    try {
+      on = solver.Solve(input, with);
+      off = solver.Solve(input, neutral, &on);
+      d_outputs = solver.OutputSensitivities(off, neutral, estimated);
+    } catch (const ident::PeriodicSolverError& error) {
+      throw TruthError(fmt::format("{}: experiment '{}': no periodic steady state: {}", unit.source, e.label, error.what()));
+    }
+    const double samples = static_cast<double>(unit.acquisition.periods) * unit.acquisition.sample_rate / e.frequency;
+    for (int c = 0; c < 2; ++c) {
+      const auto& [name, sd] = channels[c];
+      const Eigen::VectorXd diff = on.channel(name) - off.channel(name);
+      const double mean_square = diff.squaredNorm() / kSignalGrid;
+      const double rms = std::sqrt(mean_square) / sd;
+      signal.chi2 += samples * mean_square / (sd * sd);
+      if (rms > signal.rms) {
+        signal.rms = rms;
+        signal.experiment = e.label;
+        signal.channel = name;
+      }
+      const int row = (2 * static_cast<int>(a) + c) * kSignalGrid;
+      const auto channel = std::find(off.channels.begin(), off.channels.end(), name) - off.channels.begin();
+      difference.segment(row, kSignalGrid) = diff * (per_average / sd);
+      for (int j = 0; j < k; ++j)
+        sensitivity.block(row, j, kSignalGrid, 1) = d_outputs[channel].col(j) * (scale[j] * per_average / sd);
+    }
+  }
+  // The priors as rows (a shift of the stroke zero costs its prior), then the baseline's best step.
+  for (int j = 0; j < k; ++j) sensitivity(blocks * kSignalGrid + j, j) = prior_weight[j];
+  const Eigen::VectorXd step = sensitivity.colPivHouseholderQr().solve(difference);
+  const Eigen::VectorXd left = difference - sensitivity * step;
+  for (int b = 0; b < blocks; ++b) {
+    const double rms = std::sqrt(left.segment(b * kSignalGrid, kSignalGrid).squaredNorm() / kSignalGrid) / per_average;
+    if (rms > signal.left_rms) {
+      signal.left_rms = rms;
+      signal.left_experiment = matrix[b / 2].label;
+      signal.left_channel = channels[b % 2].first;
+    }
+  }
+  return signal;
 }
 
 }  // namespace strut::sim

@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "strut/rig/test_matrix.h"
@@ -104,5 +105,31 @@ Truth WithIdealRig(Truth truth);
 
 //! Draws around the shipped default truth.
 Truth DrawUnit(const UnitDraw& spec, std::uint64_t seed);
+
+//! How plainly one effect of a unit shows on a matrix, measured in the data rather than in the
+//! effect's parameter: the periodic steady states of the unit (set-point stroke as input) against
+//! the same unit with the effect's size at its neutral value, in each channel's noise sd (the
+//! unit's sensors). The baseline a fit starts from can absorb part of it (docs/discovery.md,
+//! "Detection sizes").
+struct EffectSignal {
+  //! Largest RMS(difference) / noise sd over the experiments and channels (force, pressure).
+  double rms = 0.0;
+  std::string experiment, channel;  //!< where `rms` is reached
+  //! The chi-square the difference adds over every recorded sample: sum over experiments and
+  //! channels of (samples recorded) mean(difference^2) / sd^2.
+  double chi2 = 0.0;
+  //! The largest RMS / noise sd of what is left of the difference after the baseline has absorbed
+  //! what it can: the unit's model without the effect, its default estimated parameters (and their
+  //! priors) refitted to the difference, linearised at the neutral unit (one Gauss-Newton step
+  //! from the truth, the fit's weights). A gas law absorbs most of a real gas, for instance.
+  double left_rms = 0.0;
+  std::string left_experiment, left_channel;  //!< where `left_rms` is reached
+};
+
+//! The signal of `effect` (one of the unit's extra effects, whose sizing parameters are 0 when
+//! it is absent) on `matrix`, recorded as the unit's acquisition says (sample rate, periods).
+//! Throws TruthError naming the unit's source when it lacks the effect, the effect has no sizing
+//! parameter, a channel has no noise, or an experiment has no periodic steady state.
+EffectSignal MeasureEffectSignal(const Truth& unit, std::string_view effect, const std::vector<rig::MatrixEntry>& matrix);
 
 }  // namespace strut::sim

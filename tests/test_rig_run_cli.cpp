@@ -35,24 +35,11 @@ using test::PlantOptions;
 using test::TempDir;
 namespace fs = std::filesystem;
 
-// A UDP port free at the moment (the runner listens there; the plant's module sends to it).
-int FreeUdpPort() {
-  const int fd = socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC, 0);
-  sockaddr_in a{};
-  a.sin_family = AF_INET;
-  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof a);
-  socklen_t n = sizeof a;
-  getsockname(fd, reinterpret_cast<sockaddr*>(&a), &n);
-  close(fd);
-  return ntohs(a.sin_port);
-}
-
 // The rig of another process: the plant's controller over Modbus TCP, its module over UDP.
 struct RemoteRig {
   explicit RemoteRig(PlantOptions o = {}, daq::CanFrameLayout layout = test::PlantCanStreamer::Layout(),
                      std::vector<daq::ChannelDescriptor> channels = test::PlantChannels())
-      : plant(o), server(plant), udp_port(FreeUdpPort()) {
+      : plant(o), server(plant), udp_port(test::FreeLoopbackPort(SOCK_DGRAM)) {
     streamer = std::make_unique<test::PlantCanStreamer>(
         plant, daq::UdpCanTransport::Connect("127.0.0.1", static_cast<std::uint16_t>(udp_port)), layout,
         std::move(channels));

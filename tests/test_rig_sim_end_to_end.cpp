@@ -102,18 +102,6 @@ TEST(RigSimEndToEnd, TheStandardMatrixRecordedOverTheDriversIdentifiesTheDrawnUn
   ExpectMatrixIdentifiesItsTruth(session, dir);
 }
 
-int FreePort(int type) {
-  const int s = socket(AF_INET, type, 0);
-  sockaddr_in a{};
-  a.sin_family = AF_INET;
-  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  bind(s, reinterpret_cast<sockaddr*>(&a), sizeof a);
-  socklen_t len = sizeof a;
-  getsockname(s, reinterpret_cast<sockaddr*>(&a), &len);
-  close(s);
-  return ntohs(a.sin_port);
-}
-
 bool Accepts(int port) {
   const int s = socket(AF_INET, SOCK_STREAM, 0);
   sockaddr_in a{};
@@ -130,7 +118,7 @@ bool Accepts(int port) {
 TEST(RigSimEndToEnd, ServeSimAndRigRunAsTwoProcessesRecordTheMatrixThatIdentifiesTheTruth) {
   TempDir dir;
   const std::string truth = WriteCalibratedTruth(dir);
-  const int modbus = FreePort(SOCK_STREAM), udp = FreePort(SOCK_DGRAM);
+  const int modbus = test::FreeLoopbackPort(SOCK_STREAM), udp = test::FreeLoopbackPort(SOCK_DGRAM);
   const std::string unit = fmt::format("--truth {} --draw 1001 --ideal-actuator --speed 100", truth);
   std::vector<std::string> args{"/bin/sh", "-c",
                                 fmt::format("exec {} rig serve-sim --listen 127.0.0.1:{} --can udp:127.0.0.1:{} {} "

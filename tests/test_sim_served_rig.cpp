@@ -383,21 +383,8 @@ TEST(ServedRig, ForceLimitTripMidSineLatchesTheFaultAndTheRigHolds) {
   }
 }
 
-//! A port nobody listens on at the moment (the kernel's pick, released).
-int FreePort(int type) {
-  const int s = socket(AF_INET, type, 0);
-  sockaddr_in a{};
-  a.sin_family = AF_INET;
-  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  bind(s, reinterpret_cast<sockaddr*>(&a), sizeof a);
-  socklen_t len = sizeof a;
-  getsockname(s, reinterpret_cast<sockaddr*>(&a), &len);
-  close(s);
-  return ntohs(a.sin_port);
-}
-
 TEST(ServeSimCommand, ServesTheControllerAndStreamsUntilSigterm) {
-  const int modbus = FreePort(SOCK_STREAM);
+  const int modbus = test::FreeLoopbackPort(SOCK_STREAM);
   auto receiver = daq::UdpCanTransport::Listen("127.0.0.1", 0);
   const std::string listen = fmt::format("127.0.0.1:{}", modbus);
   const std::string can = fmt::format("udp:127.0.0.1:{}", receiver->local_port());

@@ -1,6 +1,9 @@
 #include "test_support.h"
 #include "python_peer.h"
 
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
 #include <sys/wait.h>
 
 #include <array>
@@ -103,6 +106,20 @@ std::vector<std::pair<std::string, std::string>> SessionEvents(const daq::Sessio
   if (events == nullptr) return out;
   for (const daq::MetadataGroup& e : events->groups) out.emplace_back(*e.text("kind"), *e.text("text"));
   return out;
+}
+
+int FreeLoopbackPort(int type) {
+  const int s = socket(AF_INET, type | SOCK_CLOEXEC, 0);
+  if (s < 0) throw std::runtime_error("FreeLoopbackPort: no socket");
+  sockaddr_in a{};
+  a.sin_family = AF_INET;
+  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  socklen_t len = sizeof a;
+  const bool ok = bind(s, reinterpret_cast<sockaddr*>(&a), sizeof a) == 0 &&
+                  getsockname(s, reinterpret_cast<sockaddr*>(&a), &len) == 0;
+  close(s);
+  if (!ok) throw std::runtime_error("FreeLoopbackPort: no loopback port");
+  return ntohs(a.sin_port);
 }
 
 }  // namespace strut::test

@@ -59,4 +59,8 @@ std::vector<std::pair<std::string, std::string>> SessionEvents(const daq::Sessio
 //! Occurrences of `needle` in `haystack`.
 std::size_t Count(const std::string& haystack, const std::string& needle);
 
+//! A loopback port nobody listens on at the moment (the kernel's pick, released): SOCK_STREAM for a
+//! Modbus TCP server, SOCK_DGRAM for a CAN-over-UDP receiver.
+int FreeLoopbackPort(int type);
+
 }  // namespace strut::test

@@ -361,8 +361,7 @@ DiscoveryResult Discover(const FitData& data, const SessionFitOptions& fit_optio
     say("the baseline fit did not converge: " + result.baseline.VerdictText());
 
   const auto& catalogue = Catalogue();
-  double current_cv = NAN;  // held-out noise ratio of `current`, computed when a candidate needs it
-  bool current_cv_known = false;
+  std::optional<double> current_cv;  // held-out noise ratio of `current` (NaN: no solution), once a candidate needs it
   std::map<std::string, int> last_iterations;  // per term, its refit's in the round before
   for (int round = 0; round < options.max_terms && worst_ratio(ratio) >= options.noise_ratio_threshold; ++round) {
     const std::vector<Finding> findings = LocateMismatch(current);
@@ -447,16 +446,16 @@ DiscoveryResult Discover(const FitData& data, const SessionFitOptions& fit_optio
       const Stopwatch cv_watch;
       const Model candidate_model = Model::Build(candidates[c].second, causality);
       std::vector<CrossValidation> wanted{{&candidate_model, &fits[c]}};
-      if (!current_cv_known) wanted.push_back({&model, &current});
+      if (!current_cv) wanted.push_back({&model, &current});
       const std::vector<double> cv = CrossValidate(data, wanted, estimator, options.cv_folds, options.threads);
       results[c].cv_ratio = cv[0];
-      if (!current_cv_known) current_cv = cv[1], current_cv_known = true;
+      if (!current_cv) current_cv = cv[1];
       cv_seconds += cv_watch.Seconds();
       spdlog::debug("timing: round {} cross-validation {:.2f} s", round + 1, cv_watch.Seconds());
       spdlog::info("  {:<20} cross-validated noise ratio {:.3f} against {:.3f}", results[c].term, results[c].cv_ratio,
-                   current_cv);
+                   *current_cv);
       if (std::isfinite(results[c].cv_ratio) &&
-          (!std::isfinite(current_cv) || results[c].cv_ratio <= options.cv_improvement * current_cv)) {
+          (!std::isfinite(*current_cv) || results[c].cv_ratio <= options.cv_improvement * *current_cv)) {
         best = static_cast<int>(c);
         break;
       }
@@ -476,7 +475,7 @@ DiscoveryResult Discover(const FitData& data, const SessionFitOptions& fit_optio
     step.delta_bic = results[best].delta_bic;
     step.noise_before = ratio;
     step.noise_after = results[best].noise_ratio;
-    step.cv_before = current_cv;
+    step.cv_before = current_cv.value_or(NAN);
     step.cv_after = results[best].cv_ratio;
     step.candidates = results;
     const auto entry = std::find_if(catalogue.begin(), catalogue.end(), [&](const TermEntry& e) { return e.name == step.term; });
@@ -495,7 +494,6 @@ DiscoveryResult Discover(const FitData& data, const SessionFitOptions& fit_optio
     result.steps.push_back(std::move(step));
     current = chosen;
     current_cv = results[best].cv_ratio;
-    current_cv_known = options.cv_folds > 0;
     ratio = PooledNoiseRatio(current);
   }
 

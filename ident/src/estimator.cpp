@@ -352,13 +352,14 @@ FitSummary Estimator::Fit(const std::vector<ExperimentData>& data, const Paramet
     // eliminated as in the Bard step); a gain known to sd s adds s^2 v v^T to the covariance.
     if (!options_.gain_sd.empty()) {
       Eigen::MatrixXd calibration = Eigen::MatrixXd::Zero(l, l);
+      Eigen::MatrixXd information = eq.information;  // with the priors, as in the posterior
+      information.diagonal() += priors.precision;
+      const auto& fitted = problem.channels();
       for (const auto& [channel, gain_sd] : options_.gain_sd) {
-        const auto& fitted = problem.channels();
         const auto it = std::find(fitted.begin(), fitted.end(), channel);
         if (it == fitted.end() || !(gain_sd > 0)) continue;  // an input, or not in these data
         const FitProblem::GainGradient gain = problem.GainGradients(static_cast<int>(it - fitted.begin()), variance);
-        Eigen::MatrixXd h = eq.information;
-        h.diagonal() += priors.precision;
+        Eigen::MatrixXd h = information;  // EliminateNuisance reduces it in place
         Eigen::VectorXd g = gain.parameters;
         std::vector<NuisanceBlock> inputs = eq.inputs;
         for (std::size_t a = 0; a < inputs.size(); ++a)

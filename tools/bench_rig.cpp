@@ -105,9 +105,9 @@ struct BenchRig {
       f.simulated = served.simulated_seconds;
       f.plant_cpu = served.compute_seconds;
       f.max_lateness = served.max_lateness;
-      f.lost_sets = devices.acquisition->stats().lost_sample_sets;
-      f.gaps = devices.acquisition->stats().gaps;
       const daq::AcquisitionStats& a = devices.acquisition->stats();
+      f.lost_sets = a.lost_sample_sets;
+      f.gaps = a.gaps;
       f.refused_frames = a.ahead_of_clock + a.late_frames + a.corrupt_frames;
       f.finished = report.outcome == rig::RunOutcome::kComplete;
       f.complete = report.complete.size();

@@ -12,11 +12,9 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
-#include <fstream>
 #include <iostream>
 #include <memory>
 #include <optional>
-#include <sstream>
 #include <string>
 
 #include "commands.h"
@@ -123,14 +121,8 @@ struct RigRunCommand {
                                                 output, journal));
       if (serial.empty()) throw std::invalid_argument("--serial: the damper's serial number is needed for a new session");
     }
-    sim::MatrixPlan plan = matrix_path.empty() ? sim::StandardMatrixPlan() : sim::ReadMatrixFile(matrix_path);
-    std::string matrix_text = "standard";
-    if (!matrix_path.empty()) {
-      std::ifstream in(matrix_path);
-      std::ostringstream text;
-      text << in.rdbuf();
-      matrix_text = text.str();
-    }
+    const std::string matrix_text = matrix_path.empty() ? "standard" : sim::ReadMatrixText(matrix_path);
+    sim::MatrixPlan plan = matrix_path.empty() ? sim::StandardMatrixPlan() : sim::ParseMatrix(matrix_text, matrix_path);
     const double rate = daq_rate.value_or(plan.sample_rate.value_or(200.0));
     if (plan.sample_rate && std::abs(*plan.sample_rate - rate) > 1e-9 * rate)
       throw std::invalid_argument(fmt::format("--daq-rate {} Hz: the matrix {} wants sample_rate {} Hz", rate,

@@ -10,7 +10,8 @@ namespace strut::daq {
 
 Calibration Calibration::FromRange16(double min, double max) {
   Calibration c;
-  c.gain = (max - min) / 65535.0;
+  // A span beyond the largest double (values near +-1.8e308) is scaled first.
+  c.gain = std::isfinite(max - min) ? (max - min) / 65535.0 : max / 65535.0 - min / 65535.0;
   c.offset = min + 32768.0 * c.gain;
   c.range_min = min;
   c.range_max = max;

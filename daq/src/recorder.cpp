@@ -84,6 +84,9 @@ bool ValidName(std::string_view name) {
   return !name.empty() && name != "." && name.find('/') == std::string_view::npos;
 }
 
+// A metadata group the caller may put at the root: a name, and not one the recorder writes itself.
+bool AllowedRootGroup(std::string_view name) { return ValidName(name) && name != "experiments" && name != "recording"; }
+
 }  // namespace
 
 bool RecorderOptions::IsValid(std::string* error) const {
@@ -469,7 +472,7 @@ Recorder Recorder::Open(const std::string& session_path, const RecordingMetadata
     }
   }
   for (const MetadataGroup& g : metadata.groups) {
-    if (!ValidName(g.name) || g.name == "experiments" || g.name == "recording") {
+    if (!AllowedRootGroup(g.name)) {
       throw RecorderError(fmt::format("{}: metadata: root group '{}' is not allowed (reserved or not a name)",
                                       session_path, g.name));
     }
@@ -545,7 +548,7 @@ void Recorder::AddMetadata(const MetadataGroup& group) {
   std::lock_guard call(m.api);
   std::unique_lock lock(m.mutex);
   m.CheckUsable();
-  if (!ValidName(group.name) || group.name == "experiments" || group.name == "recording") {
+  if (!AllowedRootGroup(group.name)) {
     m.Throw(fmt::format("metadata group '{}' is not allowed (reserved or not a name)", group.name));
   }
   m.Enqueue(lock, journal::Record(journal::RecordType::kGroup, journal::GroupPayload(group)));

@@ -83,13 +83,7 @@ Calibration DerivedCalibration(double low, double high) {
     low -= half;
     high += half;
   }
-  if (std::isfinite(high - low)) return Calibration::FromRange16(low, high);
-  Calibration c;  // a span beyond the largest double (values near +-1.8e308): the same, scaled first
-  c.gain = high / 65535.0 - low / 65535.0;
-  c.offset = low + 32768.0 * c.gain;
-  c.range_min = low;
-  c.range_max = high;
-  return c;
+  return Calibration::FromRange16(low, high);
 }
 
 }  // namespace

@@ -162,10 +162,6 @@ std::vector<CycleSummary> SummariseExperiment(const daq::Experiment& e) {
                pressure ? std::span<const double>(pressure->samples) : std::span<const double>());
 }
 
-namespace {
-const char* const kCycleKeys[] = {"start_ns", "end_ns", "stroke_min", "stroke_max", "force_min", "force_max", "pressure_mean"};
-}
-
 daq::MetadataGroup CyclesGroup(const std::string& name, std::span<const CycleSummary> cycles,
                                const SteadyStateVerdict& verdict, const SteadyStateTolerances& t) {
   daq::MetadataGroup g{name, {}, {}};
@@ -211,8 +207,8 @@ std::vector<CycleSummary> CyclesFromGroup(const daq::MetadataGroup& g) {
     } catch (const std::exception&) {
       throw daq::SessionError(fmt::format("group '{}/{}': the name is no cycle number", g.name, s.name));
     }
-    c.start_ns = static_cast<std::int64_t>(get(kCycleKeys[0]));
-    c.end_ns = static_cast<std::int64_t>(get(kCycleKeys[1]));
+    c.start_ns = static_cast<std::int64_t>(get("start_ns"));
+    c.end_ns = static_cast<std::int64_t>(get("end_ns"));
     c.stroke_min = get("stroke_min");
     c.stroke_max = get("stroke_max");
     c.force_min = get("force_min");

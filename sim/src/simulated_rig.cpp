@@ -149,13 +149,15 @@ MatrixPlan ParseMatrix(std::string_view text, const std::string& source_name) {
   return plan;
 }
 
-MatrixPlan ReadMatrixFile(const std::string& path) {
+std::string ReadMatrixText(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   if (!in) throw TruthError(fmt::format("{}: cannot open the matrix file", path));
   std::ostringstream text;
   text << in.rdbuf();
-  return ParseMatrix(text.str(), path);
+  return text.str();
 }
+
+MatrixPlan ReadMatrixFile(const std::string& path) { return ParseMatrix(ReadMatrixText(path), path); }
 
 // ---------------------------------------------------------------------------------------------
 // The rig

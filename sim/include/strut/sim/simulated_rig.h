@@ -36,6 +36,8 @@ struct MatrixPlan {
 MatrixPlan StandardMatrixPlan();
 //! Reads a matrix file (TOML, docs/simulated-rig.md). Throws TruthError naming the file and line.
 MatrixPlan ReadMatrixFile(const std::string& path);
+//! The matrix file's text as it is (a session keeps it); TruthError when it cannot be opened.
+std::string ReadMatrixText(const std::string& path);
 MatrixPlan ParseMatrix(std::string_view text, const std::string& source_name);
 
 //! Samples as they leave the acquisition, for a consumer that wants them as a rig streams them.

@@ -343,27 +343,28 @@ StrokeTrajectory ServoActuator::Run(const Signal& command, const Signal& load, d
   }
   ActuatorStats local;
   long saturated = 0;
-  // Rates on step k's interval: the loop closed on the command, or the valve closing.
-  const auto rates = [&](long k, double t, const State& s, double* v, double* xd, double* a) {
-    const InputSample f = load(t);
+  // Rates on step k's interval with its load f: the loop closed on the command r, or the valve closing.
+  const auto rates = [&](long k, const State& s, const InputSample& r, const InputSample& f, double* v,
+                              double* xd, double* a) {
     if (closed(k))
       ValveRates(s, 0.0, f, v, xd, a);
     else
-      Rates(s, command(t), f, v, xd, a);
+      Rates(s, r, f, v, xd, a);
   };
   const auto record = [&](long k, double t, const State& s) {
+    const InputSample r = closed(k) ? InputSample{} : command(t), f = load(t);  // each evaluated once
     double xd = 0.0;
-    rates(k, t, s, &yd[k], &xd, &ydd[k]);
+    rates(k, s, r, f, &yd[k], &xd, &ydd[k]);
     y[k] = s.stroke;
-    if (!closed(k))
-      local.max_tracking_error = std::max(local.max_tracking_error, std::abs(command(t).value - s.stroke));
+    if (!closed(k)) local.max_tracking_error = std::max(local.max_tracking_error, std::abs(r.value - s.stroke));
     local.max_valve_opening = std::max(local.max_valve_opening, std::abs(s.spool));
-    local.max_load_fraction = std::max(local.max_load_fraction, std::abs(load(t).value) / options_.stall_force);
+    local.max_load_fraction = std::max(local.max_load_fraction, std::abs(f.value) / options_.stall_force);
     if (std::abs(s.spool) > 0.95) ++saturated;
   };
   const auto derivative = [&](long k, double t, const State& s) {
     double v = 0.0, xd = 0.0, a = 0.0;
-    rates(k, t, s, &v, &xd, &a);
+    // A closed valve needs no command.
+    rates(k, s, closed(k) ? InputSample{} : command(t), load(t), &v, &xd, &a);
     return State{v, xd};
   };
   State s = state;

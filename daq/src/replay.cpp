@@ -487,7 +487,7 @@ CanAcquisitionOptions ReplayCanOptions(const ReplayAcquisition& replay, std::uin
   o.channels = first.channels;
   o.layout.channels = static_cast<int>(first.channels.size());
   o.layout.module = module;
-  const int status_every = std::max(1, static_cast<int>(std::lround(o.sample_rate / 10)));
+  const int status_every = StatusEvery(o.sample_rate);
   o.layout.fd = o.layout.channels > 4 || o.sample_rate > MaxSampleRate(o.layout, CanBitrates{}, 0.5, status_every);
   std::string why;
   if (!o.IsValid(&why)) throw SessionError(fmt::format("{}: cannot be sent over CAN: {}", file, why));
@@ -496,7 +496,7 @@ CanAcquisitionOptions ReplayCanOptions(const ReplayAcquisition& replay, std::uin
 
 ReplayFigures SendReplay(ReplayAcquisition& replay, std::unique_ptr<CanTransport> transport,
                          const CanAcquisitionOptions& options, ReplayObserver* observer) {
-  const int status_every = std::max(1, static_cast<int>(std::lround(options.sample_rate / 10)));
+  const int status_every = StatusEvery(options.sample_rate);
   CanAcquisitionSender sender(std::move(transport), options.layout, status_every);
   std::vector<std::int16_t> set(options.channels.size());
   sender.SendStatus();  // the receiver's first heartbeat before the first sample

@@ -32,7 +32,7 @@ daq::CanFrameLayout Layout(bool fd, std::uint8_t module) {
 
 CanModule::CanModule(std::unique_ptr<daq::CanTransport> transport, const SensorSet& sensors, double sample_rate, bool fd,
                      std::uint8_t module)
-    : sender_(std::move(transport), Layout(fd, module), std::max(1, static_cast<int>(std::lround(sample_rate / 10)))),
+    : sender_(std::move(transport), Layout(fd, module), daq::StatusEvery(sample_rate)),
       channels_(CanChannels(sensors)),
       sample_rate_(sample_rate) {
   sender_.set_status(daq::can_status::kSimulated);

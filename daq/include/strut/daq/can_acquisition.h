@@ -9,7 +9,9 @@
 //     word, u8 transmit and u8 receive error counters of the module's controller.
 #pragma once
 
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdint>
 #include <memory>
 #include <span>
@@ -71,6 +73,8 @@ CanFrameBits FrameBits(bool fd, int payload, bool worst_case);
 //! Sample sets per second of `layout` at `bus_load` (0..1) of the bus, worst-case stuffing,
 //! with one status frame every `status_every` sample sets.
 double MaxSampleRate(const CanFrameLayout& layout, const CanBitrates& rates, double bus_load, int status_every);
+//! Sample sets between a module's status frames at `sample_rate`: ten status frames a second.
+inline int StatusEvery(double sample_rate) { return std::max(1, static_cast<int>(std::lround(sample_rate / 10))); }
 
 //! The module's side: sample sets (counts) into frames, and status frames.
 class CanSampleEncoder {

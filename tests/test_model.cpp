@@ -108,6 +108,32 @@ TEST(Model, SetAssignmentsAcceptIndexAndName) {
   EXPECT_THROW(p.apply_assignments("theta4"), ParameterError);
 }
 
+// docs/parameters.md: blank text sets nothing; an empty item is refused naming the whole text, and
+// nothing of the list is applied (the same rule as --calibration, test_session_fit).
+TEST(Model, SetAssignmentsRefuseAnEmptyItem) {
+  ParameterSet p = Model::Build("2dof", Causality::kForceInput).defaults();
+  const double theta4 = p.get("theta4");
+  p.apply_assignments(" ");
+  EXPECT_EQ(p.get("theta4"), theta4);
+  for (const char* bad : {"theta4=0.006,,theta16=4", "theta4=0.006,", ",theta4=0.006", "theta4=0.006, ,16=4"}) {
+    SCOPED_TRACE(bad);
+    try {
+      p.apply_assignments(bad);
+      ADD_FAILURE() << "accepted";
+    } catch (const ParameterError& e) {
+      EXPECT_NE(std::string(e.what()).find(std::string("--set: '") + bad + "' has an empty item"), std::string::npos)
+          << e.what();
+    }
+    EXPECT_EQ(p.get("theta4"), theta4);
+  }
+  try {
+    p.apply_assignments("theta4=0.006,=4");
+    ADD_FAILURE() << "accepted";
+  } catch (const ParameterError& e) {
+    EXPECT_NE(std::string(e.what()).find("--set: '=4' is not NAME=VALUE"), std::string::npos) << e.what();
+  }
+}
+
 TEST(Model, ParameterFileErrorsNameTheLine) {
   test::TempDir dir;
   const std::string path = dir.file("p.txt");

@@ -118,10 +118,23 @@ TEST(SessionFit, CalibrationPartOfEachSdIsWhatAGainErrorMovesTheEstimateBy) {
 
 TEST(SessionFit, CalibrationOptionReadsPercentOrFractionAndNamesBadItems) {
   EXPECT_EQ(ParseGainSd("force=0.1%,pressure=0.002"), (std::map<std::string, double>{{"force", 0.001}, {"pressure", 0.002}}));
+  EXPECT_EQ(ParseGainSd(" force = 0.1% , pressure=0.002"), ParseGainSd("force=0.1%,pressure=0.002"));
   EXPECT_TRUE(ParseGainSd("none").empty());
   for (const char* bad : {"force", "force=", "force=-1%", "force=0.1%%", "=0.1", "force=0.1,"}) {
     SCOPED_TRACE(bad);
     EXPECT_THROW(ParseGainSd(bad), std::invalid_argument);
+  }
+  // An empty item is refused naming the whole text, as --set does (docs/parameters.md).
+  for (const char* bad : {"force=0.1%,,pressure=0.2%", ",force=0.1%", "force=0.1%, "}) {
+    SCOPED_TRACE(bad);
+    try {
+      ParseGainSd(bad);
+      ADD_FAILURE() << "accepted";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find(std::string("calibration: '") + bad + "' has an empty item"),
+                std::string::npos)
+          << e.what();
+    }
   }
   test::TempDir dir;
   std::ofstream(dir.file("s.h5")) << "not read: the option is refused first";

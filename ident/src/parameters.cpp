@@ -1,5 +1,7 @@
 #include "strut/ident/parameters.h"
 
+#include "assignments.h"
+
 #include <cerrno>
 #include <charconv>
 #include <cmath>
@@ -89,27 +91,33 @@ void ParameterSet::Validate() const {
   if (auto violation = RangeViolation()) throw ParameterError(*violation);
 }
 
+std::vector<Assignment> SplitAssignments(std::string_view text, std::string_view option, std::string_view form) {
+  std::vector<Assignment> out;
+  if (Trim(text).empty()) return out;
+  std::size_t start = 0;
+  while (true) {
+    const std::size_t comma = text.find(',', start);
+    const std::string_view item = Trim(text.substr(start, comma == std::string_view::npos ? comma : comma - start));
+    if (item.empty())
+      throw ParameterError(fmt::format("{}: '{}' has an empty item (two commas, or one at an end)", option, text));
+    const std::size_t eq = item.find('=');
+    const std::string_view name = eq == std::string_view::npos ? std::string_view() : Trim(item.substr(0, eq));
+    if (name.empty()) throw ParameterError(fmt::format("{}: '{}' is not {}", option, item, form));
+    out.push_back({item, name, Trim(item.substr(eq + 1))});
+    if (comma == std::string_view::npos) return out;
+    start = comma + 1;
+  }
+}
+
 void ParameterSet::apply_assignments(std::string_view assignments) {
   std::vector<double> updated = values_;
-  std::size_t start = 0;
-  while (start <= assignments.size()) {
-    const std::size_t comma = assignments.find(',', start);
-    const std::string_view item =
-        Trim(assignments.substr(start, comma == std::string_view::npos ? std::string_view::npos : comma - start));
-    if (!item.empty()) {
-      const std::size_t eq = item.find('=');
-      if (eq == std::string_view::npos)
-        throw ParameterError(fmt::format("--set: '{}' is not NAME=VALUE", item));
-      const auto value = ParseNumber(item.substr(eq + 1));
-      if (!value)
-        throw ParameterError(fmt::format("--set: '{}': '{}' is not a finite number", item, Trim(item.substr(eq + 1))));
-      const int p = position(Trim(item.substr(0, eq)));
-      if (!specs_[p].range.contains(*value))
-        throw ParameterError(fmt::format("--set: '{}': {}", item, OutOfRange(specs_[p], *value)));
-      updated[p] = *value;
-    }
-    if (comma == std::string_view::npos) break;
-    start = comma + 1;
+  for (const Assignment& a : SplitAssignments(assignments, "--set", "NAME=VALUE")) {
+    const auto value = ParseNumber(a.value);
+    if (!value) throw ParameterError(fmt::format("--set: '{}': '{}' is not a finite number", a.item, a.value));
+    const int p = position(a.name);
+    if (!specs_[p].range.contains(*value))
+      throw ParameterError(fmt::format("--set: '{}': {}", a.item, OutOfRange(specs_[p], *value)));
+    updated[p] = *value;
   }
   values_ = std::move(updated);
 }

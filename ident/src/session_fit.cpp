@@ -10,6 +10,8 @@
 #include "strut/ident/fit_problem.h"
 #include "strut/ident/initial_values.h"
 
+#include "assignments.h"
+
 namespace strut::ident {
 namespace {
 
@@ -25,15 +27,8 @@ std::pair<std::string, std::string> SplitExclusion(const std::string& item) {
 std::map<std::string, double> ParseGainSd(const std::string& text) {
   std::map<std::string, double> out;
   if (text == "none") return out;
-  std::size_t begin = 0;
-  while (begin <= text.size()) {
-    const std::size_t end = std::min(text.find(',', begin), text.size());
-    const std::string item = text.substr(begin, end - begin);
-    begin = end + 1;
-    const std::size_t eq = item.find('=');
-    if (eq == std::string::npos || eq == 0)
-      throw std::invalid_argument(fmt::format("calibration '{}': expected CHANNEL=SD (force=0.2%) or 'none'", item));
-    std::string value = item.substr(eq + 1);
+  for (const Assignment& a : SplitAssignments(text, "calibration", "CHANNEL=SD (force=0.2%) or 'none'")) {
+    std::string value(a.value);
     const bool percent = !value.empty() && value.back() == '%';
     if (percent) value.pop_back();
     std::size_t used = 0;
@@ -45,8 +40,8 @@ std::map<std::string, double> ParseGainSd(const std::string& text) {
     }
     if (used == 0 || used != value.size() || !(sd >= 0) || !std::isfinite(sd))
       throw std::invalid_argument(
-          fmt::format("calibration '{}': the gain sd must be a number >= 0 (0.002 or 0.2%)", item));
-    out[item.substr(0, eq)] = percent ? sd / 100.0 : sd;
+          fmt::format("calibration '{}': the gain sd must be a number >= 0 (0.002 or 0.2%)", a.item));
+    out[std::string(a.name)] = percent ? sd / 100.0 : sd;
   }
   return out;
 }

@@ -108,7 +108,8 @@ class ParameterSet {
   void set(std::string_view key_or_name, double value) { values_[position(key_or_name)] = value; }
 
   //! Applies "NAME=VALUE[,NAME=VALUE...]" (the --set option). Throws ParameterError naming the item,
-  //! also for a value outside the parameter's physical range (nothing is changed then).
+  //! also for a value outside the parameter's physical range, or the text for an empty item
+  //! (nothing is changed then).
   void apply_assignments(std::string_view assignments);
 
   //! Applies a parameter file (format in docs/parameters.md): lines "NAME = VALUE [# comment]";

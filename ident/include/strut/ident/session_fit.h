@@ -19,7 +19,8 @@ namespace strut::ident {
 inline const std::map<std::string, double> kLabGainSd = {{"force", 0.002}, {"pressure", 0.002}};
 
 //! "force=0.2%,pressure=0.1%" (a value with % is in percent, without it a fraction) or "none" into
-//! EstimatorOptions::gain_sd. Throws std::invalid_argument naming the item.
+//! EstimatorOptions::gain_sd. Throws std::invalid_argument naming the item (an empty item: the
+//! text, as --set does).
 std::map<std::string, double> ParseGainSd(const std::string& text);
 
 struct SessionFitOptions {

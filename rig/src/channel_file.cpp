@@ -3,12 +3,9 @@
 #include <spdlog/fmt/fmt.h>
 
 #include <algorithm>
-#include <cmath>
-#include <fstream>
 #include <map>
-#include <optional>
-#include <sstream>
-#include <toml++/toml.h>
+
+#include "toml_reader.h"
 
 namespace strut::rig {
 namespace {
@@ -34,57 +31,13 @@ const std::vector<RecordedChannel>& RecordedChannels() {
   return channels;
 }
 
-class Reader {
- public:
-  explicit Reader(std::string source) : source_(std::move(source)) {}
-
-  [[noreturn]] void Fail(const toml::node& n, const std::string& what) const {
-    throw ChannelFileError(fmt::format("{}:{}: {}", source_, n.source().begin.line, what));
-  }
-  [[noreturn]] void Fail(const std::string& what) const { throw ChannelFileError(fmt::format("{}: {}", source_, what)); }
-
-  void RefuseUnknown(const toml::table& t, const std::string& where, std::initializer_list<const char*> keys) const {
-    for (auto&& [k, v] : t) {
-      if (std::find_if(keys.begin(), keys.end(), [&](const char* key) { return k.str() == key; }) == keys.end())
-        Fail(v, fmt::format("{}unknown key '{}' (known: {})", where, k.str(), fmt::join(keys, ", ")));
-    }
-  }
-  std::optional<double> Number(const toml::table& t, const std::string& where, const char* key) const {
-    const toml::node* n = t.get(key);
-    if (!n) return std::nullopt;
-    if (!n->is_number()) Fail(*n, fmt::format("{}{} must be a number", where, key));
-    const double v = *n->value<double>();
-    if (!std::isfinite(v)) Fail(*n, fmt::format("{}{} must be finite", where, key));
-    return v;
-  }
-  std::optional<std::int64_t> Integer(const toml::table& t, const std::string& where, const char* key) const {
-    const toml::node* n = t.get(key);
-    if (!n) return std::nullopt;
-    if (!n->is_integer()) Fail(*n, fmt::format("{}{} must be an integer", where, key));
-    return *n->value<std::int64_t>();
-  }
-  std::optional<std::string> Text(const toml::table& t, const std::string& where, const char* key) const {
-    const toml::node* n = t.get(key);
-    if (!n) return std::nullopt;
-    if (!n->is_string()) Fail(*n, fmt::format("{}{} must be a string", where, key));
-    return *n->value<std::string>();
-  }
-
- private:
-  std::string source_;
-};
+using Reader = TomlReader<ChannelFileError>;
 
 }  // namespace
 
 ChannelMap ParseChannelFile(std::string_view text, const std::string& source) {
-  toml::table root;
-  try {
-    root = toml::parse(text, source);
-  } catch (const toml::parse_error& e) {
-    throw ChannelFileError(fmt::format("{}:{}:{}: TOML syntax: {}", source, e.source().begin.line,
-                                       e.source().begin.column, e.description()));
-  }
   const Reader r(source);
+  const toml::table root = r.Parse(text);
   ChannelMap map;
   for (auto&& [k, v] : root) {
     const bool channel = std::any_of(RecordedChannels().begin(), RecordedChannels().end(),
@@ -180,11 +133,7 @@ ChannelMap ParseChannelFile(std::string_view text, const std::string& source) {
 }
 
 ChannelMap ReadChannelFile(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw ChannelFileError(fmt::format("{}: cannot open the channel file", path));
-  std::ostringstream text;
-  text << in.rdbuf();
-  return ParseChannelFile(text.str(), path);
+  return ParseChannelFile(Reader::ReadFile(path, "the channel file"), path);
 }
 
 }  // namespace strut::rig

@@ -4,15 +4,13 @@
 
 #include <algorithm>
 #include <cmath>
-#include <fstream>
 #include <numbers>
 #include <set>
-#include <sstream>
-#include <toml++/toml.h>
 
 #include "strut/daq/session.h"
 #include "strut/ident/fit_report.h"
 #include "strut/ident/periodic.h"
+#include "toml_reader.h"
 
 namespace strut::rig {
 
@@ -70,13 +68,12 @@ bool SafetyConfig::IsValid(std::string* error) const {
 
 namespace {
 
+// The limits file's sections over the shared TOML reading; a key absent keeps its default.
 class Reader {
  public:
-  Reader(const toml::table& root, std::string source) : root_(root), source_(std::move(source)) {}
+  Reader(const toml::table& root, const TomlReader<SafetyError>& reader) : root_(root), toml_(reader) {}
 
-  [[noreturn]] void Fail(const toml::node& n, const std::string& what) const {
-    throw SafetyError(fmt::format("{}:{}: {}", source_, n.source().begin.line, what));
-  }
+  [[noreturn]] void Fail(const toml::node& n, const std::string& what) const { toml_.Fail(n, what); }
 
   // Visits a section, refusing keys it does not know.
   template <typename F>
@@ -86,38 +83,25 @@ class Reader {
     if (!node) return;
     const toml::table* t = node->as_table();
     if (!t) Fail(*node, fmt::format("'{}' must be a table ([{}])", name, name));
-    for (auto&& [k, v] : *t) {
-      if (std::find_if(keys.begin(), keys.end(), [&](const char* key) { return k.str() == key; }) == keys.end())
-        Fail(v, fmt::format("[{}] unknown key '{}' (known: {})", name, k.str(), fmt::join(keys, ", ")));
-    }
+    toml_.RefuseUnknown(*t, Where(name), keys);
     read(*t);
   }
 
-  void Number(const toml::table& t, const char* section, const char* key, double& out) {
-    const toml::node* n = t.get(key);
-    if (!n) return;
-    if (!n->is_number()) Fail(*n, fmt::format("[{}] {} must be a number", section, key));
-    out = *n->value<double>();
-    if (!std::isfinite(out)) Fail(*n, fmt::format("[{}] {} must be finite", section, key));
+  void Number(const toml::table& t, const char* section, const char* key, double& out) const {
+    if (const auto v = toml_.Number(t, Where(section), key)) out = *v;
   }
-  void Integer(const toml::table& t, const char* section, const char* key, int& out) {
-    const toml::node* n = t.get(key);
-    if (!n) return;
-    if (!n->is_integer()) Fail(*n, fmt::format("[{}] {} must be an integer", section, key));
-    out = static_cast<int>(*n->value<std::int64_t>());
+  void Integer(const toml::table& t, const char* section, const char* key, int& out) const {
+    if (const auto v = toml_.Integer(t, Where(section), key)) out = static_cast<int>(*v);
   }
-  void Bool(const toml::table& t, const char* section, const char* key, bool& out) {
-    const toml::node* n = t.get(key);
-    if (!n) return;
-    if (!n->is_boolean()) Fail(*n, fmt::format("[{}] {} must be true or false", section, key));
-    out = *n->value<bool>();
+  void Bool(const toml::table& t, const char* section, const char* key, bool& out) const {
+    if (const auto v = toml_.Bool(t, Where(section), key)) out = *v;
   }
-  void Millis(const toml::table& t, const char* section, const char* key, std::chrono::milliseconds& out) {
+  void Millis(const toml::table& t, const char* section, const char* key, std::chrono::milliseconds& out) const {
     double seconds = out.count() * 1e-3;
     Number(t, section, key, seconds);
     out = std::chrono::milliseconds(std::llround(seconds * 1e3));
   }
-  void Action(const toml::table& t, const char* section, SafetyAction& out) {
+  void Action(const toml::table& t, const char* section, SafetyAction& out) const {
     const toml::node* n = t.get("action");
     if (!n) return;
     const auto text = n->value<std::string>();
@@ -144,23 +128,20 @@ class Reader {
   }
 
  private:
+  static std::string Where(const char* section) { return fmt::format("[{}] ", section); }
+
   const toml::table& root_;
-  std::string source_;
+  const TomlReader<SafetyError>& toml_;
   std::set<std::string> seen_;
 };
 
 }  // namespace
 
 SafetyConfig ParseSafetyConfig(std::string_view text, const std::string& source) {
-  toml::table root;
-  try {
-    root = toml::parse(text, source);
-  } catch (const toml::parse_error& e) {
-    throw SafetyError(fmt::format("{}:{}:{}: TOML syntax: {}", source, e.source().begin.line, e.source().begin.column,
-                                  e.description()));
-  }
+  const TomlReader<SafetyError> reader(source);
+  const toml::table root = reader.Parse(text);
   SafetyConfig c;
-  Reader r(root, source);
+  Reader r(root, reader);
   r.Limit("stroke", c.stroke);
   r.Limit("force", c.force);
   r.Limit("pressure", c.pressure);
@@ -205,11 +186,7 @@ SafetyConfig ParseSafetyConfig(std::string_view text, const std::string& source)
 }
 
 SafetyConfig ReadSafetyConfig(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw SafetyError(fmt::format("{}: cannot open the limits file", path));
-  std::ostringstream text;
-  text << in.rdbuf();
-  return ParseSafetyConfig(text.str(), path);
+  return ParseSafetyConfig(TomlReader<SafetyError>::ReadFile(path, "the limits file"), path);
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -181,6 +181,62 @@ TEST(RigRunCli, KillNineMidExperimentThenResumeCompletesTheMatrixIntoTheSameFile
   EXPECT_NE(again.output.find("--force"), std::string::npos) << again.output;
 }
 
+// Waits until the run writing `session` records the `n`th experiment (more than 100 samples of
+// it in the journal); false when it ended or the minute passed first.
+bool RecordingExperiment(pid_t pid, const std::string& session, std::size_t n) {
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+  while (std::chrono::steady_clock::now() < deadline) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    int early = 0;
+    if (waitpid(pid, &early, WNOHANG) != 0) return false;
+    if (!fs::exists(daq::JournalPath(session))) continue;
+    try {
+      const daq::Session s = daq::ReadJournal(daq::JournalPath(session));
+      if (s.experiments.size() == n && s.experiments.back().sample_count() > 100) return true;
+    } catch (const std::exception&) {
+    }
+  }
+  return false;
+}
+
+int ExitStatus(pid_t pid) {
+  int status = 0;
+  waitpid(pid, &status, 0);
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+// The operator's signals (tools/cmd_rig_run.cpp): Ctrl-C once pauses after the experiment in
+// progress, SIGTERM stops at once; both exit 4 and resume with --resume.
+TEST(RigRunCli, CtrlCPausesAfterTheExperimentAndSigtermStopsAtOnce) {
+  TempDir dir;
+  RemoteRig rig;
+  WriteFile(dir.file("m.toml"), "periods = 4\n[[experiment]]\nlabel = \"a\"\nfrequency = 5.0\nstatic_position = 0.12\n"
+                                "amplitude = 0.01\n[[experiment]]\nlabel = \"b\"\nfrequency = 5.0\n"
+                                "static_position = 0.12\namplitude = 0.01\n");
+  const std::string session = dir.file("s.h5");
+  const std::string common = fmt::format("{} rig run {} --matrix {} --ramp-cycles 1 --static-rate 0.5 --no-progress -o {}",
+                                         STRUT_BINARY, rig.Args(), dir.file("m.toml"), session);
+  const pid_t first = Spawn(common + " --serial SG > " + dir.file("first.log") + " 2>&1");
+  ASSERT_GT(first, 0);
+  ASSERT_TRUE(RecordingExperiment(first, session, 1)) << test::ReadFile(dir.file("first.log"));
+  ASSERT_EQ(kill(first, SIGINT), 0);
+  EXPECT_EQ(ExitStatus(first), 4) << test::ReadFile(dir.file("first.log"));
+  const std::string paused = test::ReadFile(dir.file("first.log"));
+  EXPECT_NE(paused.find("paused at the operator's request before experiment 'b'"), std::string::npos) << paused;
+
+  const pid_t second = Spawn(common + " --resume > " + dir.file("second.log") + " 2>&1");
+  ASSERT_GT(second, 0);
+  ASSERT_TRUE(RecordingExperiment(second, session, 2)) << test::ReadFile(dir.file("second.log"));
+  ASSERT_EQ(kill(second, SIGTERM), 0);
+  EXPECT_EQ(ExitStatus(second), 4) << test::ReadFile(dir.file("second.log"));
+  const std::string stopped = test::ReadFile(dir.file("second.log"));
+  EXPECT_NE(stopped.find("operator-stop: stop requested by the operator"), std::string::npos) << stopped;
+  const daq::Session s = daq::ReadJournal(daq::JournalPath(session));
+  ASSERT_EQ(s.experiments.size(), 2u);
+  EXPECT_EQ(s.experiments[0].status, "complete");
+  EXPECT_EQ(s.experiments[1].status, "aborted");
+}
+
 // One 5 Hz experiment, quick moves: a run of a few seconds on the plant.
 const char* kOneExperiment = "periods = 4\n[[experiment]]\nlabel = \"a\"\nfrequency = 5.0\nstatic_position = 0.12\n"
                              "amplitude = 0.01\n";

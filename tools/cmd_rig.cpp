@@ -17,6 +17,7 @@
 
 #include "commands.h"
 #include "option_checks.h"
+#include "rig_devices.h"
 #include "strut/daq/modbus_controller.h"
 #include "strut/sim/rig_server.h"
 #include "truth_options.h"
@@ -142,16 +143,6 @@ void RunServeSim(const ServeSimOptions& o) {
                stream.channels.size(), stream.sample_rate);
   spdlog::info("speed {:g} simulated s per wall s; stop with Ctrl-C{}", o.speed,
                o.duration > 0 ? fmt::format(" or after {:g} s", o.duration) : "");
-  struct sigaction action {};
-  action.sa_handler = OnStopSignal;
-  sigemptyset(&action.sa_mask);
-  struct sigaction old_int {}, old_term {};
-  sigaction(SIGINT, &action, &old_int);
-  sigaction(SIGTERM, &action, &old_term);
-  g_stop_signal = 0;
-  server.Start();
-  const auto start = std::chrono::steady_clock::now();
-  auto next_log = start + std::chrono::duration<double>(o.log_interval);
   const auto log_status = [&] {
     const daq::ControllerStatus s = server.controller().Status();
     const sim::RigServerStats st = server.stats();
@@ -161,23 +152,28 @@ void RunServeSim(const ServeSimOptions& o) {
                  daq::FaultBitsText(s.fault_word), s.stroke * 1e3, s.force * 1e-3, s.cycles, st.sets_sent,
                  st.compute_seconds > 0 ? st.simulated_seconds / st.compute_seconds : 0.0, st.max_lateness);
   };
-  for (;;) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(50));
-    const auto now = std::chrono::steady_clock::now();
-    if (g_stop_signal) {
-      spdlog::info("signal {}: stopping", static_cast<int>(g_stop_signal));
-      break;
+  {
+    g_stop_signal = 0;
+    const StopSignals signals(OnStopSignal);
+    server.Start();
+    const auto start = std::chrono::steady_clock::now();
+    auto next_log = start + std::chrono::duration<double>(o.log_interval);
+    for (;;) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+      const auto now = std::chrono::steady_clock::now();
+      if (g_stop_signal) {
+        spdlog::info("signal {}: stopping", static_cast<int>(g_stop_signal));
+        break;
+      }
+      if (o.duration > 0 && now - start >= std::chrono::duration<double>(o.duration)) break;
+      if (server.error()) break;
+      if (o.log_interval > 0 && now >= next_log) {
+        log_status();
+        next_log += std::chrono::duration<double>(o.log_interval);
+      }
     }
-    if (o.duration > 0 && now - start >= std::chrono::duration<double>(o.duration)) break;
-    if (server.error()) break;
-    if (o.log_interval > 0 && now >= next_log) {
-      log_status();
-      next_log += std::chrono::duration<double>(o.log_interval);
-    }
+    server.Stop();
   }
-  server.Stop();
-  sigaction(SIGINT, &old_int, nullptr);
-  sigaction(SIGTERM, &old_term, nullptr);
   log_status();
   if (const auto error = server.error()) throw std::runtime_error("simulated rig: the stream failed: " + *error);
 }

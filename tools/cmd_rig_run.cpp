@@ -236,19 +236,14 @@ struct RigRunCommand {
       spdlog::info("{} (cycle {}, steady-state measure {}, {})", line, p.cycles, measure, margins);
     };
 
-    struct sigaction action {};
-    action.sa_handler = OnSignal;
-    sigemptyset(&action.sa_mask);
-    struct sigaction old_int {}, old_term {};
     g_interrupts = 0;
     g_runner = &runner;
-    sigaction(SIGINT, &action, &old_int);
-    sigaction(SIGTERM, &action, &old_term);
-    if (tty) spdlog::info("Ctrl-C once: pause after this experiment; twice: stop now (both resumable with --resume)");
-    const rig::RunReport report = runner.Run(items);
+    const rig::RunReport report = [&] {
+      const StopSignals signals(OnSignal);
+      if (tty) spdlog::info("Ctrl-C once: pause after this experiment; twice: stop now (both resumable with --resume)");
+      return runner.Run(items);
+    }();
     g_runner = nullptr;
-    sigaction(SIGINT, &old_int, nullptr);
-    sigaction(SIGTERM, &old_term, nullptr);
     if (tty) std::fprintf(stderr, "\r\033[K");
 
     const bool complete = report.outcome == rig::RunOutcome::kComplete;

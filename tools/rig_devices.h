@@ -4,6 +4,8 @@
 // serves it, behind the same drivers. The runner itself is rig::MatrixRunner.
 #pragma once
 
+#include <signal.h>
+
 #include <chrono>
 #include <memory>
 #include <optional>
@@ -43,5 +45,18 @@ RigDevices ServeSimulatedRig(const sim::Truth& truth, double speed, std::chrono:
 daq::RecordingMetadata RunMetadata(const std::string& serial, const std::string& rig, const std::string& operator_name,
                                    const std::string& matrix, const rig::SafetyConfig& safety,
                                    const std::optional<sim::Truth>& truth);
+
+//! SIGINT and SIGTERM go to `handler` while this lives (a run, a served rig); the handlers they
+//! had are restored after, also when what runs throws.
+class StopSignals {
+ public:
+  explicit StopSignals(void (*handler)(int));
+  ~StopSignals();
+  StopSignals(const StopSignals&) = delete;
+  StopSignals& operator=(const StopSignals&) = delete;
+
+ private:
+  struct sigaction old_int_ {}, old_term_ {};
+};
 
 }  // namespace strut::tools

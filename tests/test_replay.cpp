@@ -279,6 +279,9 @@ TEST(Replay, RecorderSessionReRecordsCountsSequenceStatusAndCalibrationBitForBit
   EXPECT_EQ(*t.find_metadata("recording")->text("operator"), "J. Doe");
   EXPECT_EQ(*t.find_metadata("truth")->number("theta1"), 1.5);
   EXPECT_EQ(t.experiment("a").extra_attributes.at("note"), "run a");
+  std::string events;
+  for (const auto& [kind, text] : test::SessionEvents(t)) events += kind + ": " + text + "\n";
+  EXPECT_NE(events.find("replay: replay of " + original + " as fast as possible"), std::string::npos) << events;
 }
 
 TEST(Replay, SessionOfAnotherToolWithArbitraryDoublesReRecordsBitForBit) {
@@ -592,6 +595,7 @@ TEST(ReplayCli, SendsToAUdpReceiverAndPrintsTheCalibrationItUses) {
   receiver.Join();
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("2000 Hz"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find(" at 10x: "), std::string::npos) << r.output;  // the pace (ReplayOptions::pace)
   EXPECT_NE(r.output.find("classic CAN"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("channel force"), std::string::npos) << r.output;
   ASSERT_EQ(receiver.counts[0].size(), 650u);
@@ -617,6 +621,7 @@ TEST(ReplayCli, PrintsTheSteadyStateOfTheStreamAndOfTheCyclesTheRunnerStored) {
   WriteSession(path, s);
   const test::CommandResult r = RunStrut("replay " + path);
   ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("replay " + path + " as fast as possible"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find(fmt::format("the runner's cycles (/rig_run/a): steady yes ({} cycles, from cycle {})",
                                       expected.cycles, expected.steady_at)),
             std::string::npos)

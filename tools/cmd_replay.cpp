@@ -115,7 +115,7 @@ struct ReplayCommand {
         throw std::invalid_argument(fmt::format("--out {}: exists; choose another name or add --force to replace it", out));
     }
     auto replay = daq::ReplayAcquisition::Open(file, options);
-    const std::string pace = options.speed > 0 ? fmt::format("at {}x", options.speed) : "as fast as possible";
+    const std::string pace = options.pace();
 
     daq::ReplayFigures figures;
     SteadyStateOnReplay steady;

@@ -96,6 +96,10 @@ bool ReplayOptions::IsValid(std::string* error) const {
   return true;
 }
 
+std::string ReplayOptions::pace() const {
+  return speed > 0.0 ? fmt::format("at {}x", speed) : std::string("as fast as possible");
+}
+
 struct ReplayAcquisition::Track {
   std::vector<std::size_t> channel;               //!< per stream channel: index among the experiment's channels
   std::vector<std::vector<std::int32_t>> counts;  //!< per stream channel
@@ -403,16 +407,12 @@ ReplayFigures Play(ReplayAcquisition& replay, ReplayObserver* observer, Begin be
   return f;
 }
 
-std::string Pace(double speed) {
-  return speed > 0.0 ? fmt::format("at {}x", speed) : std::string("as fast as possible");
-}
-
 }  // namespace
 
 ReplayFigures PlayReplay(ReplayAcquisition& replay, Recorder* recorder, ReplayObserver* observer) {
   if (recorder) {
     recorder->Event(MonotonicNs(), "replay",
-                    fmt::format("replay of {} {}", FileName(replay.session()), Pace(replay.options().speed)));
+                    fmt::format("replay of {} {}", FileName(replay.session()), replay.options().pace()));
   }
   return Play(
       replay, observer,

@@ -29,6 +29,8 @@ struct ReplayOptions {
   std::size_t block_sets = 0;
   //! False with a message naming the option when a value is out of range.
   bool IsValid(std::string* error) const;
+  //! The pace as the replay's event and the command say it: "at 2x" or "as fast as possible".
+  std::string pace() const;
 };
 
 //! One experiment of the session as the replay plays it.

@@ -484,6 +484,27 @@ TEST(ReplayAcquisition, CountsThatNoRecorderWroteAreRefusedNamingTheExperimentAn
   }
 }
 
+// A recorder's counts may be wider than a CAN sample frame's 16 bits: sending refuses them, naming
+// the experiment, channel and sample; the counts derived for the other channels always fit.
+TEST(ReplayCanOptions, RecordedCountsBeyondSixteenBitsAreRefusedNamingTheExperimentAndChannel) {
+  TempDir dir;
+  Session s = ReadSession(RecordedSession(dir));
+  ReplayOptions o;
+  o.speed = 1.0;
+  EXPECT_NO_THROW(ReplayCanOptions(ReplayAcquisition(s, o)));  // derived pressure counts included
+  for (Channel& c : s.experiments[2].channels)
+    if (c.name == "stroke_counts") c.samples[7] = 40000.0;
+  try {
+    ReplayCanOptions(ReplayAcquisition(s, o));
+    FAIL() << "accepted";
+  } catch (const SessionError& e) {
+    EXPECT_NE(std::string(e.what()).find("experiment 'c': channel 'stroke': count 40000 at sample 7 does not fit the 16 "
+                                         "bits"),
+              std::string::npos)
+        << e.what();
+  }
+}
+
 // Receives on `port` in a thread what a replay sends, until the stream has been quiet for a while.
 struct Receiver {
   std::unique_ptr<CanAcquisition> acquisition;

@@ -10,6 +10,7 @@
 #include <cmath>
 #include <limits>
 #include <map>
+#include <numeric>
 #include <stdexcept>
 
 namespace strut::daq {
@@ -348,13 +349,17 @@ ExperimentDescriptor RecordingDescriptor(const ReplayedExperiment& x) {
 }
 
 SampleBlock RecordingBlock(const ReplayedExperiment& x, const AcquiredBlock& block) {
-  SampleBlock b = RecordedBlock(block);
-  std::vector<std::vector<std::int32_t>> counts;
-  for (std::size_t c = 0; c < b.counts.size(); ++c)
-    if (x.recorded_counts[c]) counts.push_back(std::move(b.counts[c]));
-  b.counts = std::move(counts);
-  if (!x.recorded_sequence) b.sequence.clear();
-  if (!x.recorded_status) b.status.clear();
+  // RecordedBlock's rules, copying only what the recording keeps (no derived counts).
+  SampleBlock b;
+  b.monotonic_ns = block.time_ns;
+  b.values = block.values;
+  for (std::size_t c = 0; c < block.counts.size(); ++c)
+    if (x.recorded_counts[c]) b.counts.push_back(block.counts[c]);
+  if (x.recorded_sequence) {
+    b.sequence.resize(block.size());
+    std::iota(b.sequence.begin(), b.sequence.end(), block.first_index);
+  }
+  if (x.recorded_status) b.status.assign(block.size(), block.quality.flags);
   return b;
 }
 
@@ -460,8 +465,10 @@ CanAcquisitionOptions ReplayCanOptions(const ReplayAcquisition& replay, std::uin
       }
     }
   }
+  // Derived counts are 16-bit by construction (ToCounts16); recorded ones may have been wider.
   for (std::size_t k = 0; k < xs.size(); ++k) {
     for (std::size_t c = 0; c < first.channels.size(); ++c) {
+      if (!xs[k].recorded_counts[c]) continue;
       const std::vector<std::int32_t>& counts = replay.counts(k, c);
       const auto bad = std::find_if(counts.begin(), counts.end(), [](std::int32_t v) {
         return v < std::numeric_limits<std::int16_t>::min() || v > std::numeric_limits<std::int16_t>::max();

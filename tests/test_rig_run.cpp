@@ -167,6 +167,9 @@ TEST(MatrixRunner, RecordsTheRequestedWholePeriodsOfEachExperimentInSteadyState)
   for (const Progress& p : b.progress) phases.insert(p.phase);
   for (RunPhase p : {RunPhase::kMoving, RunPhase::kRampIn, RunPhase::kSettling, RunPhase::kRecording, RunPhase::kRampOut})
     EXPECT_TRUE(phases.count(p)) << ToString(p);
+  // ... and, in every phase of an experiment, the periods it records.
+  for (const Progress& p : b.progress)
+    if (!p.experiment.empty()) EXPECT_EQ(p.periods_requested, b.options.periods) << p.experiment << " " << ToString(p.phase);
   // Our heartbeat every loop, the watchdog set at the start and off at the end.
   EXPECT_GT(b.controller.beats.load(), 50);
   EXPECT_EQ(b.controller.watchdogs.front(), 1000);

@@ -194,7 +194,6 @@ struct MatrixRunner::Impl {
     if (current) {
       progress.cycles = static_cast<long>(current->cycles.size());
       progress.periods_recorded = current->spp > 0 ? current->recorded / current->spp : 0;
-      progress.periods_requested = options.periods;
       progress.steady_measure = current->detector ? current->detector->verdict().measure
                                                   : std::numeric_limits<double>::infinity();
     }

@@ -445,6 +445,23 @@ TEST(MatrixRunner, AStopRequestRampsOutAndLeavesTheRunResumable) {
   EXPECT_NE(FindEvent(s, "stop", "operator"), "") << AllEvents(s);
 }
 
+// A device lost while the run is already going safe is a trip like any other then (Handle): noted
+// as such, the first cause stays the run's.
+TEST(MatrixRunner, AStreamLostWhileSafingIsNotedAndTheFirstCauseStays) {
+  Bench b;
+  b.options.periods = 4;
+  bool stopped = false;
+  const daq::Session s = b.Run({Entry("a")}, [&](const Progress& p, MatrixRunner& r) {
+    if (!stopped && p.phase == RunPhase::kRecording && p.periods_recorded >= 1) stopped = true, r.RequestStop();
+    if (p.phase == RunPhase::kSafing) b.acquisition.fail = true;
+  });
+  ASSERT_EQ(b.report.outcome, RunOutcome::kPaused);
+  EXPECT_EQ(b.report.trip->detector, "operator-stop");
+  EXPECT_TRUE(b.report.disarmed);
+  const std::string lost = FindEvent(s, "trip", "acquisition-lost: the acquisition stream failed");
+  EXPECT_NE(lost.find("(while safing after an earlier trip)"), std::string::npos) << AllEvents(s);
+}
+
 TEST(MatrixRunner, OverModbusTcpRecordsAndALostServerEndsTheRunSafely) {
   Bench b;
   daq::ModbusControllerServer server(b.plant);

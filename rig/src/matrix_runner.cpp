@@ -215,14 +215,10 @@ struct MatrixRunner::Impl {
         return;
       }
       controller_lost = true;
-      Trip trip{"controller-lost", SafetyAction::kInterlock, now,
-                fmt::format("no answer from the controller for {} ms: {}", (now - controller_failing_since) / 1'000'000,
-                            e.what())};
-      if (safing) {
-        Event("trip", trip.detector + ": " + trip.text);
-        return;
-      }
-      throw Interrupt{trip};
+      Handle(Trip{"controller-lost", SafetyAction::kInterlock, now,
+                  fmt::format("no answer from the controller for {} ms: {}",
+                              (now - controller_failing_since) / 1'000'000, e.what())});
+      return;
     }
     for (const Trip& t : safety.CheckStatus(status, now)) Handle(t);
   }
@@ -240,9 +236,7 @@ struct MatrixRunner::Impl {
           block = acquisition.Read(wait);
         } catch (const daq::DeviceError& e) {
           acquisition_lost = true;
-          Trip trip{"acquisition-lost", SafetyAction::kStop, Now(), fmt::format("the acquisition stream failed: {}", e.what())};
-          if (!safing) throw Interrupt{trip};
-          Event("trip", trip.detector + ": " + trip.text);
+          Handle(Trip{"acquisition-lost", SafetyAction::kStop, Now(), fmt::format("the acquisition stream failed: {}", e.what())});
           break;
         }
         HandleBlock(block);

@@ -293,25 +293,52 @@ TEST(SafetyMonitor, ALimitTripsAfterItsPersistenceOnEitherSideAndLatches) {
   SafetyConfig c;
   c.stroke = {true, 0.0, 0.2, 3, SafetyAction::kStop};
   c.force = {true, -1000.0, 1000.0, 1, SafetyAction::kIndicate};
-  SafetyMonitor m(c);
-  const std::vector<std::string> channels{"stroke", "force"};
+  SafetyMonitor m(c, {"stroke", "force"});
   // Two samples above, one back inside, two above: never three in a row.
-  EXPECT_TRUE(m.CheckBlock(Block({0.21, 0.21, 0.1, 0.21, 0.21}, {0, 0, 0, 0, 0}), channels).empty());
-  auto trips = m.CheckBlock(Block({0.1, 0.1, -0.01, -0.02, -0.03, -0.04}, {0, 0, 0, 0, 0, 0}, 10'000'000), channels);
+  EXPECT_TRUE(m.CheckBlock(Block({0.21, 0.21, 0.1, 0.21, 0.21}, {0, 0, 0, 0, 0})).empty());
+  auto trips = m.CheckBlock(Block({0.1, 0.1, -0.01, -0.02, -0.03, -0.04}, {0, 0, 0, 0, 0, 0}, 10'000'000));
   ASSERT_EQ(trips.size(), 1u);
   EXPECT_EQ(trips[0].detector, "stroke-limit");
   EXPECT_EQ(trips[0].action, SafetyAction::kStop);
   EXPECT_EQ(trips[0].monotonic_ns, 14'000'000);  // the third sample below
   EXPECT_EQ(trips[0].text, "stroke -0.03 m below the limit 0 m for 3 samples");
   // Latched: no second trip until Reset; the force limit trips on its first sample.
-  trips = m.CheckBlock(Block({-0.05, -0.05, -0.05}, {0, 1500, 0}), channels);
+  trips = m.CheckBlock(Block({-0.05, -0.05, -0.05}, {0, 1500, 0}));
   ASSERT_EQ(trips.size(), 1u);
   EXPECT_EQ(trips[0].detector, "force-limit");
   EXPECT_EQ(trips[0].action, SafetyAction::kIndicate);
   const Margins margins = m.TakeMargins();
   EXPECT_LT(margins.stroke, 0.0);
   m.Reset(0);
-  EXPECT_EQ(m.CheckBlock(Block({-0.05, -0.05, -0.05}, {0, 0, 0}), channels).size(), 1u);
+  EXPECT_EQ(m.CheckBlock(Block({-0.05, -0.05, -0.05}, {0, 0, 0})).size(), 1u);
+}
+
+// The limited channels are found by name wherever the layout puts them, once; a channel of no
+// limit is not checked, and trips come in the blocks' channel order.
+TEST(SafetyMonitor, FindsTheLimitedChannelsWhereverTheLayoutPutsThem) {
+  SafetyConfig c;
+  c.stroke = {true, 0.0, 0.2, 1, SafetyAction::kStop};
+  c.force = {true, -1000.0, 1000.0, 1, SafetyAction::kIndicate};
+  c.pressure = {true, 0.0, 1e6, 1, SafetyAction::kHold};
+  SafetyMonitor m(c, {"pressure", "temperature", "force", "stroke"});
+  daq::AcquiredBlock b;
+  b.time_ns = {0, 1'000'000};
+  b.values = {{5e5, 2e6}, {-1e9, 1e9}, {0.0, 1500.0}, {0.1, 0.3}};
+  const std::vector<Trip> trips = m.CheckBlock(b);
+  ASSERT_EQ(trips.size(), 3u);
+  EXPECT_EQ(trips[0].text, "pressure 2e+06 Pa above the limit 1e+06 Pa for 1 samples");
+  EXPECT_EQ(trips[1].text, "force 1500 N above the limit 1000 N for 1 samples");
+  EXPECT_EQ(trips[2].text, "stroke 0.3 m above the limit 0.2 m for 1 samples");
+  const Margins margins = m.TakeMargins();
+  EXPECT_DOUBLE_EQ(margins.pressure, (1e6 - 2e6) / 5e5);
+  EXPECT_DOUBLE_EQ(margins.force, (1000.0 - 1500.0) / 1000.0);
+  EXPECT_DOUBLE_EQ(margins.stroke, (0.2 - 0.3) / 0.1);
+  // A block of fewer channels than the layout: the missing ones are not read.
+  daq::AcquiredBlock short_block;
+  short_block.time_ns = {2'000'000};
+  short_block.values = {{5e5}};
+  m.Reset(0);
+  EXPECT_TRUE(m.CheckBlock(short_block).empty());
 }
 
 TEST(SafetyMonitor, FollowingErrorHeartbeatFaultStaleAndUnderPeak) {
@@ -322,7 +349,7 @@ TEST(SafetyMonitor, FollowingErrorHeartbeatFaultStaleAndUnderPeak) {
   c.stale.timeout = std::chrono::milliseconds(50);
   c.under_peak.fraction = 0.9;
   c.under_peak.cycles = 2;
-  SafetyMonitor m(c);
+  SafetyMonitor m(c, {"stroke", "force"});
   m.Arm(0);
   daq::ControllerStatus s;
   s.state = daq::ControllerState::kRunning;
@@ -347,18 +374,18 @@ TEST(SafetyMonitor, FollowingErrorHeartbeatFaultStaleAndUnderPeak) {
   EXPECT_EQ(trips[0].detector, "controller-fault");
   EXPECT_NE(trips[0].text.find("force-limit"), std::string::npos);
   // Stale: the last sample at 9 ms (a block of 10 from 0), timeout 50 ms.
-  m.CheckBlock(Block(std::vector<double>(10, 0.1), std::vector<double>(10, 0.0)), {"stroke", "force"});
+  m.CheckBlock(Block(std::vector<double>(10, 0.1), std::vector<double>(10, 0.0)));
   EXPECT_FALSE(m.CheckStale(58'000'000));
   const auto stale = m.CheckStale(59'000'000);
   ASSERT_TRUE(stale);
   EXPECT_EQ(stale->detector, "stale-data");
   // A stream that runs behind its nominal rate is silent by its samples' times, however recently
   // their frames arrived: samples timed 0..9 ms whose last frame came at 40 ms trip at 59 ms.
-  SafetyMonitor behind(c);
+  SafetyMonitor behind(c, {"stroke", "force"});
   behind.Arm(0);
   daq::AcquiredBlock late = Block(std::vector<double>(10, 0.1), std::vector<double>(10, 0.0));
   late.last_frame_ns = 40'000'000;
-  behind.CheckBlock(late, {"stroke", "force"});
+  behind.CheckBlock(late);
   EXPECT_FALSE(behind.CheckStale(58'000'000));
   EXPECT_TRUE(behind.CheckStale(59'000'000));
   // Under-peak: 0.85 of the commanded amplitude for two cycles.

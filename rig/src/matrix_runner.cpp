@@ -110,7 +110,14 @@ struct MatrixRunner::Impl {
 
   Impl(MatrixRunner& owner, daq::ActuatorController& c, daq::AcquisitionModule& a, daq::Recorder& r, SafetyConfig s,
        RunnerOptions o)
-      : owner(owner), controller(c), acquisition(a), recorder(r), safety(std::move(s)), options(std::move(o)) {}
+      : owner(owner), controller(c), acquisition(a), recorder(r), safety(std::move(s), ChannelNames(a)),
+        options(std::move(o)) {}
+
+  static std::vector<std::string> ChannelNames(const daq::AcquisitionModule& a) {
+    std::vector<std::string> names;
+    for (const daq::ChannelDescriptor& c : a.description().channels) names.push_back(c.name);
+    return names;
+  }
 
   MatrixRunner& owner;
   daq::ActuatorController& controller;
@@ -118,7 +125,6 @@ struct MatrixRunner::Impl {
   daq::Recorder& recorder;
   SafetyMonitor safety;
   RunnerOptions options;
-  std::vector<std::string> channels;
   int stroke_k = -1, force_k = -1, pressure_k = -1;
 
   // The loop's view of the devices.
@@ -260,7 +266,7 @@ struct MatrixRunner::Impl {
     for (const daq::AcquisitionEvent& e : block.events) Event(daq::ToString(e.kind), e.text, e.monotonic_ns);
     // The block is recorded first and checked after, so that a trip keeps the samples that caused it.
     RecordBlock(block);
-    for (const Trip& t : safety.CheckBlock(block, channels)) Handle(t);
+    for (const Trip& t : safety.CheckBlock(block)) Handle(t);
   }
 
   void RecordBlock(const daq::AcquiredBlock& block) {
@@ -559,7 +565,6 @@ MatrixRunner::MatrixRunner(daq::ActuatorController& controller, daq::Acquisition
   impl_ = std::make_unique<Impl>(*this, controller, acquisition, recorder, std::move(safety), std::move(options));
   const auto& channels = acquisition.description().channels;
   for (std::size_t k = 0; k < channels.size(); ++k) {
-    impl_->channels.push_back(channels[k].name);
     if (channels[k].name == "stroke") impl_->stroke_k = static_cast<int>(k);
     if (channels[k].name == "force") impl_->force_k = static_cast<int>(k);
     if (channels[k].name == "pressure") impl_->pressure_k = static_cast<int>(k);

@@ -192,9 +192,18 @@ SafetyConfig ReadSafetyConfig(const std::string& path) {
 // ---------------------------------------------------------------------------------------------
 // Run-time detectors
 
-SafetyMonitor::SafetyMonitor(SafetyConfig config) : config_(std::move(config)) {
+SafetyMonitor::SafetyMonitor(SafetyConfig config, const std::vector<std::string>& channels) : config_(std::move(config)) {
   std::string error;
   if (!config_.IsValid(&error)) throw std::invalid_argument("safety config: " + error);
+  for (std::size_t k = 0; k < channels.size(); ++k) {
+    if (channels[k] == "stroke")
+      limited_.push_back({k, "stroke-limit", "m", &SafetyConfig::stroke, &SafetyMonitor::stroke_, &Margins::stroke});
+    if (channels[k] == "force")
+      limited_.push_back({k, "force-limit", "N", &SafetyConfig::force, &SafetyMonitor::force_, &Margins::force});
+    if (channels[k] == "pressure")
+      limited_.push_back(
+          {k, "pressure-limit", "Pa", &SafetyConfig::pressure, &SafetyMonitor::pressure_, &Margins::pressure});
+  }
 }
 
 void SafetyMonitor::Arm(std::int64_t now_ns) {
@@ -233,7 +242,7 @@ std::optional<Trip> SafetyMonitor::CheckLimit(const char* detector, const char* 
                           v > l.upper ? "above" : "below", v > l.upper ? l.upper : l.lower, unit, s.count)};
 }
 
-std::vector<Trip> SafetyMonitor::CheckBlock(const daq::AcquiredBlock& block, const std::vector<std::string>& channels) {
+std::vector<Trip> SafetyMonitor::CheckBlock(const daq::AcquiredBlock& block) {
   std::vector<Trip> trips;
   if (block.empty()) return trips;
   // The samples' times (the linear time rule), not their frames' arrival: a stream half a second
@@ -241,21 +250,15 @@ std::vector<Trip> SafetyMonitor::CheckBlock(const daq::AcquiredBlock& block, con
   // arrives after the controller reports full amplitude and must not be the ramp's
   // (docs/rig-run.md "Benchmark").
   last_sample_ns_ = std::max(last_sample_ns_, block.time_ns.back());
-  for (std::size_t k = 0; k < channels.size() && k < block.values.size(); ++k) {
-    const ChannelLimit* l = nullptr;
-    LimitState* s = nullptr;
-    const char* detector = nullptr;
-    const char* unit = nullptr;
-    double* margin = nullptr;
-    if (channels[k] == "stroke") l = &config_.stroke, s = &stroke_, detector = "stroke-limit", unit = "m", margin = &margins_.stroke;
-    if (channels[k] == "force") l = &config_.force, s = &force_, detector = "force-limit", unit = "N", margin = &margins_.force;
-    if (channels[k] == "pressure")
-      l = &config_.pressure, s = &pressure_, detector = "pressure-limit", unit = "Pa", margin = &margins_.pressure;
-    if (!l) continue;
-    const std::vector<double>& v = block.values[k];
+  for (const LimitedChannel& c : limited_) {
+    if (c.k >= block.values.size()) continue;
+    const ChannelLimit& l = config_.*c.limit;
+    LimitState& s = this->*c.state;
+    double& margin = margins_.*c.margin;
+    const std::vector<double>& v = block.values[c.k];
     for (std::size_t i = 0; i < v.size(); ++i) {
-      *margin = std::min(*margin, Margin(v[i], l->lower, l->upper));
-      if (auto trip = CheckLimit(detector, unit, *l, *s, v[i], block.time_ns[i])) trips.push_back(std::move(*trip));
+      margin = std::min(margin, Margin(v[i], l.lower, l.upper));
+      if (auto trip = CheckLimit(c.detector, c.unit, l, s, v[i], block.time_ns[i])) trips.push_back(std::move(*trip));
     }
   }
   return trips;

@@ -118,14 +118,15 @@ struct Margins {
 //! The run-time detectors. Each detector trips once (latched) until Reset.
 class SafetyMonitor {
  public:
-  //! Throws std::invalid_argument when the config is not valid.
-  explicit SafetyMonitor(SafetyConfig config);
+  //! `channels` names the channels of the blocks CheckBlock gets, in order: the limited ones
+  //! (stroke, force, pressure) are found there once; the others are not checked. Throws
+  //! std::invalid_argument when the config is not valid.
+  SafetyMonitor(SafetyConfig config, const std::vector<std::string>& channels);
   const SafetyConfig& config() const { return config_; }
 
-  //! Channel limits over the samples of a block; `channels` names the block's channels in order
-  //! (those not named stroke, force or pressure are not checked). Also notes the samples' arrival
-  //! for the stale-data detector.
-  std::vector<Trip> CheckBlock(const daq::AcquiredBlock& block, const std::vector<std::string>& channels);
+  //! Channel limits over the samples of a block of the channels given at construction. Also notes
+  //! the samples' arrival for the stale-data detector.
+  std::vector<Trip> CheckBlock(const daq::AcquiredBlock& block);
   //! Stale data: no sample since `now_ns - timeout` (the clock starts at Arm(now_ns)).
   std::optional<Trip> CheckStale(std::int64_t now_ns);
   //! The controller: latched faults, its heartbeat counter frozen, command minus feedback.
@@ -147,9 +148,19 @@ class SafetyMonitor {
     int count = 0;
     bool latched = false;
   };
+  // A limited channel of the block layout: its place in a block and its detector.
+  struct LimitedChannel {
+    std::size_t k;
+    const char* detector;
+    const char* unit;
+    ChannelLimit SafetyConfig::*limit;
+    LimitState SafetyMonitor::*state;
+    double Margins::*margin;
+  };
   std::optional<Trip> CheckLimit(const char* detector, const char* unit, const ChannelLimit& limit, LimitState& state,
                                  double value, std::int64_t t);
   SafetyConfig config_;
+  std::vector<LimitedChannel> limited_;  // in the blocks' order
   LimitState stroke_, force_, pressure_, following_;
   bool stale_latched_ = false, heartbeat_latched_ = false, fault_latched_ = false, under_peak_latched_ = false;
   std::int64_t last_sample_ns_ = 0;

@@ -8,7 +8,6 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
-#include <fstream>
 #include <iostream>
 #include <nlohmann/json.hpp>
 #include <thread>
@@ -171,9 +170,7 @@ struct BenchAcquisition {
     report["runs"] = runs;
     report["all_targets_met"] = all_ok;
     if (!json_path.empty()) {
-      std::ofstream out(json_path);
-      out << report.dump(1) << "\n";
-      if (!out) throw std::runtime_error("cannot write " + json_path);
+      WriteTextOutput(json_path, report.dump(1) + "\n");
     }
   }
 };

@@ -11,13 +11,13 @@
 #include <cmath>
 #include <cstring>
 #include <filesystem>
-#include <fstream>
 #include <iostream>
 #include <nlohmann/json.hpp>
 #include <thread>
 
 #include "bench_support.h"
 #include "commands.h"
+#include "output_files.h"
 #include "strut/daq/recorder.h"
 #include "option_checks.h"
 
@@ -219,10 +219,7 @@ struct BenchRecorder {
                                   {"cpu_us_per_sample", f->cpu / samples * 1e6}});
       }
       out["core_share_at_rate"] = core_share;
-      std::ofstream file(json_path);
-      file << out.dump(1) << "\n";
-      if (!file) throw std::runtime_error("cannot write " + json_path);
-      spdlog::info("wrote {}", json_path);
+      WriteTextOutput(json_path, out.dump(1) + "\n");
     }
   }
 };

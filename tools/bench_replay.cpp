@@ -8,13 +8,13 @@
 
 #include <cmath>
 #include <filesystem>
-#include <fstream>
 #include <iostream>
 #include <nlohmann/json.hpp>
 
 #include "bench_support.h"
 #include "commands.h"
 #include "option_checks.h"
+#include "output_files.h"
 #include "strut/daq/replay.h"
 
 namespace strut::tools {
@@ -140,10 +140,7 @@ struct BenchReplay {
                                  {"times_real_time", sets / rate / f.wall}});
     }
     if (!json_path.empty()) {
-      std::ofstream file(json_path);
-      file << json.dump(1) << "\n";
-      if (!file) throw std::runtime_error("cannot write " + json_path);
-      spdlog::info("wrote {}", json_path);
+      WriteTextOutput(json_path, json.dump(1) + "\n");
     }
   }
 

@@ -9,7 +9,6 @@
 
 #include <chrono>
 #include <filesystem>
-#include <fstream>
 #include <iostream>
 #include <nlohmann/json.hpp>
 #include <optional>
@@ -17,6 +16,7 @@
 #include "bench_support.h"
 #include "commands.h"
 #include "option_checks.h"
+#include "output_files.h"
 #include "rig_devices.h"
 #include "strut/daq/session.h"
 #include "strut/rig/matrix_runner.h"
@@ -262,10 +262,7 @@ struct BenchRig {
         n, fastest ? fmt::format("{:g}x", *fastest) : "none");
     json["fastest_kept_up"] = fastest ? nlohmann::json(*fastest) : nlohmann::json(nullptr);
     if (!json_path.empty()) {
-      std::ofstream file(json_path);
-      file << json.dump(1) << "\n";
-      if (!file) throw std::runtime_error("cannot write " + json_path);
-      spdlog::info("wrote {}", json_path);
+      WriteTextOutput(json_path, json.dump(1) + "\n");
     }
   }
 };

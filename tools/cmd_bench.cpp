@@ -14,6 +14,7 @@
 
 #include "commands.h"
 #include "option_checks.h"
+#include "output_files.h"
 #include "strut/ident/estimator.h"
 #include "strut/ident/experiment_data.h"
 #include "strut/ident/oscillator.h"
@@ -314,9 +315,7 @@ struct BenchPeriodic {
     report["time_to_accuracy"] = TimeToAccuracy(b);
 
     if (!json_path.empty()) {
-      std::ofstream out(json_path);
-      out << report.dump(1) << "\n";
-      if (!out) throw std::runtime_error("cannot write " + json_path);
+      WriteTextOutput(json_path, report.dump(1) + "\n");
     }
   }
 };
@@ -802,9 +801,7 @@ struct BenchIdentify {
     std::cout << fmt::format("\nbench identify: {:.0f} s\n", seconds);
     report["seconds"] = seconds;
     if (!json_path.empty()) {
-      std::ofstream out(json_path);
-      out << report.dump(1) << "\n";
-      if (!out) throw std::runtime_error("cannot write " + json_path);
+      WriteTextOutput(json_path, report.dump(1) + "\n");
     }
   }
 };
@@ -860,9 +857,7 @@ struct BenchSim {
                       {"time_constant_fit_s", d.thermal_time_constant_fit},
                       {"time_constant_model_s", d.thermal_time_constant_model}};
     if (!json_path.empty()) {
-      std::ofstream out(json_path);
-      out << report.dump(1) << "\n";
-      if (!out) throw std::runtime_error("cannot write " + json_path);
+      WriteTextOutput(json_path, report.dump(1) + "\n");
     }
   }
 };
@@ -960,10 +955,7 @@ struct BenchSilverbox {
       out["import_seconds"] = import_seconds;
       out["data"] = session.source_path;
       out["test_simulation_check"] = check;
-      std::ofstream file(json_path);
-      file << out.dump(1) << "\n";
-      if (!file) throw std::runtime_error("cannot write " + json_path);
-      spdlog::info("wrote {}", json_path);
+      WriteTextOutput(json_path, out.dump(1) + "\n");
     }
     if (!report_path.empty()) {
       ident::WriteSilverboxReport(r, options, report_path, notes);

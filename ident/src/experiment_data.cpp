@@ -27,6 +27,26 @@ std::vector<long> RunsAt(const std::vector<double>& x, double value) {
   return runs;
 }
 
+// The sample-to-sample noise in codes of the channel's quantisation: a robust sd from the second
+// differences (which a slowly varying signal hardly enters; their variance is 6 sd^2), over the
+// smallest step between distinct values. Infinite for a channel without visible quantisation.
+double NoiseInCodes(const std::vector<double>& x) {
+  if (x.size() < 8) return 0.0;
+  std::vector<double> values(x);
+  std::sort(values.begin(), values.end());
+  double code = INFINITY;
+  for (std::size_t i = 1; i < values.size(); ++i)
+    if (values[i] > values[i - 1]) code = std::min(code, values[i] - values[i - 1]);
+  std::vector<double> second;
+  second.reserve(x.size());
+  for (std::size_t i = 1; i + 1 < x.size(); ++i) second.push_back(std::abs(x[i + 1] - 2.0 * x[i] + x[i - 1]));
+  const auto middle = second.begin() + static_cast<std::ptrdiff_t>(second.size() / 2);
+  std::nth_element(second.begin(), middle, second.end());
+  const double sd = *middle / (0.6745 * std::sqrt(6.0));
+  if (!std::isfinite(code)) return 0.0;  // one value throughout: no noise to speak of
+  return sd / code;
+}
+
 }  // namespace
 
 PeriodicSeries PeriodicSeries::Fit(const Eigen::VectorXd& period, double frequency) {
@@ -106,15 +126,19 @@ std::vector<DataIssue> InspectChannel(const daq::Experiment& e, const daq::Chann
     add("dropout", fmt::format("{} samples read exactly 0 (longest run {})", total, longest_zero));
   }
 
-  // Clipping: a large share of samples sitting exactly on the extreme value. A quantised sine
-  // peak also repeats its top code, but for well under 1.5 % of the samples.
+  // Clipping: samples sitting exactly on the extreme value, in a run of 5 or more. A quantised sine
+  // peak also repeats its top code where the noise spans less than a code or two, but for well under
+  // 1.5 % of the samples; where the noise spans several codes no peak stays on one code for 5
+  // samples, so there a run at the extreme is a saturated ADC however few samples it holds (a
+  // load cell's range reached for a few tens of milliseconds at full compression).
+  const double noise_codes = NoiseInCodes(x);
   for (const bool top : {true, false}) {
     const double extreme = top ? *std::max_element(x.begin(), x.end()) : *std::min_element(x.begin(), x.end());
     if (dropout && extreme == 0.0) continue;
     const auto runs = RunsAt(x, extreme);
     long at = 0, longest = 0;
     for (long r : runs) at += r, longest = std::max(longest, r);
-    if (at > 0.015 * count && longest >= 5)
+    if (longest >= 5 && (at > 0.015 * count || noise_codes >= 2.0))
       add("clipped", fmt::format("{} samples ({:.1f} %) flat at the {} value {:.6g} {}", at, 100.0 * at / count,
                                  top ? "highest" : "lowest", extreme, channel.units));
   }

@@ -348,17 +348,17 @@ FitSummary Estimator::Fit(const std::vector<ExperimentData>& data, const Paramet
           channels, widest));
     }
     // Transducer calibration (EstimatorOptions::gain_sd): a channel reading (1 + g) times the truth
-    // adds g y to its residuals and moves the estimate by g H^-1 J^T W y (the estimated inputs
-    // eliminated as in the Bard step); a gain known to sd s adds s^2 v v^T to the covariance.
+    // moves the estimate by g v, v = H^-1 d(J^T W e)/dg (an output's residuals gain g y, the input's
+    // gain moves every output along the input; the estimated inputs eliminated as in the Bard
+    // step); a gain known to sd s adds s^2 v v^T to the covariance.
     if (!options_.gain_sd.empty()) {
       Eigen::MatrixXd calibration = Eigen::MatrixXd::Zero(l, l);
       Eigen::MatrixXd information = eq.information;  // with the priors, as in the posterior
       information.diagonal() += priors.precision;
-      const auto& fitted = problem.channels();
       for (const auto& [channel, gain_sd] : options_.gain_sd) {
-        const auto it = std::find(fitted.begin(), fitted.end(), channel);
-        if (it == fitted.end() || !(gain_sd > 0)) continue;  // an input, or not in these data
-        const FitProblem::GainGradient gain = problem.GainGradients(static_cast<int>(it - fitted.begin()), variance);
+        if (!(gain_sd > 0)) continue;
+        const FitProblem::GainGradient gain = problem.GainGradients(channel, theta, variance);
+        if (!gain.covered) continue;  // not in these data
         Eigen::MatrixXd h = information;  // EliminateNuisance reduces it in place
         Eigen::VectorXd g = gain.parameters;
         std::vector<NuisanceBlock> inputs = eq.inputs;

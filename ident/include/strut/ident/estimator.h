@@ -70,11 +70,11 @@ struct EstimatorOptions {
   //! Output channels to fit; empty: the outputs of the causality (stroke and pressure for force
   //! input, force and pressure for stroke input; y for a generic oscillator driven by u).
   std::vector<std::string> channels;
-  //! Relative sd of each fitted channel's transducer gain, by channel name (0.002: a load cell
-  //! calibrated to 0.2 % of reading). The posterior adds what such gain errors move the estimate by
-  //! (linearised), so intervals hold the calibration's uncertainty beside the noise's; channels
-  //! not fitted (the input) are not covered. Empty: the noise alone (SessionFitOptions sets the
-  //! lab default, kLabGainSd).
+  //! Relative sd of each transducer's gain, by channel name (0.002: a load cell calibrated to 0.2 %
+  //! of reading). The posterior adds what such gain errors move the estimate by (linearised), so
+  //! intervals hold the calibration's uncertainty beside the noise's; the fitted outputs and the
+  //! input are covered (FitProblem::GainGradients), a drop's channels and channels the fit does not
+  //! use are not. Empty: the noise alone (SessionFitOptions sets the lab default, kLabGainSd).
   std::map<std::string, double> gain_sd;
   //! How outputs and sensitivities are predicted; empty: the periodic solver with `scheme`.
   //! (`strut bench identify` plugs in transient integration to compare.)

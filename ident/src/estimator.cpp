@@ -371,7 +371,7 @@ FitSummary Estimator::Fit(const std::vector<ExperimentData>& data, const Paramet
         const Eigen::VectorXd v = h.completeOrthogonalDecomposition().solve(g);
         if (!v.allFinite()) continue;
         calibration.noalias() += gain_sd * gain_sd * v * v.transpose();
-        summary.calibration += fmt::format("{}{} {:.3g} %", summary.calibration.empty() ? "" : ", ", channel, 100 * gain_sd);
+        summary.calibration[channel] = gain_sd;
       }
       covariance += calibration;
       summary.calibration_sd.assign(np, NAN);
@@ -520,6 +520,12 @@ std::string FitSummary::VerdictText() const {
   return {};
 }
 
+std::string FitSummary::CalibrationText() const {
+  std::string text;
+  for (const auto& [channel, sd] : calibration) text += fmt::format("{}{} {:.3g} %", text.empty() ? "" : ", ", channel, 100 * sd);
+  return text;
+}
+
 std::string FitSummary::BriefReport() const {
   return fmt::format("{}: {} after {} iterations, loglik {:.6g}, BIC {:.6g}, {} warnings", model,
                      converged ? "converged" : "NOT converged", iterations, loglik, bic, warnings.size());
@@ -542,7 +548,7 @@ std::string FitSummary::FullReport() const {
   }
   if (!calibration.empty())
     out += fmt::format("  (each sd holds the transducers' calibration, gain sd {}; shown where it is a large part)\n",
-                       calibration);
+                       CalibrationText());
   out += "\nchannels:\n";
   for (const auto& c : channels)
     out += fmt::format("  {:<12} rms {:.4g}  variance {:.4g}  noise floor {:.4g}  noise ratio {:.3g}\n", c.name, c.rms,

@@ -188,7 +188,8 @@ struct FitSummary {
   //! What the transducers' calibration (EstimatorOptions::gain_sd) alone contributes to each sd (the
   //! sd includes it: sd^2 = the rest^2 + this^2); empty without a calibration, NaN when fixed.
   std::vector<double> calibration_sd;
-  std::string calibration;  //!< the gains it holds, in words ("force 0.2 %, pressure 0.2 %"); empty without
+  //! The transducer gains it holds (channel: relative sd), the fitted outputs' and the input's; empty without.
+  std::map<std::string, double> calibration;
   std::vector<int> estimated_positions;
   Eigen::MatrixXd correlation;       //!< among the estimated parameters
   std::vector<FitChannel> channels;
@@ -202,6 +203,8 @@ struct FitSummary {
   std::vector<FitIteration> history;
 
   std::string BriefReport() const;
+  //! `calibration` in words: "force 0.2 %, pressure 0.2 %, stroke 0.1 %".
+  std::string CalibrationText() const;
   std::string FullReport() const;
   //! Parameter i's sd without the calibration's part (what the data and the model give).
   double NoiseSd(int i) const;

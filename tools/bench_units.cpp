@@ -53,9 +53,7 @@ struct BenchUnits {
     if (!calibration.empty()) options.estimator.gain_sd = ident::ParseGainSd(calibration);
     ident::EstimatorOptions uncalibrated = options.estimator;  // the fit's cost without the calibration
     uncalibrated.gain_sd.clear();
-    std::string calibrated;
-    for (const auto& [channel, sd] : options.estimator.gain_sd)
-      calibrated += fmt::format("{}{} {:.3g} %", calibrated.empty() ? "" : ", ", channel, 100 * sd);
+    const std::string calibrated = ident::GainSdText(options.estimator.gain_sd);
     const ident::Model model = ident::Model::Build(base, options.causality);
 
     std::map<std::string, std::pair<long, long>> inside;  // parameter: inside, total
@@ -97,14 +95,20 @@ struct BenchUnits {
       fit_cpu.push_back(ThreadSeconds() - cpu);
       {
         // The fit alone (one thread), from the plan the entry point made: the figure of the target;
-        // beside it the same fit without the calibration in its intervals (what that costs).
-        double before = ThreadSeconds();
-        ident::Estimator(model, options.estimator)
-            .Fit(fit.data.experiments, fit.plan.start, fit.plan.choices, fit.data.issues);
-        estimator_cpu.push_back(ThreadSeconds() - before);
-        before = ThreadSeconds();
-        ident::Estimator(model, uncalibrated).Fit(fit.data.experiments, fit.plan.start, fit.plan.choices, fit.data.issues);
-        uncalibrated_cpu.push_back(ThreadSeconds() - before);
+        // beside it the same fit without the calibration in its intervals (what that costs), the
+        // two in turn first.
+        const auto time = [&](const ident::EstimatorOptions& o) {
+          const double before = ThreadSeconds();
+          ident::Estimator(model, o).Fit(fit.data.experiments, fit.plan.start, fit.plan.choices, fit.data.issues);
+          return ThreadSeconds() - before;
+        };
+        if (u % 2 == 0) {
+          estimator_cpu.push_back(time(options.estimator));
+          uncalibrated_cpu.push_back(time(uncalibrated));
+        } else {
+          uncalibrated_cpu.push_back(time(uncalibrated));
+          estimator_cpu.push_back(time(options.estimator));
+        }
       }
       const ident::FitSummary& s = fit.summary;
       converged += s.converged;

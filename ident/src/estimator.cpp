@@ -520,9 +520,9 @@ std::string FitSummary::VerdictText() const {
   return {};
 }
 
-std::string FitSummary::CalibrationText() const {
+std::string GainSdText(const std::map<std::string, double>& gain_sd) {
   std::string text;
-  for (const auto& [channel, sd] : calibration) text += fmt::format("{}{} {:.3g} %", text.empty() ? "" : ", ", channel, 100 * sd);
+  for (const auto& [channel, sd] : gain_sd) text += fmt::format("{}{} {:.3g} %", text.empty() ? "" : ", ", channel, 100 * sd);
   return text;
 }
 
@@ -548,7 +548,7 @@ std::string FitSummary::FullReport() const {
   }
   if (!calibration.empty())
     out += fmt::format("  (each sd holds the transducers' calibration, gain sd {}; shown where it is a large part)\n",
-                       CalibrationText());
+                       GainSdText(calibration));
   out += "\nchannels:\n";
   for (const auto& c : channels)
     out += fmt::format("  {:<12} rms {:.4g}  variance {:.4g}  noise floor {:.4g}  noise ratio {:.3g}\n", c.name, c.rms,

@@ -85,6 +85,10 @@ struct EstimatorOptions {
   bool IsValid(std::string* error) const;
 };
 
+//! Transducer gains' relative sd (EstimatorOptions::gain_sd, FitSummary::calibration) in words:
+//! "force 0.2 %, pressure 0.2 %, stroke 0.1 %".
+std::string GainSdText(const std::map<std::string, double>& gain_sd);
+
 //! Residual statistics of one channel of one experiment (paper Figs. 8 and 11).
 struct ChannelStatistics {
   std::string channel;
@@ -203,8 +207,6 @@ struct FitSummary {
   std::vector<FitIteration> history;
 
   std::string BriefReport() const;
-  //! `calibration` in words: "force 0.2 %, pressure 0.2 %, stroke 0.1 %".
-  std::string CalibrationText() const;
   std::string FullReport() const;
   //! Parameter i's sd without the calibration's part (what the data and the model give).
   double NoiseSd(int i) const;

@@ -406,6 +406,20 @@ TEST(IdentifyCommand, WritesTheFitAsJson) {
   for (const char* key : {"mean", "sd", "rms", "noise_ratio"}) EXPECT_TRUE(j["experiments"][0]["force"].contains(key));
   for (const auto& c : j["channels"])
     for (const char* key : {"name", "variance", "noise_floor_variance", "rms", "noise_ratio"}) EXPECT_TRUE(c.contains(key)) << key;
+  // The calibration the intervals hold: the lab's (the stroke, the input here, included), or what
+  // --calibration names; the input's gain alone moves the estimate too.
+  EXPECT_EQ(j["calibration"], (nlohmann::json{{"force", 0.002}, {"pressure", 0.002}, {"stroke", 0.001}}));
+  const auto lvdt = test::RunStrut("identify " + dir.file("s.h5") + " --model 2dof --n 400 --json " +
+                                   dir.file("lvdt.json") + " --no-progress --estimate paper --calibration stroke=0.1%");
+  ASSERT_EQ(lvdt.exit_code, 0) << lvdt.output;
+  EXPECT_NE(lvdt.output.find("gain sd stroke 0.1 %"), std::string::npos) << lvdt.output;
+  std::ifstream lvdt_in(dir.file("lvdt.json"));
+  const nlohmann::json k = nlohmann::json::parse(lvdt_in);
+  EXPECT_EQ(k["calibration"], (nlohmann::json{{"stroke", 0.001}}));
+  double largest = 0.0;  // the calibration part over the sd
+  for (const auto& p : k["parameters"])
+    if (p["estimated"].get<bool>()) largest = std::max(largest, p["sd_calibration"].get<double>() / p["sd"].get<double>());
+  EXPECT_GT(largest, 0.1) << k["parameters"].dump();
   const auto bad = test::RunStrut("identify " + dir.file("s.h5") + " --model 2dof --estimate theta99 --no-progress");
   EXPECT_NE(bad.exit_code, 0);
   EXPECT_NE(bad.output.find("theta99"), std::string::npos) << bad.output;

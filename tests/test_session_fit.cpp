@@ -1,13 +1,16 @@
 // The one entry point for a fit from sessions, on units drawn away from the model's defaults.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <fmt/format.h>
 #include <fstream>
 #include <map>
 #include <regex>
 #include <nlohmann/json.hpp>
 
 #include "strut/ident/session_fit.h"
+#include "strut/rig/test_matrix.h"
 #include "strut/sim/draw.h"
 #include "strut/sim/periodic_session.h"
 #include "strut/sim/recorded_truth.h"
@@ -25,6 +28,27 @@ daq::Session DrawnSession(unsigned long seed) {
   sim::RigRunOptions run;
   run.seed = seed;
   return rig.RunMatrix(sim::StandardMatrixPlan(), run);
+}
+
+//! The parameters of a drawn unit whose seal slides (friction sharpness 2000 s/m, not the draw's
+//! near-stiction 1-3e4 s/m, where a force-driven stroke follows the load cell's noise in every stick
+//! phase), for force input.
+ParameterSet SlidingSealUnit(unsigned long seed, const Model& model) {
+  ParameterSet truth = sim::DrawUnit(IdealRig(), sim::UnitDraw{}, seed).Parameters(model);
+  truth.set("theta10", 2000.0);
+  return truth;
+}
+
+//! Its standard matrix simulated from its periodic states with a load cell quiet enough for force
+//! input (3 N against the gas stiffness times the LVDT's 0.03 mm: docs/identification.md, when
+//! force input is worth it).
+daq::Session QuietLoadCellSession(unsigned long seed) {
+  const Model model = Model::Build("2dof", Causality::kStrokeInput);
+  sim::PeriodicSessionOptions options;
+  options.noise.force = 3.0;
+  options.seed = static_cast<unsigned>(seed);
+  return sim::SimulatePeriodicSession(model.composition(), SlidingSealUnit(seed, model).values(),
+                                      rig::StandardMatrix(), options);
 }
 
 TEST(SessionFit, DefaultsIdentifyADrawnUnitToItsNoiseFloor) {
@@ -59,48 +83,87 @@ TEST(SessionFit, DefaultsIdentifyADrawnUnitToItsNoiseFloor) {
       if (spec.index != 12 && spec.index != 2 && spec.index != 17)
         EXPECT_GT(std::abs(t / spec.default_value - 1.0), 1e-3) << spec.key() << " left at its default by the draw";
     }
-    // Correlated parameters are warned about once per group: the stroke zero's direction links
-    // theta5, theta6, theta12 and theta16 (|r| > 0.99 pairwise without the calibration; with it
-    // theta5 and theta16 fall below), one warning, not six.
+    // The stroke zero's direction: theta6 (the volume per stroke) follows theta12. With the LVDT's
+    // gain in the intervals (it scales the stroke theta6 multiplies) they part a little (|r| 0.98-0.99).
+    const auto& est = fit.summary.estimated_positions;
+    const auto at = [&](const char* key) {
+      return static_cast<int>(std::find(est.begin(), est.end(), fit.summary.parameters.position(key)) - est.begin());
+    };
+    EXPECT_GT(std::abs(fit.summary.correlation(at("theta6"), at("theta12"))), 0.95);
+    // Correlated parameters are warned about once per group: without the calibration the stroke
+    // zero's direction links theta5, theta6, theta12 (and theta16: |r| > 0.99 pairwise), one warning,
+    // not six.
+    SessionFitOptions noise_only = options;
+    noise_only.estimator.gain_sd.clear();
+    const SessionFit uncalibrated = FitPlanned(fit.data, model, fit.plan, noise_only);
     std::map<std::string, int> mentions;
     int correlation_warnings = 0;
-    for (const std::string& w : fit.summary.warnings) {
+    for (const std::string& w : uncalibrated.summary.warnings) {
       if (w.find("are correlated") == std::string::npos) continue;
       ++correlation_warnings;
-      for (int i : fit.summary.estimated_positions) {
+      for (int i : est) {
         const std::string key = fit.summary.parameters.spec(i).key();
         if (std::regex_search(w, std::regex("\\b" + key + "\\b"))) ++mentions[key];
       }
     }
-    EXPECT_GE(correlation_warnings, 1) << fit.summary.FullReport();
+    EXPECT_GE(correlation_warnings, 1) << uncalibrated.summary.FullReport();
     for (const auto& [key, count] : mentions) EXPECT_EQ(count, 1) << key << " in more than one correlation warning";
-    for (const char* key : {"theta6", "theta12"}) EXPECT_EQ(mentions[key], 1) << key;
+    for (const char* key : {"theta5", "theta6", "theta12"}) EXPECT_EQ(mentions[key], 1) << key;
   }
 }
 
 TEST(SessionFit, CalibrationPartOfEachSdIsWhatAGainErrorMovesTheEstimateBy) {
-  // The independent reference: refit the same session with one transducer reading 0.2 % high (the
-  // gauge pressure's reading, not the absolute pressure) and compare each estimate's shift with the
-  // calibration part of its sd for a gain sd of 0.2 %.
-  const daq::Session session = DrawnSession(23);
-  const Model model = Model::Build("2dof", Causality::kStrokeInput);
-  constexpr double kGain = 0.002;
-  SessionFitOptions none;
-  none.estimator.gain_sd.clear();
-  const SessionFit base = FitPrepared(PrepareFitData(session, "drawn", model, none.estimator.n), model, none);
-  ASSERT_EQ(base.summary.Verdict(), FitVerdict::kAtNoiseFloor) << base.summary.FullReport();
-  for (const char* channel : {"force", "pressure"}) {
-    SCOPED_TRACE(channel);
+  // The independent reference: refit the same session with one transducer reading high (the gauge
+  // pressure's reading, not the absolute pressure; the LVDT's whole reading q + theta12) and compare
+  // each estimate's shift with the calibration part of its sd for a gain sd of that size. The
+  // fitted outputs' gains act on their residuals, the input's (the stroke under stroke input, the
+  // force under force input) through the measured and the estimated input.
+  const daq::Session rig_session = DrawnSession(23), quiet_session = QuietLoadCellSession(23);
+  struct Case {
+    Causality causality;
+    const char* channel;
+    double gain;
+  };
+  const Case cases[] = {{Causality::kStrokeInput, "force", 0.002},
+                        {Causality::kStrokeInput, "pressure", 0.002},
+                        {Causality::kStrokeInput, "stroke", 0.001},
+                        {Causality::kForceInput, "stroke", 0.001},
+                        {Causality::kForceInput, "force", 0.002}};
+  std::map<Causality, SessionFit> bases;
+  for (const Case& c : cases) {
+    SCOPED_TRACE(fmt::format("{} input, {} gain {}", ToString(c.causality), c.channel, c.gain));
+    const bool stroke_input = c.causality == Causality::kStrokeInput;
+    const daq::Session& session = stroke_input ? rig_session : quiet_session;
+    const Model model = Model::Build("2dof", c.causality);
+    SessionFitOptions none;
+    none.estimator.gain_sd.clear();
+    none.causality = c.causality;
+    if (!stroke_input) {
+      none.estimate = "paper";
+      // Force input, the paper's set from the truth: the wide set from the data's own start does not
+      // converge there, and even this fit stays above the floor (stroke 3.3: force input's misfit,
+      // docs/identification.md). The derivative is the optimum's, whatever its start and floor.
+      const ParameterSet truth = SlidingSealUnit(23, model);
+      for (int i = 0; i < truth.size(); ++i)
+        none.assignments += fmt::format("{}{}={:.17g}", i ? "," : "", truth.spec(i).key(), truth.value(i));
+    }
+    if (!bases.count(c.causality)) {
+      bases.emplace(c.causality, FitPrepared(PrepareFitData(session, "drawn", model, none.estimator.n), model, none));
+      ASSERT_TRUE(bases.at(c.causality).summary.converged) << bases.at(c.causality).summary.FullReport();
+      if (stroke_input) EXPECT_EQ(bases.at(c.causality).summary.Verdict(), FitVerdict::kAtNoiseFloor);
+    }
+    const SessionFit& base = bases.at(c.causality);
     daq::Session scaled = session;
     for (auto& e : scaled.experiments)
-      for (auto& c : e.channels)
-        if (c.name == channel)
-          for (double& v : c.samples) v *= 1.0 + kGain;
-    SessionFitOptions options;
-    options.estimator.gain_sd = {{channel, kGain}};
+      for (auto& channel : e.channels)
+        if (channel.name == c.channel)
+          for (double& v : channel.samples) v *= 1.0 + c.gain;
+    SessionFitOptions options = none;
+    options.estimator.gain_sd = {{c.channel, c.gain}};
     const SessionFit with = FitPrepared(PrepareFitData(session, "drawn", model, options.estimator.n), model, options);
     const SessionFit moved = FitPrepared(PrepareFitData(scaled, "scaled", model, none.estimator.n), model, none);
     ASSERT_TRUE(moved.summary.converged);
+    ASSERT_EQ(with.summary.calibration_sd.size(), base.summary.sd.size()) << "the gain is not covered";
     int compared = 0;
     for (int i : base.summary.estimated_positions) {
       const double shift = std::abs(moved.summary.parameters.value(i) - base.summary.parameters.value(i));

@@ -31,7 +31,8 @@ struct BenchUnits {
   std::string base = "2dof";
   bool servo = false;
   bool shipped_calibration = false;
-  bool drawn_gains = false;  //!< each unit's force and pressure gains drawn around 1 with the lab's sd
+  bool drawn_gains = false;  //!< each unit's force, pressure and stroke gains drawn around 1 with the lab's sd
+  std::string calibration;   //!< the fit's calibration (--calibration of identify); empty: the lab's
   double start_off = 0.3;
   std::vector<std::string> effects;  //!< physics the units have and the fitted model lacks
   std::string json_path;
@@ -49,17 +50,22 @@ struct BenchUnits {
     for (const std::string& e : effects) draw.effects.push_back({e, std::nullopt});
     ident::SessionFitOptions options;
     options.composition = base;
+    if (!calibration.empty()) options.estimator.gain_sd = ident::ParseGainSd(calibration);
+    ident::EstimatorOptions uncalibrated = options.estimator;  // the fit's cost without the calibration
+    uncalibrated.gain_sd.clear();
+    const std::string calibrated = ident::GainSdText(options.estimator.gain_sd);
     const ident::Model model = ident::Model::Build(base, options.causality);
 
     std::map<std::string, std::pair<long, long>> inside;  // parameter: inside, total
     std::map<std::string, std::vector<double>> zs;
     long converged = 0, at_floor = 0, same_optimum = 0, restarts = 0;
-    std::vector<double> fit_seconds, fit_cpu, estimator_cpu, ratios;
+    std::vector<double> fit_seconds, fit_cpu, estimator_cpu, uncalibrated_cpu, ratios;
     nlohmann::json rows = nlohmann::json::array();
-    std::cout << fmt::format("identification of {} drawn {} units (seeds {}..), {} actuator, {} calibration, stroke "
-                             "input, default choices:\n",
+    std::cout << fmt::format("identification of {} drawn {} units (seeds {}..), {} actuator, {} transducers, stroke "
+                             "input, default choices; the intervals hold the calibration {}:\n",
                              units, base, first_seed, servo ? "servo" : "ideal",
-                             shipped_calibration ? "shipped" : drawn_gains ? "drawn force and pressure gain" : "perfect");
+                             shipped_calibration ? "shipped" : drawn_gains ? "drawn force, pressure and stroke gain" : "perfect",
+                             calibrated.empty() ? "none" : calibrated);
     if (!effects.empty())
       std::cout << fmt::format("the units also have {}, which the fitted model {} lacks: the fits stay above the noise "
                                "floor and the coverage is that of the widened intervals\n",
@@ -74,6 +80,7 @@ struct BenchUnits {
         std::normal_distribution<double> normal;
         truth.sensors.force.gain_error = ident::kLabGainSd.at("force") * normal(stream);
         truth.sensors.pressure.gain_error = ident::kLabGainSd.at("pressure") * normal(stream);
+        truth.sensors.stroke.gain_error = ident::kLabGainSd.at("stroke") * normal(stream);
       }
       const sim::SimulatedRig rig(truth);
       sim::RigRunOptions run;
@@ -87,11 +94,21 @@ struct BenchUnits {
       fit_seconds.push_back(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
       fit_cpu.push_back(ThreadSeconds() - cpu);
       {
-        // The fit alone (one thread), from the plan the entry point made: the figure of the target.
-        const double before = ThreadSeconds();
-        ident::Estimator(model, options.estimator)
-            .Fit(fit.data.experiments, fit.plan.start, fit.plan.choices, fit.data.issues);
-        estimator_cpu.push_back(ThreadSeconds() - before);
+        // The fit alone (one thread), from the plan the entry point made: the figure of the target;
+        // beside it the same fit without the calibration in its intervals (what that costs), the
+        // two in turn first.
+        const auto time = [&](const ident::EstimatorOptions& o) {
+          const double before = ThreadSeconds();
+          ident::Estimator(model, o).Fit(fit.data.experiments, fit.plan.start, fit.plan.choices, fit.data.issues);
+          return ThreadSeconds() - before;
+        };
+        if (u % 2 == 0) {
+          estimator_cpu.push_back(time(options.estimator));
+          uncalibrated_cpu.push_back(time(uncalibrated));
+        } else {
+          uncalibrated_cpu.push_back(time(uncalibrated));
+          estimator_cpu.push_back(time(options.estimator));
+        }
       }
       const ident::FitSummary& s = fit.summary;
       converged += s.converged;
@@ -162,18 +179,24 @@ struct BenchUnits {
     const auto [lo, hi] = Wilson(in, all);
     std::sort(fit_seconds.begin(), fit_seconds.end());
     std::sort(fit_cpu.begin(), fit_cpu.end());
+    std::vector<double> cost_ratio(estimator_cpu.size());
+    for (std::size_t k = 0; k < cost_ratio.size(); ++k) cost_ratio[k] = estimator_cpu[k] / uncalibrated_cpu[k];
+    std::sort(cost_ratio.begin(), cost_ratio.end());
     std::sort(estimator_cpu.begin(), estimator_cpu.end());
+    std::sort(uncalibrated_cpu.begin(), uncalibrated_cpu.end());
     std::sort(ratios.begin(), ratios.end());
     std::cout << fmt::format(
         "  pooled   {}/{} = {:.3f} ({:.3f}-{:.3f}); target 0.90-0.98\n"
         "converged {}/{}; at the noise floor (every channel's pooled ratio < {}) {}/{}; worst ratio median {:.3f}, "
         "max {:.3f}\nfrom {:.0f} % off: the same optimum in {}/{}; fit (read to verdict) median {:.3f} s wall\n"
         "CPU medians on one thread: the whole entry point (prepare, plan, fit) {:.0f} ms; the fit from the data's "
-        "starting values alone {:.0f} ms (target < 100 ms)\n",
+        "starting values alone {:.0f} ms (target < 100 ms); the same fit without the calibration {:.0f} ms, unit by "
+        "unit {:.3f} times that (median)\n",
         in, all, double(in) / all, lo, hi, converged, units, ident::kNoiseFloorRatio, at_floor, units,
         ratios[ratios.size() / 2], ratios.back(), 100 * start_off, same_optimum, restarts,
         fit_seconds[fit_seconds.size() / 2], 1e3 * fit_cpu[fit_cpu.size() / 2],
-        1e3 * estimator_cpu[estimator_cpu.size() / 2]);
+        1e3 * estimator_cpu[estimator_cpu.size() / 2], 1e3 * uncalibrated_cpu[uncalibrated_cpu.size() / 2],
+        cost_ratio[cost_ratio.size() / 2]);
     if (!json_path.empty())
       WriteTextOutput(json_path, nlohmann::json{{"units", rows},
                                                 {"coverage", coverage},
@@ -202,8 +225,19 @@ void RegisterBenchUnits(CLI::App& bench) {
   sub->add_flag("--shipped-calibration", command->shipped_calibration,
                 "Keep the shipped transducers' zero and gain errors (default: perfect calibration).");
   sub->add_flag("--drawn-gains", command->drawn_gains,
-                "Draw each unit's force and pressure transducer gain errors from the lab calibration the fit assumes "
-                "(normal, sd 0.2 %): the coverage of intervals that hold the calibration.");
+                "Draw each unit's force, pressure and stroke transducer gain errors from the lab calibration "
+                "(kLabGainSd: normal, sd 0.2 %, 0.2 %, 0.1 %): the coverage of intervals that hold the calibration.");
+  sub->add_option("--calibration", command->calibration,
+                  "The transducers' calibration the fits' intervals hold, as for identify (force=0.2%,pressure=0.2%,"
+                  "stroke=0.1% or none); default: the lab's.")
+      ->check([](const std::string& text) {
+        try {
+          ident::ParseGainSd(text);
+          return std::string();
+        } catch (const std::invalid_argument& e) {
+          return std::string(e.what());
+        }
+      });
   sub->add_option("--start-off", command->start_off, "Largest relative offset of the restart in every parameter.")
       ->check(Between(0.0, 0.9))
       ->capture_default_str();

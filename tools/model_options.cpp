@@ -61,8 +61,9 @@ void ModelOptions::AddSessionFit(CLI::App& command) {
                   "Leave out an experiment (LABEL) or one of its channels (LABEL:CHANNEL); repeat or separate by commas.")
       ->delimiter(',');
   command.add_option("--calibration", calibration,
-                     "Relative sd of the transducers' gains, carried into every interval: CHANNEL=SD,... (force=0.1%) "
-                     "or 'none' (default: force=0.2%,pressure=0.2%; docs/identification.md).");
+                     "Relative sd of the transducers' gains, carried into every interval: CHANNEL=SD,... (force=0.1%; the "
+                     "channels named are all that is covered) or 'none' (default: force=0.2%,pressure=0.2%,stroke=0.1%; "
+                     "docs/identification.md).");
 }
 
 ident::SessionFitOptions ModelOptions::FitOptions(int n) const {

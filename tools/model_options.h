@@ -15,7 +15,7 @@ struct ModelOptions {
   std::string assignments;  //!< --set NAME=VALUE[,NAME=VALUE...]
   std::string params_file;  //!< --params FILE
   std::vector<std::string> exclude;  //!< --exclude LABEL[:CHANNEL],... (commands that read sessions)
-  std::string calibration;           //!< --calibration force=0.2%,pressure=0.2% | none (empty: the lab default)
+  std::string calibration;           //!< --calibration force=0.2%,pressure=0.2%,stroke=0.1% | none (empty: the lab default)
 
   //! Adds --model, --input, --set and --params to a subcommand.
   void Add(CLI::App& command);

@@ -348,17 +348,17 @@ FitSummary Estimator::Fit(const std::vector<ExperimentData>& data, const Paramet
           channels, widest));
     }
     // Transducer calibration (EstimatorOptions::gain_sd): a channel reading (1 + g) times the truth
-    // adds g y to its residuals and moves the estimate by g H^-1 J^T W y (the estimated inputs
-    // eliminated as in the Bard step); a gain known to sd s adds s^2 v v^T to the covariance.
+    // moves the estimate by g v, v = H^-1 d(J^T W e)/dg (an output's residuals gain g y, the input's
+    // gain moves every output along the input; the estimated inputs eliminated as in the Bard
+    // step); a gain known to sd s adds s^2 v v^T to the covariance.
     if (!options_.gain_sd.empty()) {
       Eigen::MatrixXd calibration = Eigen::MatrixXd::Zero(l, l);
       Eigen::MatrixXd information = eq.information;  // with the priors, as in the posterior
       information.diagonal() += priors.precision;
-      const auto& fitted = problem.channels();
       for (const auto& [channel, gain_sd] : options_.gain_sd) {
-        const auto it = std::find(fitted.begin(), fitted.end(), channel);
-        if (it == fitted.end() || !(gain_sd > 0)) continue;  // an input, or not in these data
-        const FitProblem::GainGradient gain = problem.GainGradients(static_cast<int>(it - fitted.begin()), variance);
+        if (!(gain_sd > 0)) continue;
+        const FitProblem::GainGradient gain = problem.GainGradients(channel, theta, variance);
+        if (!gain.covered) continue;  // not in these data
         Eigen::MatrixXd h = information;  // EliminateNuisance reduces it in place
         Eigen::VectorXd g = gain.parameters;
         std::vector<NuisanceBlock> inputs = eq.inputs;
@@ -371,7 +371,7 @@ FitSummary Estimator::Fit(const std::vector<ExperimentData>& data, const Paramet
         const Eigen::VectorXd v = h.completeOrthogonalDecomposition().solve(g);
         if (!v.allFinite()) continue;
         calibration.noalias() += gain_sd * gain_sd * v * v.transpose();
-        summary.calibration += fmt::format("{}{} {:.3g} %", summary.calibration.empty() ? "" : ", ", channel, 100 * gain_sd);
+        summary.calibration[channel] = gain_sd;
       }
       covariance += calibration;
       summary.calibration_sd.assign(np, NAN);
@@ -520,6 +520,12 @@ std::string FitSummary::VerdictText() const {
   return {};
 }
 
+std::string GainSdText(const std::map<std::string, double>& gain_sd) {
+  std::string text;
+  for (const auto& [channel, sd] : gain_sd) text += fmt::format("{}{} {:.3g} %", text.empty() ? "" : ", ", channel, 100 * sd);
+  return text;
+}
+
 std::string FitSummary::BriefReport() const {
   return fmt::format("{}: {} after {} iterations, loglik {:.6g}, BIC {:.6g}, {} warnings", model,
                      converged ? "converged" : "NOT converged", iterations, loglik, bic, warnings.size());
@@ -542,7 +548,7 @@ std::string FitSummary::FullReport() const {
   }
   if (!calibration.empty())
     out += fmt::format("  (each sd holds the transducers' calibration, gain sd {}; shown where it is a large part)\n",
-                       calibration);
+                       GainSdText(calibration));
   out += "\nchannels:\n";
   for (const auto& c : channels)
     out += fmt::format("  {:<12} rms {:.4g}  variance {:.4g}  noise floor {:.4g}  noise ratio {:.3g}\n", c.name, c.rms,

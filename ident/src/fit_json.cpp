@@ -47,6 +47,8 @@ nlohmann::json FitToJson(const FitSummary& fit) {
                                 Number(static_cast<std::size_t>(i) < fit.calibration_sd.size() ? fit.calibration_sd[i] : NAN)},
                                {"estimated", static_cast<bool>(fit.estimated[i])}});
   }
+  j["calibration"] = nlohmann::json::object();  // the transducer gains' relative sd the intervals hold
+  for (const auto& [channel, sd] : fit.calibration) j["calibration"][channel] = sd;
   j["channels"] = nlohmann::json::array();
   for (const FitChannel& c : fit.channels)
     j["channels"].push_back({{"name", c.name},

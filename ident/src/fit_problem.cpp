@@ -772,20 +772,47 @@ NormalEquations FitProblem::Linearise(const std::vector<double>& theta, const st
   return eq;
 }
 
-FitProblem::GainGradient FitProblem::GainGradients(int b, const std::vector<double>& variance) const {
+FitProblem::GainGradient FitProblem::GainGradients(const std::string& channel, const std::vector<double>& theta,
+                                                   const std::vector<double>& variance) {
+  const int nc = periodic_channels_;
   GainGradient g;
   g.parameters.setZero(static_cast<Eigen::Index>(estimated_.size()));
   g.inputs.resize(experiments_.size());
-  if (b < 0 || b >= periodic_channels_) return g;  // a drop's channel: not covered
-  for (std::size_t a = 0; a < experiments_.size(); ++a) {
+  const int output = static_cast<int>(std::find(channels_.begin(), channels_.begin() + nc, channel) - channels_.begin());
+  const bool input = channel == model_.input_channel();
+  if (output == nc && !input) return g;  // a drop's channel, or not in this fit
+  std::vector<Eigen::VectorXd> parameters(experiments_.size());
+  std::atomic<bool> covered = true;
+  ParallelFor(experiment_count(), threads_, [&](int a) {
     const Experiment& s = experiments_[a];
-    if (!s.active || !s.channel_fitted[b] || static_cast<int>(s.sensitivities_at_phases.size()) <= b) continue;
-    const GridChannel& measured = s.data->channels.at(channels_[b]);
-    const Eigen::VectorXd y = measured.mean.array() - measured.reading_offset;  // what the gain scales
-    g.parameters.noalias() += s.sensitivities_at_phases[b].transpose() * y / variance[b];
-    if (s.estimate && static_cast<int>(s.estimate->sensitivities_at_phases.size()) > b)
-      g.inputs[a] = s.estimate->sensitivities_at_phases[b].transpose() * y / variance[b];
-  }
+    parameters[a].setZero(g.parameters.size());
+    if (!s.active || static_cast<int>(s.sensitivities_at_phases.size()) != nc) return;
+    // d(outputs on the grid)/dg when the input reads (1 + g) times the truth.
+    std::vector<Eigen::MatrixXd> along_input;
+    if (input) {
+      const Eigen::Map<const Eigen::VectorXd> u(s.solution.input.values.data(), s.n());
+      along_input = s.solver->InputSensitivities(s.solution, theta, Eigen::MatrixXd(u), true);
+      if (along_input.empty()) {
+        covered = false;
+        return;
+      }
+    }
+    const bool with_estimate = s.estimate && static_cast<int>(s.estimate->sensitivities_at_phases.size()) == nc;
+    if (with_estimate) g.inputs[a].setZero(s.estimate->xi.size());
+    for (int b = 0; b < nc; ++b) {
+      if (!s.channel_fitted[b]) continue;
+      Eigen::VectorXd de = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(s.j0.size()));  // d(residual)/dg
+      if (b == output) {
+        const GridChannel& measured = s.data->channels.at(channels_[b]);
+        de = measured.mean.array() - measured.reading_offset;  // what the gain scales
+      }
+      if (input) de -= s.AtPhases(along_input[output_row_[b]].col(0));
+      parameters[a].noalias() += s.sensitivities_at_phases[b].transpose() * de / variance[b];
+      if (with_estimate) g.inputs[a].noalias() += s.estimate->sensitivities_at_phases[b].transpose() * de / variance[b];
+    }
+  });
+  for (const Eigen::VectorXd& p : parameters) g.parameters += p;
+  g.covered = covered;
   return g;
 }
 

@@ -84,7 +84,7 @@ void AddParameterTable(HtmlReport& report, const FitSummary& fit) {
   std::string caption = widened ? "Above the noise floor: every sd and interval is widened for the misfit (the factor "
                                   "beside it), and the estimates of a model that lacks physics are biased beyond them."
                                 : "The sd is the posterior standard deviation; the interval is ± 1.96 sd.";
-  if (!fit.calibration.empty()) caption += " Each sd holds the transducers' calibration (gain sd " + fit.calibration + ").";
+  if (!fit.calibration.empty()) caption += " Each sd holds the transducers' calibration (gain sd " + GainSdText(fit.calibration) + ").";
   report.AddTable(header, rows, caption);
 }
 

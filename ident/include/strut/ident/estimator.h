@@ -70,11 +70,11 @@ struct EstimatorOptions {
   //! Output channels to fit; empty: the outputs of the causality (stroke and pressure for force
   //! input, force and pressure for stroke input; y for a generic oscillator driven by u).
   std::vector<std::string> channels;
-  //! Relative sd of each fitted channel's transducer gain, by channel name (0.002: a load cell
-  //! calibrated to 0.2 % of reading). The posterior adds what such gain errors move the estimate by
-  //! (linearised), so intervals hold the calibration's uncertainty beside the noise's; channels
-  //! not fitted (the input) are not covered. Empty: the noise alone (SessionFitOptions sets the
-  //! lab default, kLabGainSd).
+  //! Relative sd of each transducer's gain, by channel name (0.002: a load cell calibrated to 0.2 %
+  //! of reading). The posterior adds what such gain errors move the estimate by (linearised), so
+  //! intervals hold the calibration's uncertainty beside the noise's; the fitted outputs and the
+  //! input are covered (FitProblem::GainGradients), a drop's channels and channels the fit does not
+  //! use are not. Empty: the noise alone (SessionFitOptions sets the lab default, kLabGainSd).
   std::map<std::string, double> gain_sd;
   //! How outputs and sensitivities are predicted; empty: the periodic solver with `scheme`.
   //! (`strut bench identify` plugs in transient integration to compare.)
@@ -84,6 +84,10 @@ struct EstimatorOptions {
   TransientPredictorFactory transient_predictor;
   bool IsValid(std::string* error) const;
 };
+
+//! Transducer gains' relative sd (EstimatorOptions::gain_sd, FitSummary::calibration) in words:
+//! "force 0.2 %, pressure 0.2 %, stroke 0.1 %".
+std::string GainSdText(const std::map<std::string, double>& gain_sd);
 
 //! Residual statistics of one channel of one experiment (paper Figs. 8 and 11).
 struct ChannelStatistics {
@@ -188,7 +192,8 @@ struct FitSummary {
   //! What the transducers' calibration (EstimatorOptions::gain_sd) alone contributes to each sd (the
   //! sd includes it: sd^2 = the rest^2 + this^2); empty without a calibration, NaN when fixed.
   std::vector<double> calibration_sd;
-  std::string calibration;  //!< the gains it holds, in words ("force 0.2 %, pressure 0.2 %"); empty without
+  //! The transducer gains it holds (channel: relative sd), the fitted outputs' and the input's; empty without.
+  std::map<std::string, double> calibration;
   std::vector<int> estimated_positions;
   Eigen::MatrixXd correlation;       //!< among the estimated parameters
   std::vector<FitChannel> channels;

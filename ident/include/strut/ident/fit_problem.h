@@ -121,15 +121,22 @@ class FitProblem {
   NormalEquations Linearise(const std::vector<double>& theta, const std::vector<double>& variance,
                             LinearisationMode mode);
 
-  //! What a transducer gain error does to eq. 19's sums: for periodic channel b, the gradient the
-  //! measured signal itself makes, sum J^T W y (a channel reading (1 + g) times the truth adds g y to
-  //! every residual), and per experiment its estimated input's share J_c^T W y (to eliminate as the
-  //! Bard step does). From the sensitivities of the last Linearise (call it first, with inputs).
+  //! What a transducer gain error does to eq. 19's sums at the optimum: the gradient d(sum J^T W e)/dg
+  //! of the parameters, and per experiment its estimated input's share d(J_c^T W e)/dg (to eliminate
+  //! as the Bard step does), for a `channel` reading (1 + g) times the truth. A fitted output's gain
+  //! adds g y to its residuals (y the reading the gain scales); the input's gain scales the measured
+  //! input, and with it the estimated one (its coefficients, their prior sd, the kept harmonics
+  //! above: in units of that sd the input on the grid is u (1 + g)), so it moves every fitted output
+  //! by g du along u: one forward input sensitivity per experiment. From the sensitivities of the last
+  //! Linearise at `theta` (call it first, exact, with inputs). `covered` false: the channel is neither
+  //! fitted nor the input, or the predictor has no input sensitivities (a drop's channel is not covered).
   struct GainGradient {
+    bool covered = false;
     Eigen::VectorXd parameters;
     std::vector<Eigen::VectorXd> inputs;  //!< per periodic experiment; empty where no input is estimated
   };
-  GainGradient GainGradients(int channel, const std::vector<double>& variance) const;
+  GainGradient GainGradients(const std::string& channel, const std::vector<double>& theta,
+                             const std::vector<double>& variance);
 
   //! Per fitted channel: pooled residual mean square over each experiment's noise variance of the
   //! averaged data, sum_a sum_mu e^2 / s_a^2 over the count (about 1 at the noise floor). NaN where

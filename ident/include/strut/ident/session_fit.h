@@ -15,8 +15,9 @@
 namespace strut::ident {
 
 //! The calibration a test lab has, as the relative sd of each transducer's gain: load cell and
-//! gas-pressure transducer each known to 0.2 % of reading (docs/identification.md, calibration).
-inline const std::map<std::string, double> kLabGainSd = {{"force", 0.002}, {"pressure", 0.002}};
+//! gas-pressure transducer each known to 0.2 % of reading, the stroke's LVDT to 0.1 % (calibrated
+//! against gauge blocks over its range; docs/identification.md, calibration).
+inline const std::map<std::string, double> kLabGainSd = {{"force", 0.002}, {"pressure", 0.002}, {"stroke", 0.001}};
 
 //! "force=0.2%,pressure=0.1%" (a value with % is in percent, without it a fraction) or "none" into
 //! EstimatorOptions::gain_sd. Throws std::invalid_argument naming the item (an empty item: the

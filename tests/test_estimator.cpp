@@ -423,6 +423,10 @@ TEST(IdentifyCommand, WritesTheFitAsJson) {
   const auto bad = test::RunStrut("identify " + dir.file("s.h5") + " --model 2dof --estimate theta99 --no-progress");
   EXPECT_NE(bad.exit_code, 0);
   EXPECT_NE(bad.output.find("theta99"), std::string::npos) << bad.output;
+  // A misspelt transducer would silently leave its gain out of every interval: refused, named.
+  const auto misspelt = test::RunStrut("identify " + dir.file("s.h5") + " --model 2dof --calibration forse=0.2% --no-progress");
+  EXPECT_NE(misspelt.exit_code, 0);
+  EXPECT_NE(misspelt.output.find("'forse' is not a channel of the model 2dof"), std::string::npos) << misspelt.output;
 }
 
 }  // namespace

@@ -29,7 +29,8 @@ std::vector<long> RunsAt(const std::vector<double>& x, double value) {
 
 // The sample-to-sample noise in codes of the channel's quantisation: a robust sd from the second
 // differences (which a slowly varying signal hardly enters; their variance is 6 sd^2), over the
-// smallest step between distinct values. Infinite for a channel without visible quantisation.
+// smallest step between distinct values: very large for a channel stored without quantisation, 0 for
+// a constant one.
 double NoiseInCodes(const std::vector<double>& x) {
   if (x.size() < 8) return 0.0;
   std::vector<double> values(x);
@@ -37,14 +38,13 @@ double NoiseInCodes(const std::vector<double>& x) {
   double code = INFINITY;
   for (std::size_t i = 1; i < values.size(); ++i)
     if (values[i] > values[i - 1]) code = std::min(code, values[i] - values[i - 1]);
+  if (!std::isfinite(code)) return 0.0;  // one value throughout
   std::vector<double> second;
   second.reserve(x.size());
   for (std::size_t i = 1; i + 1 < x.size(); ++i) second.push_back(std::abs(x[i + 1] - 2.0 * x[i] + x[i - 1]));
   const auto middle = second.begin() + static_cast<std::ptrdiff_t>(second.size() / 2);
   std::nth_element(second.begin(), middle, second.end());
-  const double sd = *middle / (0.6745 * std::sqrt(6.0));
-  if (!std::isfinite(code)) return 0.0;  // one value throughout: no noise to speak of
-  return sd / code;
+  return *middle / (0.6745 * std::sqrt(6.0)) / code;
 }
 
 }  // namespace

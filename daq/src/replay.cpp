@@ -10,7 +10,6 @@
 #include <cmath>
 #include <limits>
 #include <map>
-#include <numeric>
 #include <stdexcept>
 
 namespace strut::daq {
@@ -349,17 +348,15 @@ ExperimentDescriptor RecordingDescriptor(const ReplayedExperiment& x) {
 }
 
 SampleBlock RecordingBlock(const ReplayedExperiment& x, const AcquiredBlock& block) {
-  // RecordedBlock's rules, copying only what the recording keeps (no derived counts).
-  SampleBlock b;
-  b.monotonic_ns = block.time_ns;
-  b.values = block.values;
-  for (std::size_t c = 0; c < block.counts.size(); ++c)
-    if (x.recorded_counts[c]) b.counts.push_back(block.counts[c]);
-  if (x.recorded_sequence) {
-    b.sequence.resize(block.size());
-    std::iota(b.sequence.begin(), b.sequence.end(), block.first_index);
-  }
-  if (x.recorded_status) b.status.assign(block.size(), block.quality.flags);
+  // RecordedBlock's rules (one place for them), then what the recording does not keep dropped: the
+  // derived counts' copies cost less than a second set of rules that could drift from the recorder's.
+  SampleBlock b = RecordedBlock(block);
+  std::vector<std::vector<std::int32_t>> counts;
+  for (std::size_t c = 0; c < b.counts.size(); ++c)
+    if (x.recorded_counts[c]) counts.push_back(std::move(b.counts[c]));
+  b.counts = std::move(counts);
+  if (!x.recorded_sequence) b.sequence.clear();
+  if (!x.recorded_status) b.status.clear();
   return b;
 }
 

@@ -1,5 +1,6 @@
 #pragma once
 
+#include <optional>
 #include <string_view>
 #include <vector>
 
@@ -15,5 +16,8 @@ struct Assignment {
 //! ParameterError naming the text, an item without '=' or without a name one naming the item, both
 //! prefixed by `option`; `form` says what an item should look like. Views into `text`.
 std::vector<Assignment> SplitAssignments(std::string_view text, std::string_view option, std::string_view form);
+
+//! A finite number filling all of `text` (blanks around it allowed); nullopt otherwise (out of range too).
+std::optional<double> ParseNumber(std::string_view text);
 
 }  // namespace strut::ident

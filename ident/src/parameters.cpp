@@ -20,16 +20,6 @@ std::string_view Trim(std::string_view s) {
   return s;
 }
 
-std::optional<double> ParseNumber(std::string_view text) {
-  text = Trim(text);
-  if (text.empty()) return std::nullopt;
-  const std::string copy(text);
-  char* end = nullptr;
-  errno = 0;
-  const double v = std::strtod(copy.c_str(), &end);
-  if (end != copy.c_str() + copy.size() || errno == ERANGE || !std::isfinite(v)) return std::nullopt;
-  return v;
-}
 
 // "theta4 gas_area = -1 m^2 is outside its physical range (0, inf)".
 std::string OutOfRange(const ParameterSpec& spec, double value) {
@@ -89,6 +79,17 @@ std::optional<std::string> ParameterSet::RangeViolation() const {
 
 void ParameterSet::Validate() const {
   if (auto violation = RangeViolation()) throw ParameterError(*violation);
+}
+
+std::optional<double> ParseNumber(std::string_view text) {
+  text = Trim(text);
+  if (text.empty()) return std::nullopt;
+  const std::string copy(text);
+  char* end = nullptr;
+  errno = 0;
+  const double v = std::strtod(copy.c_str(), &end);
+  if (end != copy.c_str() + copy.size() || errno == ERANGE || !std::isfinite(v)) return std::nullopt;
+  return v;
 }
 
 std::vector<Assignment> SplitAssignments(std::string_view text, std::string_view option, std::string_view form) {

@@ -1,6 +1,7 @@
 #include "strut/ident/session_fit.h"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <fmt/format.h>
 #include <set>
@@ -28,20 +29,16 @@ std::map<std::string, double> ParseGainSd(const std::string& text) {
   std::map<std::string, double> out;
   if (text == "none") return out;
   for (const Assignment& a : SplitAssignments(text, "calibration", "CHANNEL=SD (force=0.2%) or 'none'")) {
-    std::string value(a.value);
-    const bool percent = !value.empty() && value.back() == '%';
-    if (percent) value.pop_back();
-    std::size_t used = 0;
-    double sd = NAN;
-    try {
-      sd = std::stod(value, &used);
-    } catch (const std::exception&) {
-      used = 0;
-    }
-    if (used == 0 || used != value.size() || !(sd >= 0) || !std::isfinite(sd))
+    std::string_view value = a.value;
+    const bool percent = value.ends_with('%');
+    if (percent) value.remove_suffix(1);
+    // The item is trimmed already; a blank left is one between the number and its % ("0.2 %").
+    const bool blank = !value.empty() && std::isspace(static_cast<unsigned char>(value.back()));
+    const std::optional<double> sd = blank ? std::nullopt : ParseNumber(value);
+    if (!sd || !(*sd >= 0))
       throw std::invalid_argument(
           fmt::format("calibration '{}': the gain sd must be a number >= 0 (0.002 or 0.2%)", a.item));
-    out[std::string(a.name)] = percent ? sd / 100.0 : sd;
+    out[std::string(a.name)] = percent ? *sd / 100.0 : *sd;
   }
   return out;
 }

@@ -50,11 +50,18 @@ struct BenchUnits {
     for (const std::string& e : effects) draw.effects.push_back({e, std::nullopt});
     ident::SessionFitOptions options;
     options.composition = base;
-    if (!calibration.empty()) options.estimator.gain_sd = ident::ParseGainSd(calibration);
+    const ident::Model model = ident::Model::Build(base, options.causality);
+    if (!calibration.empty()) {
+      options.estimator.gain_sd = ident::ParseGainSd(calibration);
+      try {
+        ident::CheckGainChannels(options.estimator.gain_sd, model);
+      } catch (const std::invalid_argument& e) {
+        throw std::invalid_argument(std::string("--calibration: ") + e.what());
+      }
+    }
     ident::EstimatorOptions uncalibrated = options.estimator;  // the fit's cost without the calibration
     uncalibrated.gain_sd.clear();
     const std::string calibrated = ident::GainSdText(options.estimator.gain_sd);
-    const ident::Model model = ident::Model::Build(base, options.causality);
 
     std::map<std::string, std::pair<long, long>> inside;  // parameter: inside, total
     std::map<std::string, std::vector<double>> zs;

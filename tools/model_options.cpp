@@ -77,15 +77,12 @@ ident::SessionFitOptions ModelOptions::FitOptions(int n) const {
   if (!calibration.empty()) {
     try {
       options.estimator.gain_sd = ident::ParseGainSd(calibration);
+      ident::CheckGainChannels(options.estimator.gain_sd, ident::Model::Build(composition, options.causality));
+    } catch (const ident::ModelError&) {
+      throw;  // a bad --model, named by its own option
     } catch (const std::invalid_argument& e) {
       throw std::invalid_argument(std::string("--calibration: ") + e.what());
     }
-    // A misspelt channel would leave that transducer out of every interval without a word.
-    const std::vector<std::string> channels = ident::Model::Build(composition, options.causality).output_channels();
-    for (const auto& [channel, sd] : options.estimator.gain_sd)
-      if (std::find(channels.begin(), channels.end(), channel) == channels.end())
-        throw std::invalid_argument(fmt::format("--calibration: '{}' is not a channel of the model {} (its channels: {})",
-                                                channel, composition, fmt::join(channels, ", ")));
   }
   return options;
 }

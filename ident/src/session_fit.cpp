@@ -4,6 +4,7 @@
 #include <cctype>
 #include <cmath>
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 #include <set>
 #include <spdlog/spdlog.h>
 
@@ -41,6 +42,14 @@ std::map<std::string, double> ParseGainSd(const std::string& text) {
     out[std::string(a.name)] = percent ? *sd / 100.0 : *sd;
   }
   return out;
+}
+
+void CheckGainChannels(const std::map<std::string, double>& gain_sd, const Model& model) {
+  const std::vector<std::string> channels = model.output_channels();
+  for (const auto& [channel, sd] : gain_sd)
+    if (std::find(channels.begin(), channels.end(), channel) == channels.end())
+      throw std::invalid_argument(fmt::format("'{}' is not a channel of the model {} (its channels: {})", channel,
+                                              model.composition(), fmt::join(channels, ", ")));
 }
 
 bool SessionFitOptions::IsValid(std::string* error) const {

@@ -23,6 +23,9 @@ inline const std::map<std::string, double> kLabGainSd = {{"force", 0.002}, {"pre
 //! EstimatorOptions::gain_sd. Throws std::invalid_argument naming the item (an empty item: the
 //! text, as --set does).
 std::map<std::string, double> ParseGainSd(const std::string& text);
+//! Throws std::invalid_argument naming a channel of `gain_sd` that `model` does not have, and its
+//! channels: a misspelt transducer would leave its gain out of every interval without a word.
+void CheckGainChannels(const std::map<std::string, double>& gain_sd, const Model& model);
 
 struct SessionFitOptions {
   std::string composition = "2dof";

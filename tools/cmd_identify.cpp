@@ -29,8 +29,8 @@ struct IdentifyCommand {
   ModelOptions model;
   std::string estimate;
   std::string json_path, report_path;
-  int n = 800;
-  std::string scheme = "backward2";
+  int n = 0;                    // 0: by causality (ident::DefaultGridPoints)
+  std::string scheme = "auto";  // auto: by causality (ident::DefaultScheme)
   std::string estimate_input = "auto";
   int input_harmonics = 20;
   bool no_progress = false;
@@ -43,7 +43,7 @@ struct IdentifyCommand {
       throw std::invalid_argument("--json and --report name the same file " + json_path);
     ident::SessionFitOptions options = model.FitOptions(n);
     options.estimate = estimate;
-    options.estimator.scheme = ident::ParseScheme(scheme);
+    if (scheme != "auto") options.estimator.scheme = ident::ParseScheme(scheme);
     if (estimate_input != "auto") options.estimator.estimate_input = estimate_input == "on";
     options.estimator.input_harmonics = input_harmonics;
     // Drop experiments are fitted beside the periodic ones, predicted by sim's transient integrator.
@@ -111,9 +111,14 @@ void RegisterIdentifyCommand(CLI::App& app) {
   command->model.AddSessionFit(*sub);
   sub->add_option("--json", command->json_path, "Write the fit as JSON to this file.");
   sub->add_option("--report", command->report_path, "Write a self-contained HTML report to this file.");
-  sub->add_option("--n", command->n, "Grid points per period of the periodic solver.")->check(Between(16, 100000))->capture_default_str();
-  sub->add_option("--scheme", command->scheme, "Difference scheme: backward2, central2, central4 or spectral.")
-      ->check(CLI::IsMember({"backward2", "central2", "central4", "spectral"}))
+  sub->add_option("--n", command->n,
+                  "Least grid points per period of the periodic solver; a grid holds every recorded sample phase "
+                  "(default: 200 under stroke input, 800 under force input).")
+      ->check(Between(16, 100000));
+  sub->add_option("--scheme", command->scheme,
+                  "Difference scheme: backward2, central2, central4 or spectral (default auto: central4 under stroke "
+                  "input, backward2 under force input).")
+      ->check(CLI::IsMember({"auto", "backward2", "central2", "central4", "spectral"}))
       ->capture_default_str();
   sub->add_option("--estimate-input", command->estimate_input,
                   "Errors in variables: estimate the measured input's Fourier coefficients with the parameters "

@@ -222,13 +222,228 @@ bool CyclicBandedLU::Factorize(const CyclicBlockBanded& a) {
   upper_ = a.kmax();
   border_ = std::max({lower_, upper_, 1});
   ok_ = false;
-  dense_ = folded_ = false;
+  dense_ = folded_ = eliminated_ = false;
+  reduced_.reset();
+  if (FactorizeEliminated(a)) return true;
   if (n_ < 2 * border_ + 2) return FactorizeDense(a);
   // Backward schemes: block forward substitution plus a small border system. Central schemes:
   // the open (non-periodic) interior has parasitic growing modes that wreck the border system, so
   // they (and any border failure) go to the folded banded LU, stable by partial pivoting.
   if (upper_ > 0 || m_ > 16 || !FactorizeBorder(a)) return FactorizeFolded(a);  // 16: ForwardSubstitute's buffer
   return true;
+}
+
+bool CyclicBandedLU::FactorizeEliminated(const CyclicBlockBanded& a) {
+  // Which equations and unknowns appear in an off-diagonal block (a rate) anywhere.
+  std::vector<bool> dynamic_equation(m_, false), dynamic_unknown(m_, false);
+  for (int mu = 0; mu < n_; ++mu)
+    for (int k = a.kmin(); k <= a.kmax(); ++k) {
+      if (k == 0) continue;
+      const auto blk = a.block(mu, k);
+      for (int c = 0; c < m_; ++c)
+        for (int r = 0; r < m_; ++r)
+          if (blk(r, c) != 0.0) dynamic_equation[r] = dynamic_unknown[c] = true;
+    }
+  dynamic_equations_.clear();
+  algebraic_equations_.clear();
+  dynamic_unknowns_.clear();
+  algebraic_unknowns_.clear();
+  for (int i = 0; i < m_; ++i) {
+    (dynamic_equation[i] ? dynamic_equations_ : algebraic_equations_).push_back(i);
+    (dynamic_unknown[i] ? dynamic_unknowns_ : algebraic_unknowns_).push_back(i);
+  }
+  const int na = static_cast<int>(algebraic_unknowns_.size()), nd = m_ - na;
+  if (na == 0 || static_cast<int>(algebraic_equations_.size()) != na || m_ > 16) return false;
+  using Small = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::ColMajor, 16, 16>;
+  e_inverse_.resize(static_cast<std::size_t>(n_) * na * na);
+  e_inverse_c_.resize(static_cast<std::size_t>(n_) * na * nd);
+  b_block_.resize(static_cast<std::size_t>(n_) * nd * na);
+  CyclicBlockBanded reduced(n_, std::max(nd, 1), a.kmin(), a.kmax());
+  double rcond = 1.0;
+  for (int mu = 0; mu < n_; ++mu) {
+    const auto diag = a.block(mu, 0);
+    Small e(na, na), c(na, nd), b(nd, na);
+    for (int i = 0; i < na; ++i) {
+      for (int j = 0; j < na; ++j) e(i, j) = diag(algebraic_equations_[i], algebraic_unknowns_[j]);
+      for (int j = 0; j < nd; ++j) c(i, j) = diag(algebraic_equations_[i], dynamic_unknowns_[j]);
+    }
+    for (int i = 0; i < nd; ++i)
+      for (int j = 0; j < na; ++j) b(i, j) = diag(dynamic_equations_[i], algebraic_unknowns_[j]);
+    // Rows equilibrated, so that the pivot ratio is a singularity test whatever the units.
+    Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 16, 1> row_scale = e.rowwise().lpNorm<Eigen::Infinity>();
+    if (!(row_scale.minCoeff() > 0.0) || !std::isfinite(row_scale.maxCoeff())) return false;
+    row_scale = row_scale.cwiseInverse();
+    const Eigen::PartialPivLU<Small> lu(row_scale.asDiagonal() * e);
+    const auto pivots = lu.matrixLU().diagonal().cwiseAbs();
+    const double ratio = pivots.minCoeff() / pivots.maxCoeff();
+    if (!(ratio > 1e-13)) return false;
+    rcond = std::min(rcond, ratio);
+    const Small inverse = lu.inverse() * row_scale.asDiagonal();
+    const Small inverse_c = inverse * c;
+    std::copy(inverse.data(), inverse.data() + na * na, e_inverse_.data() + static_cast<std::size_t>(mu) * na * na);
+    std::copy(inverse_c.data(), inverse_c.data() + na * nd, e_inverse_c_.data() + static_cast<std::size_t>(mu) * na * nd);
+    std::copy(b.data(), b.data() + nd * na, b_block_.data() + static_cast<std::size_t>(mu) * nd * na);
+    if (nd == 0) continue;
+    for (int k = a.kmin(); k <= a.kmax(); ++k) {
+      const auto from = a.block(mu, k);
+      auto to = reduced.block(mu, k);
+      for (int j = 0; j < nd; ++j)
+        for (int i = 0; i < nd; ++i) to(i, j) = from(dynamic_equations_[i], dynamic_unknowns_[j]);
+      if (k == 0) to -= b * inverse_c;
+    }
+  }
+  if (nd > 0) {
+    reduced_ = std::make_shared<CyclicBandedLU>();
+    if (!reduced_->Factorize(reduced)) {
+      reduced_.reset();
+      return false;
+    }
+    rcond = std::min(rcond, reduced_->border_rcond());
+  }
+  eliminated_ = ok_ = true;
+  border_rcond_ = rcond;
+  return true;
+}
+
+namespace {
+
+// The point-by-point passes of CyclicBandedLU's elimination for na algebraic and nd dynamic
+// unknowns; NA, ND > 0 fix them at compile time (the common shapes unroll), 0 reads na, nd.
+struct EliminationLayout {
+  int n, m, na, nd;
+  const int *eq_a, *eq_d, *unk_a, *unk_d;
+  const double *e_inverse, *e_inverse_c, *b_block;
+};
+
+template <int NA, int ND>
+void EliminateForward(const EliminationLayout& l, double* column, double* reduced) {
+  const int na = NA > 0 ? NA : l.na, nd = ND > 0 ? ND : l.nd;
+  double y[16];
+  for (int mu = 0; mu < l.n; ++mu) {
+    double* point = column + static_cast<std::ptrdiff_t>(mu) * l.m;
+    const double* e = l.e_inverse + static_cast<std::size_t>(mu) * na * na;
+    const double* bb = l.b_block + static_cast<std::size_t>(mu) * nd * na;
+    for (int i = 0; i < na; ++i) {
+      double v = 0.0;
+      for (int j = 0; j < na; ++j) v += e[i + j * na] * point[l.eq_a[j]];
+      y[i] = v;
+    }
+    for (int i = 0; i < nd; ++i) {
+      double v = point[l.eq_d[i]];
+      for (int j = 0; j < na; ++j) v -= bb[i + j * nd] * y[j];
+      reduced[static_cast<std::ptrdiff_t>(mu) * nd + i] = v;
+    }
+    for (int i = 0; i < na; ++i) point[l.unk_a[i]] = y[i];  // y_A, kept for the back pass
+  }
+}
+
+template <int NA, int ND>
+void EliminateBack(const EliminationLayout& l, double* column, const double* reduced) {
+  const int na = NA > 0 ? NA : l.na, nd = ND > 0 ? ND : l.nd;
+  for (int mu = 0; mu < l.n; ++mu) {
+    double* point = column + static_cast<std::ptrdiff_t>(mu) * l.m;
+    const double* x = reduced + static_cast<std::ptrdiff_t>(mu) * nd;
+    const double* ec = l.e_inverse_c + static_cast<std::size_t>(mu) * na * nd;
+    for (int i = 0; i < na; ++i) {
+      double v = point[l.unk_a[i]];
+      for (int j = 0; j < nd; ++j) v -= ec[i + j * na] * x[j];
+      point[l.unk_a[i]] = v;
+    }
+    for (int i = 0; i < nd; ++i) point[l.unk_d[i]] = x[i];
+  }
+}
+
+template <int NA, int ND>
+void EliminateForwardTransposed(const EliminationLayout& l, const double* column, double* reduced) {
+  const int na = NA > 0 ? NA : l.na, nd = ND > 0 ? ND : l.nd;
+  for (int mu = 0; mu < l.n; ++mu) {
+    const double* point = column + static_cast<std::ptrdiff_t>(mu) * l.m;
+    const double* ec = l.e_inverse_c + static_cast<std::size_t>(mu) * na * nd;
+    for (int i = 0; i < nd; ++i) {
+      double v = point[l.unk_d[i]];
+      for (int j = 0; j < na; ++j) v -= ec[j + i * na] * point[l.unk_a[j]];
+      reduced[static_cast<std::ptrdiff_t>(mu) * nd + i] = v;
+    }
+  }
+}
+
+template <int NA, int ND>
+void EliminateBackTransposed(const EliminationLayout& l, double* column, const double* reduced) {
+  const int na = NA > 0 ? NA : l.na, nd = ND > 0 ? ND : l.nd;
+  double rest[16], y[16];
+  for (int mu = 0; mu < l.n; ++mu) {
+    double* point = column + static_cast<std::ptrdiff_t>(mu) * l.m;
+    const double* x = reduced + static_cast<std::ptrdiff_t>(mu) * nd;
+    const double* e = l.e_inverse + static_cast<std::size_t>(mu) * na * na;
+    const double* bb = l.b_block + static_cast<std::size_t>(mu) * nd * na;
+    for (int j = 0; j < na; ++j) {
+      double v = point[l.unk_a[j]];
+      for (int k = 0; k < nd; ++k) v -= bb[k + j * nd] * x[k];
+      rest[j] = v;
+    }
+    for (int i = 0; i < na; ++i) {
+      double v = 0.0;
+      for (int j = 0; j < na; ++j) v += e[j + i * na] * rest[j];
+      y[i] = v;
+    }
+    for (int i = 0; i < na; ++i) point[l.eq_a[i]] = y[i];
+    for (int i = 0; i < nd; ++i) point[l.eq_d[i]] = x[i];
+  }
+}
+
+// One pass for every column, with the shape's unrolled instance when there is one.
+template <template <int, int> class Pass, class Column, class Reduced>
+void ForEachColumn(const EliminationLayout& l, Eigen::Index cols, Column column, Reduced reduced) {
+  for (Eigen::Index c = 0; c < cols; ++c) {
+    if (l.na == 2 && l.nd == 1) Pass<2, 1>::Run(l, column(c), reduced(c));
+    else if (l.na == 1 && l.nd == 1) Pass<1, 1>::Run(l, column(c), reduced(c));
+    else if (l.na == 1 && l.nd == 2) Pass<1, 2>::Run(l, column(c), reduced(c));
+    else if (l.na == 1 && l.nd == 3) Pass<1, 3>::Run(l, column(c), reduced(c));
+    else Pass<0, 0>::Run(l, column(c), reduced(c));
+  }
+}
+template <int NA, int ND>
+struct Forward {
+  static void Run(const EliminationLayout& l, double* c, double* r) { EliminateForward<NA, ND>(l, c, r); }
+};
+template <int NA, int ND>
+struct Back {
+  static void Run(const EliminationLayout& l, double* c, const double* r) { EliminateBack<NA, ND>(l, c, r); }
+};
+template <int NA, int ND>
+struct ForwardTransposed {
+  static void Run(const EliminationLayout& l, const double* c, double* r) { EliminateForwardTransposed<NA, ND>(l, c, r); }
+};
+template <int NA, int ND>
+struct BackTransposed {
+  static void Run(const EliminationLayout& l, double* c, const double* r) { EliminateBackTransposed<NA, ND>(l, c, r); }
+};
+
+}  // namespace
+
+void CyclicBandedLU::SolveEliminated(Eigen::Ref<Eigen::MatrixXd> b, bool transposed) const {
+  // Column by column, point by point on the point's m contiguous values.
+  const int na = static_cast<int>(algebraic_unknowns_.size()), nd = m_ - na;
+  const EliminationLayout l{n_, m_, na, nd,
+                            algebraic_equations_.data(), dynamic_equations_.data(),
+                            algebraic_unknowns_.data(), dynamic_unknowns_.data(),
+                            e_inverse_.data(), e_inverse_c_.data(), b_block_.data()};
+  const Eigen::Index cols = b.cols();
+  Eigen::MatrixXd dynamic(static_cast<Eigen::Index>(n_) * nd, cols);
+  const auto column = [&](Eigen::Index c) { return b.col(c).data(); };
+  const auto reduced = [&](Eigen::Index c) { return dynamic.col(c).data(); };
+  if (!transposed) {
+    // y_A = E^-1 b_A; S x_D = b_D - B y_A; x_A = y_A - E^-1 C x_D.
+    ForEachColumn<Forward>(l, cols, column, reduced);
+    if (nd > 0) reduced_->Solve(dynamic);
+    ForEachColumn<Back>(l, cols, column, reduced);
+    return;
+  }
+  // A^T x = b, b indexed by unknowns, x by equations: S^T x_D = b_D - (E^-1 C)^T b_A, then
+  // x_A = E^-T (b_A - B^T x_D).
+  ForEachColumn<ForwardTransposed>(l, cols, column, reduced);
+  if (nd > 0) reduced_->SolveTransposed(dynamic);
+  ForEachColumn<BackTransposed>(l, cols, column, reduced);
 }
 
 bool CyclicBandedLU::FactorizeFolded(const CyclicBlockBanded& a) {
@@ -383,16 +598,53 @@ void CyclicBandedLU::SubtractBorderTransposedTimes(const Eigen::MatrixXd& y, Eig
 
 void CyclicBandedLU::SolveFolded(Eigen::Ref<Eigen::MatrixXd> b, char trans) const {
   // The band holds P A P^T (P: the folding order), so A^T = P^T (P A P^T)^T P reuses the order.
-  const int rows = n_ * m_, cols = static_cast<int>(b.cols()), ldab = 2 * kl_ + ku_ + 1;
-  Eigen::MatrixXd y(rows, cols);
+  const int rows = n_ * m_, ldab = 2 * kl_ + ku_ + 1, kd = kl_ + ku_;
+  if (b.cols() <= 2) {  // a Newton step: LAPACK's substitutions
+    const int cols = static_cast<int>(b.cols());
+    Eigen::MatrixXd y(rows, cols);
+    for (int mu = 0; mu < n_; ++mu) y.middleRows(position_[mu] * m_, m_) = b.middleRows(mu * m_, m_);
+    int info = 0;
+    dgbtrs_(&trans, &rows, &kl_, &ku_, &cols, band_.data(), &ldab, pivots_.data(), y.data(), &rows, &info, 1);
+    for (int mu = 0; mu < n_; ++mu) b.middleRows(mu * m_, m_) = y.middleRows(position_[mu] * m_, m_);
+    return;
+  }
+  // Sensitivities: dgbtrs's substitutions on every right-hand side at once, a row of the row-major
+  // y one contiguous vector (the reference BLAS's dtbsv walks the band once per column).
+  using RowMajor = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+  RowMajor y(rows, b.cols());
   for (int mu = 0; mu < n_; ++mu) y.middleRows(position_[mu] * m_, m_) = b.middleRows(mu * m_, m_);
-  int info = 0;
-  dgbtrs_(&trans, &rows, &kl_, &ku_, &cols, band_.data(), &ldab, pivots_.data(), y.data(), &rows, &info, 1);
+  // U(i, j) at band row kd + i - j of column j; L's multipliers below the diagonal at rows kd + 1 ...
+  const auto u = [&](int i, int j) { return band_[static_cast<std::size_t>(kd + i - j) + static_cast<std::size_t>(j) * ldab]; };
+  const auto l = [&](int i, int j) { return band_[static_cast<std::size_t>(kd + i - j) + static_cast<std::size_t>(j) * ldab]; };
+  if (trans == 'N') {
+    for (int j = 0; j + 1 < rows; ++j) {  // L, with the row interchanges as they were made
+      const int p = pivots_[j] - 1;
+      if (p != j) y.row(j).swap(y.row(p));
+      const int below = std::min(kl_, rows - 1 - j);
+      for (int i = 1; i <= below; ++i) y.row(j + i) -= l(j + i, j) * y.row(j);
+    }
+    for (int j = rows - 1; j >= 0; --j) {  // U
+      y.row(j) /= u(j, j);
+      for (int i = std::max(0, j - kd); i < j; ++i) y.row(i) -= u(i, j) * y.row(j);
+    }
+  } else {
+    for (int j = 0; j < rows; ++j) {  // U^T
+      for (int i = std::max(0, j - kd); i < j; ++i) y.row(j) -= u(i, j) * y.row(i);
+      y.row(j) /= u(j, j);
+    }
+    for (int j = rows - 2; j >= 0; --j) {  // L^T, the interchanges undone in reverse
+      const int below = std::min(kl_, rows - 1 - j);
+      for (int i = 1; i <= below; ++i) y.row(j) -= l(j + i, j) * y.row(j + i);
+      const int p = pivots_[j] - 1;
+      if (p != j) y.row(j).swap(y.row(p));
+    }
+  }
   for (int mu = 0; mu < n_; ++mu) b.middleRows(mu * m_, m_) = y.middleRows(position_[mu] * m_, m_);
 }
 
 void CyclicBandedLU::Solve(Eigen::Ref<Eigen::MatrixXd> b) const {
   assert(ok_);
+  if (eliminated_) return SolveEliminated(b, false);
   if (dense_) {
     b = dense_lu_.Solve(b);  // evaluated into a temporary first: no aliasing
     return;
@@ -411,6 +663,7 @@ void CyclicBandedLU::Solve(Eigen::Ref<Eigen::MatrixXd> b) const {
 
 void CyclicBandedLU::SolveTransposed(Eigen::Ref<Eigen::MatrixXd> b) const {
   assert(ok_);
+  if (eliminated_) return SolveEliminated(b, true);
   if (dense_) {
     b = dense_lu_.SolveTransposed(b);
     return;

@@ -16,7 +16,7 @@ bool EstimatorOptions::IsValid(std::string* error) const {
     if (error) *error = m;
     return false;
   };
-  if (n < 8) return fail("n must be at least 8");
+  if (n != 0 && n < 8) return fail("n must be 0 (by causality) or at least 8");
   if (max_iterations < 1) return fail("max_iterations must be at least 1");
   if (!(step_tolerance > 0)) return fail("step_tolerance must be positive");
   if (!(damping_relative_sd > 0)) return fail("damping_relative_sd must be positive");

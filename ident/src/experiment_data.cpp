@@ -270,14 +270,21 @@ std::vector<ExperimentData> Prepare(const daq::Session& session, const std::stri
 
 }  // namespace
 
+int DefaultGridPoints(Causality causality) { return causality == Causality::kStrokeInput ? 200 : 800; }
+
+Scheme DefaultScheme(Causality causality) {
+  return causality == Causality::kStrokeInput ? Scheme::kCentral4 : Scheme::kBackward2;
+}
+
 std::vector<ExperimentData> PrepareExperiments(const daq::Session& session, Causality causality, int n,
                                                std::vector<DataIssue>* issues) {
-  return Prepare(session, causality == Causality::kForceInput ? "force" : "stroke", n, issues);
+  return Prepare(session, causality == Causality::kForceInput ? "force" : "stroke",
+                 n > 0 ? n : DefaultGridPoints(causality), issues);
 }
 
 std::vector<ExperimentData> PrepareExperiments(const daq::Session& session, const Model& model, int n,
                                                std::vector<DataIssue>* issues) {
-  return Prepare(session, model.input_channel(), n, issues);
+  return Prepare(session, model.input_channel(), n > 0 ? n : DefaultGridPoints(model.causality()), issues);
 }
 
 }  // namespace strut::ident

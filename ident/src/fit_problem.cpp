@@ -153,9 +153,9 @@ void SetResidualStatistics(const Eigen::VectorXd& r, ChannelStatistics& st) {
   st.rms = std::sqrt(r.squaredNorm() / r.size());
 }
 
-PeriodicSolverOptions SolverOptions(const EstimatorOptions& options) {
+PeriodicSolverOptions SolverOptions(const EstimatorOptions& options, const Model& model) {
   PeriodicSolverOptions o;
-  o.scheme = options.scheme;
+  o.scheme = options.scheme.value_or(DefaultScheme(model.causality()));
   o.start_up_periods = options.start_up_periods;
   o.coarse_points = options.coarse_points;
   return o;
@@ -313,7 +313,7 @@ FitProblem::FitProblem(const Model& model, const EstimatorOptions& options, cons
   }
   threads_ = options.threads > 0 ? options.threads : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
   const int nc = static_cast<int>(channels_.size());
-  const PeriodicSolverOptions solver_options = SolverOptions(options);
+  const PeriodicSolverOptions solver_options = SolverOptions(options, model);
   experiments_.reserve(data.size());
   for (const ExperimentData& d : data) {
     Experiment s;
@@ -544,7 +544,7 @@ bool FitProblem::Readmit(const std::vector<double>& theta) {
 PeriodicSolution FitProblem::FirstSolve(Experiment& s, const std::vector<double>& theta) const {
   // From the measured stroke when that fits, else cold.
   const auto measured = stroke_driven_ ? MeasuredStrokeStart(model_, *stroke_driven_, *s.data, s.input, theta,
-                                                             s.n(), SolverOptions(options_))
+                                                             s.n(), SolverOptions(options_, model_))
                                        : std::nullopt;
   if (measured) {
     try {

@@ -111,7 +111,7 @@ SilverboxResult RunSilverbox(const daq::Session& session, const SilverboxOptions
     eo.coarse_points = 0;
     eo.predictor = [&eo](const Model& m) {  // cold starts from the linear response
       PeriodicSolverOptions po;
-      po.scheme = eo.scheme;
+      po.scheme = *eo.scheme;
       po.coarse_points = 0;
       return std::make_unique<OscillatorPredictor>(m, po);
     };

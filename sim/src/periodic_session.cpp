@@ -12,7 +12,9 @@ daq::Session SimulatePeriodicSession(const std::string& composition, std::span<c
                                      const std::vector<rig::MatrixEntry>& matrix, const PeriodicSessionOptions& options) {
   const ident::Model model = ident::Model::Build(composition, ident::Causality::kStrokeInput);
   ident::PeriodicSolverOptions solver_options;
-  solver_options.scheme = ident::Scheme::kCentral4;  // not the estimator's scheme: no inverse crime
+  // Not the scheme a stroke-input fit uses (central4): no inverse crime. At 4000 points a period
+  // backward2 is within about 1e-7 of the periodic solution.
+  solver_options.scheme = ident::Scheme::kBackward2;
   ident::PeriodicSolver solver(model, solver_options);
   std::mt19937_64 rng(options.seed);
   std::normal_distribution<double> unit(0.0, 1.0);

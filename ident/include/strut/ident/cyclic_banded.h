@@ -8,9 +8,14 @@
 //   0, n-1, 1, n-2, ... so that the cyclic matrix becomes banded with about twice the bandwidth,
 //   and LAPACK dgbtrf factorises it with partial pivoting. (A Schur border on central schemes is
 //   unstable: the open interior operator has parasitic growing modes.)
+// Before either, algebraic unknowns (in no off-diagonal block) and algebraic equations (no
+// off-diagonal block) are eliminated point by point when they pair up: the bands then hold only
+// the dynamic unknowns (under stroke input the gas temperature alone, where force and pressure
+// made the blocks 3 x 3).
 #pragma once
 
 #include <Eigen/Dense>
+#include <memory>
 #include <vector>
 
 namespace strut::ident {
@@ -73,6 +78,8 @@ class CyclicBandedLU {
   double border_rcond() const { return border_rcond_; }
 
  private:
+  bool FactorizeEliminated(const CyclicBlockBanded& a);
+  void SolveEliminated(Eigen::Ref<Eigen::MatrixXd> b, bool transposed) const;
   bool FactorizeDense(const CyclicBlockBanded& a);
   bool FactorizeFolded(const CyclicBlockBanded& a);
   bool FactorizeBorder(const CyclicBlockBanded& a);
@@ -101,6 +108,15 @@ class CyclicBandedLU {
   int border_tail_ = 0;
   EquilibratedFactors schur_;     // of the border Schur complement
   EquilibratedFactors dense_lu_;  // of the whole matrix (small n, spectral)
+  // Point-by-point elimination: per point the diagonal block is [K0 B; C E] in the rows
+  // (dynamic equations, algebraic equations) and columns (dynamic unknowns, algebraic unknowns);
+  // `reduced_` factorises the bands of S = K - B E^-1 C (null when every unknown is algebraic).
+  bool eliminated_ = false;
+  std::vector<int> dynamic_equations_, algebraic_equations_, dynamic_unknowns_, algebraic_unknowns_;
+  std::vector<double> e_inverse_;    // per point, a x a: E^-1
+  std::vector<double> e_inverse_c_;  // per point, a x d: E^-1 C
+  std::vector<double> b_block_;      // per point, d x a: B
+  std::shared_ptr<CyclicBandedLU> reduced_;
   double border_rcond_ = 1.0;
 };
 

@@ -25,9 +25,10 @@ struct ParameterChoice {
 };
 
 struct EstimatorOptions {
-  //! Grid points per period (paper: 800) and difference scheme of the periodic solver.
-  int n = 800;
-  Scheme scheme = Scheme::kBackward2;
+  //! Least grid points per period (a grid holds every recorded sample phase) and difference scheme
+  //! of the periodic solver; 0 and unset: by the model's causality (DefaultGridPoints, DefaultScheme).
+  int n = 0;
+  std::optional<Scheme> scheme;
   //! Periods of time marching before the periodic solver's first Newton solve of an experiment
   //! (PeriodicSolverOptions::start_up_periods). The damper default 2 settles friction; a weakly
   //! nonlinear oscillator needs none (Newton from the quasi-static guess converges in a few steps).

@@ -75,7 +75,15 @@ struct ExperimentData {
   std::map<std::string, GridChannel> channels;  //!< every recorded channel at `phases`, by name
 };
 
-//! Brings periodic experiments onto an n-point grid for a model's causality. Experiments that are
+//! The periodic solver's grid and scheme of a fit that does not choose them. Under stroke input
+//! only the gas temperature has a rate, and central4 on the recorded sample phases (at least 200 a
+//! period) is both more accurate and cheaper than backward2 on at least 800 (docs/identification.md);
+//! under force input the stroke's rates carry the friction jumps, where the central schemes ring,
+//! so it keeps the paper's backward2 on 800.
+int DefaultGridPoints(Causality causality);
+Scheme DefaultScheme(Causality causality);
+
+//! Brings periodic experiments onto an n-point grid for a model's causality (n 0: DefaultGridPoints). Experiments that are
 //! not periodic or are aborted are skipped with a log line. Detects data defects and reports them
 //! in `issues` (they are not silently fitted: see the estimator). Throws daq::SessionError or
 //! std::invalid_argument naming the session, experiment and channel for unusable data.

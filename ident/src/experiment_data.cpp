@@ -4,6 +4,7 @@
 #include <cmath>
 #include <complex>
 #include <numbers>
+#include <optional>
 #include <unsupported/Eigen/FFT>
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
@@ -107,6 +108,54 @@ PeriodicInput PeriodicSeries::OnGrid(int n) const {
   return PeriodicInput{frequency, values};
 }
 
+PeriodicInput PeriodicSeries::AtPhases(const std::vector<double>& phases) const {
+  PeriodicInput in{frequency, std::vector<double>(phases.size(), coefficients[0].real()), phases};
+  for (std::size_t h = 1; h < coefficients.size(); ++h) {
+    if (coefficients[h] == 0.0) continue;
+    for (std::size_t mu = 0; mu < phases.size(); ++mu)  // c_0 + sum 2 Re(c_h exp(i 2 pi h tau))
+      in.values[mu] += 2.0 * (coefficients[h] * std::polar(1.0, 2.0 * std::numbers::pi * h * phases[mu])).real();
+  }
+  return in;
+}
+
+std::vector<double> ThinnedSamplePhases(const Eigen::VectorXd& velocity, int points,
+                                        const std::vector<std::pair<const Eigen::VectorXd*, double>>& outputs) {
+  const int count = static_cast<int>(velocity.size());
+  const int widest = std::max(1, count / std::max(points, 1));
+  std::vector<double> phases;
+  if (widest < 2) {
+    for (int i = 0; i < count; ++i) phases.push_back(static_cast<double>(i) / count);
+    return phases;
+  }
+  const double peak = velocity.cwiseAbs().maxCoeff();
+  // The step allowed at every sample (in samples, at most `widest`).
+  std::vector<double> allowed(count, widest);
+  for (int i = 0; i < count; ++i)
+    if (peak > 0) allowed[i] = std::clamp(widest * std::abs(velocity[i]) / (0.5 * peak), 1.0, static_cast<double>(widest));
+  for (const auto& [output, variance] : outputs) {
+    if (!output || output->size() != count || !(variance > 0)) continue;
+    const double limit = 4.0 * std::sqrt(6.0 * variance);  // the second difference of white noise: sd sqrt(6) s
+    for (int i = 0; i < count; ++i) {
+      const double second = (*output)[(i + 1) % count] - 2.0 * (*output)[i] + (*output)[(i + count - 1) % count];
+      if (std::abs(second) > limit)
+        for (int j = i - 4; j <= i + 4; ++j) allowed[(j % count + count) % count] = 1.0;
+    }
+  }
+  // Growth by at most half a sample per sample, both ways round the period (twice: it is cyclic).
+  for (int pass = 0; pass < 2; ++pass) {
+    for (int i = 0; i < count; ++i) allowed[i] = std::min(allowed[i], allowed[(i + count - 1) % count] + 0.5);
+    for (int i = count - 1; i >= 0; --i) allowed[i] = std::min(allowed[i], allowed[(i + 1) % count] + 0.5);
+  }
+  // Walk: from sample i the longest step no sample it spans forbids.
+  for (int i = 0; i < count;) {
+    phases.push_back(static_cast<double>(i) / count);
+    int step = static_cast<int>(allowed[i]);
+    for (int j = i + 1; j <= i + step && j < count + step; ++j) step = std::min(step, static_cast<int>(allowed[j % count]));
+    i += std::max(1, step);
+  }
+  return phases;
+}
+
 std::vector<DataIssue> InspectChannel(const daq::Experiment& e, const daq::Channel& channel) {
   std::vector<DataIssue> issues;
   const std::vector<double>& x = channel.samples;
@@ -198,8 +247,9 @@ std::vector<DataIssue> InspectChannel(const daq::Experiment& e, const daq::Chann
 
 namespace {
 
+// `thin`: slow experiments on ThinnedSamplePhases (the default grid under stroke input).
 std::vector<ExperimentData> Prepare(const daq::Session& session, const std::string& input_channel, int n,
-                                    std::vector<DataIssue>* issues) {
+                                    std::vector<DataIssue>* issues, bool thin) {
   std::vector<ExperimentData> prepared;
   const std::string file = session.source_path.empty() ? "<memory>" : session.source_path;
   for (const daq::Experiment& e : session.experiments) {
@@ -222,6 +272,7 @@ std::vector<ExperimentData> Prepare(const daq::Session& session, const std::stri
     const long native = std::lround(per_period);
     const bool whole = std::abs(per_period - native) < 1e-6 * per_period && native >= 4;
     const int points = whole ? static_cast<int>(native) : n;
+    std::optional<PeriodicSeries> input_series;
     d.phases.resize(points);
     for (int i = 0; i < points; ++i) d.phases[i] = static_cast<double>(i) / points;
     for (const daq::Channel& c : e.channels) {
@@ -242,11 +293,14 @@ std::vector<ExperimentData> Prepare(const daq::Session& session, const std::stri
       if (c.name == input_channel) {
         const PeriodicSeries series = PeriodicSeries::Fit(g.mean, e.frequency);
         // The solver's grid holds every recorded sample phase: a whole multiple of the samples per
-        // period, at least n. A slow experiment's friction jump at a reversal is as short as a few
-        // samples; on a coarser grid the model smears it over a grid step (a 0.04 Hz test with a
-        // near-stiction seal, theta10 = 2.7e4 s/m, left force noise ratios of 2.6-4.9 at n = 800).
+        // period, at least n; or, `thin`, the sample phases where the model may not be smooth and
+        // fewer elsewhere (below). A slow experiment's friction jump at a reversal is as short as a
+        // few samples; on a coarser equidistant grid the model smears it over a grid step (a 0.04 Hz
+        // test with a near-stiction seal, theta10 = 2.7e4 s/m, left force noise ratios of 2.6-4.9 at
+        // n = 800).
         const int grid = whole ? static_cast<int>(native * ((n + native - 1) / native)) : n;
-        d.input = series.OnGrid(grid);
+        if (!(thin && whole && native >= 2 * n)) d.input = series.OnGrid(grid);
+        input_series = series;
         // c_h = (1/count) sum x_i exp(-i 2 pi h i / count) of white noise of variance s^2 has
         // complex variance s^2 / count, so the mean's is s^2 / count and each of a_h = 2 Re c_h,
         // b_h = -2 Im c_h has 2 s^2 / count.
@@ -258,6 +312,15 @@ std::vector<ExperimentData> Prepare(const daq::Session& session, const std::stri
         spdlog::debug("{}: experiment '{}': {} input from {} harmonics", file, e.label, input_channel, series.kept);
       }
       d.channels[c.name] = std::move(g);
+    }
+    if (thin && whole && native >= 2 * n && input_series) {
+      // Every sample phase only where the model may not be smooth (docs/identification.md).
+      std::vector<std::pair<const Eigen::VectorXd*, double>> outputs;
+      for (const auto& [name, g] : d.channels)
+        if (name != input_channel) outputs.emplace_back(&g.mean, g.mean_noise_variance);
+      d.input = input_series->AtPhases(ThinnedSamplePhases(input_series->OnPhases(points, 1), n, outputs));
+      spdlog::debug("{}: experiment '{}': grid of {} of its {} sample phases", file, e.label, d.input.values.size(),
+                    points);
     }
     const auto input = d.channels.find(input_channel);
     if (input == d.channels.end())
@@ -279,12 +342,13 @@ Scheme DefaultScheme(Causality causality) {
 std::vector<ExperimentData> PrepareExperiments(const daq::Session& session, Causality causality, int n,
                                                std::vector<DataIssue>* issues) {
   return Prepare(session, causality == Causality::kForceInput ? "force" : "stroke",
-                 n > 0 ? n : DefaultGridPoints(causality), issues);
+                 n > 0 ? n : DefaultGridPoints(causality), issues, n == 0 && causality == Causality::kStrokeInput);
 }
 
 std::vector<ExperimentData> PrepareExperiments(const daq::Session& session, const Model& model, int n,
                                                std::vector<DataIssue>* issues) {
-  return Prepare(session, model.input_channel(), n > 0 ? n : DefaultGridPoints(model.causality()), issues);
+  return Prepare(session, model.input_channel(), n > 0 ? n : DefaultGridPoints(model.causality()), issues,
+                 n == 0 && model.causality() == Causality::kStrokeInput);
 }
 
 }  // namespace strut::ident

@@ -31,7 +31,8 @@ std::vector<std::string> DefaultChannels(const Model& model) {
 //! The covariance that the noise of a measured input puts on a gradient: for g = dF/du on the
 //! n-point input grid (one column per function F), sum over the input's noisy Fourier coefficients
 //! c of var(c) (dF/dc)(dF/dc)^T, where dF/dc is g projected on that coefficient's grid function
-//! (the mean: 1; harmonic h: cos and sin of 2 pi h mu / n). The projections are one FFT per column.
+//! (the mean: 1; harmonic h: cos and sin of 2 pi h tau_mu). The projections are one FFT per column
+//! on an equidistant grid, direct sums on any other.
 //! Harmonics up to `estimated` (-1: none) are left out: the fit estimates them (errors in variables)
 //! and their noise is in the posterior through their elimination.
 Eigen::MatrixXd InputNoiseCovariance(const ExperimentData& d, const Eigen::MatrixXd& gradient, int estimated) {
@@ -39,12 +40,21 @@ Eigen::MatrixXd InputNoiseCovariance(const ExperimentData& d, const Eigen::Matri
   const int n = static_cast<int>(gradient.rows());
   Eigen::MatrixXd covariance = Eigen::MatrixXd::Zero(k, k);
   if (!(d.input_harmonic_variance > 0) || d.input_harmonics.empty() || k == 0) return covariance;
-  Eigen::FFT<double> fft;
-  Eigen::MatrixXcd spectra(n, k);  // sum_mu g(mu) exp(-i 2 pi h mu / n)
-  for (Eigen::Index b = 0; b < k; ++b) {
-    Eigen::VectorXcd column(n);
-    fft.fwd(column, Eigen::VectorXd(gradient.col(b)));
-    spectra.col(b) = column;
+  Eigen::MatrixXcd spectra = Eigen::MatrixXcd::Zero(n, k);  // sum_mu g(mu) exp(-i 2 pi h tau_mu)
+  if (d.input.phases.empty()) {
+    Eigen::FFT<double> fft;
+    for (Eigen::Index b = 0; b < k; ++b) {
+      Eigen::VectorXcd column(n);
+      fft.fwd(column, Eigen::VectorXd(gradient.col(b)));
+      spectra.col(b) = column;
+    }
+  } else {
+    for (const int h : d.input_harmonics) {
+      if (h >= n) continue;
+      Eigen::RowVectorXcd wave(n);
+      for (int mu = 0; mu < n; ++mu) wave[mu] = std::polar(1.0, -2.0 * std::numbers::pi * h * d.input.phases[mu]);
+      spectra.row(h) = wave * gradient;
+    }
   }
   for (const int h : d.input_harmonics) {
     if (h >= n || h <= estimated) continue;
@@ -87,7 +97,7 @@ std::optional<PeriodicSolution> MeasuredStrokeStart(const Model& model, const Mo
                                                     std::span<const double> theta, int n,
                                                     const PeriodicSolverOptions& options) {
   const auto stroke = d.channels.find("stroke");
-  if (stroke == d.channels.end() || stroke->second.mean.size() < 8) return std::nullopt;
+  if (stroke == d.channels.end() || stroke->second.mean.size() < 8 || !input.phases.empty()) return std::nullopt;
   try {
     const PeriodicSeries series = PeriodicSeries::Fit(stroke->second.mean, d.frequency);
     const PeriodicInput measured = series.OnGrid(n);
@@ -197,31 +207,22 @@ struct FitProblem::Experiment {
   //! Per fitted channel, d(prediction at the phases)/d(scaled parameters) of the last call that
   //! computed them: reused while the fit's steps are below a percent of the parameters.
   std::vector<Eigen::MatrixXd> sensitivities_at_phases;
-  // Cubic (4-point Lagrange) interpolation from the n-point grid to the data phases: grid points
-  // j0 - 1 .. j0 + 2 (mod n). Linear interpolation would bias the fit by h^2 y''/8, comparable to
+  // Cubic (4-point Lagrange) interpolation from the grid to the data phases (exact where a data
+  // phase is a grid point). Linear interpolation would bias the fit by h^2 y''/8, comparable to
   // the parameter uncertainty at n = 800.
-  std::vector<int> j0;
-  std::vector<std::array<int, 4>> taps;  // the grid points j0 - 1 .. j0 + 2, wrapped (no modulo per use)
+  std::vector<std::array<int, 4>> taps;  // the grid points around each data phase, wrapped
   std::vector<std::array<double, 4>> weights;
 
-  void MapPhases(int n) {
-    j0.resize(data->phases.size());
-    taps.resize(data->phases.size());
-    weights.resize(data->phases.size());
-    for (std::size_t i = 0; i < data->phases.size(); ++i) {
-      const double position = data->phases[i] * n;
-      j0[i] = static_cast<int>(std::floor(position)) % n;
-      for (int k = 0; k < 4; ++k) taps[i][k] = (j0[i] + k - 1 + n) % n;
-      const double t = position - std::floor(position);
-      weights[i] = {-t * (t - 1) * (t - 2) / 6, (t + 1) * (t - 1) * (t - 2) / 2, -(t + 1) * t * (t - 2) / 2,
-                    (t + 1) * t * (t - 1) / 6};
-    }
+  void MapPhases() {
+    PhaseInterpolation map = PhaseInterpolation::Cubic(data->input.phases, n(), data->phases);
+    taps = std::move(map.taps);
+    weights = std::move(map.weights);
   }
   //! A grid function (n values, any stride) at the data phases.
   template <class Grid>
   Eigen::VectorXd AtPhases(const Grid& grid) const {
-    Eigen::VectorXd out(j0.size());
-    for (std::size_t i = 0; i < j0.size(); ++i) {
+    Eigen::VectorXd out(taps.size());
+    for (std::size_t i = 0; i < taps.size(); ++i) {
       double v = 0.0;
       for (int k = 0; k < 4; ++k) v += weights[i][k] * grid(taps[i][k]);
       out[i] = v;
@@ -230,11 +231,11 @@ struct FitProblem::Experiment {
   }
   //! Every column of an n-row matrix at the data phases.
   Eigen::MatrixXd AtPhasesColumns(const Eigen::MatrixXd& grid) const {
-    Eigen::MatrixXd out(static_cast<Eigen::Index>(j0.size()), grid.cols());
+    Eigen::MatrixXd out(static_cast<Eigen::Index>(taps.size()), grid.cols());
     for (Eigen::Index c = 0; c < grid.cols(); ++c) {
       const double* g = grid.col(c).data();
       double* o = out.col(c).data();
-      for (std::size_t i = 0; i < j0.size(); ++i)
+      for (std::size_t i = 0; i < taps.size(); ++i)
         o[i] = weights[i][0] * g[taps[i][0]] + weights[i][1] * g[taps[i][1]] + weights[i][2] * g[taps[i][2]] +
                weights[i][3] * g[taps[i][3]];
     }
@@ -243,7 +244,7 @@ struct FitProblem::Experiment {
   //! The transpose of AtPhases: values at the data phases spread back onto the n grid points.
   Eigen::VectorXd ToGrid(const Eigen::VectorXd& at_phases, int n) const {
     Eigen::VectorXd grid = Eigen::VectorXd::Zero(n);
-    for (std::size_t i = 0; i < j0.size(); ++i)
+    for (std::size_t i = 0; i < taps.size(); ++i)
       for (int k = 0; k < 4; ++k) grid[taps[i][k]] += weights[i][k] * at_phases[static_cast<int>(i)];
     return grid;
   }
@@ -323,7 +324,7 @@ FitProblem::FitProblem(const Model& model, const EstimatorOptions& options, cons
     if (static_cast<int>(d.input.values.size()) < 8)
       throw std::invalid_argument(fmt::format("estimator: experiment '{}' has {} grid points; at least 8 are needed",
                                               d.label, d.input.values.size()));
-    s.MapPhases(s.n());
+    s.MapPhases();
     s.input = d.input;
     if (const int harmonics = EstimatedInputHarmonics(model, options, d); harmonics >= 0) {
       // Start at the thresholded series (the input the fit used before it estimated the input); the
@@ -341,7 +342,7 @@ FitProblem::FitProblem(const Model& model, const EstimatorOptions& options, cons
       sd[0] = std::sqrt(d.input_mean_variance);
       for (int h = 1; h <= harmonics; ++h) {
         for (int mu = 0; mu < n; ++mu) {
-          const double phase = 2.0 * std::numbers::pi * h * mu / n;
+          const double phase = 2.0 * std::numbers::pi * h * d.input.phase(mu);
           e.directions(mu, 2 * h - 1) = std::cos(phase);
           e.directions(mu, 2 * h) = std::sin(phase);
         }
@@ -674,7 +675,7 @@ NormalEquations FitProblem::Linearise(const std::vector<double>& theta, const st
       for (int b = 0; b < nc; ++b) {
         if (!s.channel_fitted[b]) continue;
         Eigen::MatrixXd& j = s.sensitivities_at_phases[b];
-        j.resize(static_cast<Eigen::Index>(s.j0.size()), l);
+        j.resize(static_cast<Eigen::Index>(s.taps.size()), l);
         for (int k = 0; k < l; ++k) j.col(k) = s.AtPhases(sens[output_row_[b]].col(k)) * scale_[estimated_[k]];
       }
       parameters_fresh = true;
@@ -801,7 +802,7 @@ FitProblem::GainGradient FitProblem::GainGradients(const std::string& channel, c
     if (with_estimate) g.inputs[a].setZero(s.estimate->xi.size());
     for (int b = 0; b < nc; ++b) {
       if (!s.channel_fitted[b]) continue;
-      Eigen::VectorXd de = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(s.j0.size()));  // d(residual)/dg
+      Eigen::VectorXd de = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(s.taps.size()));  // d(residual)/dg
       if (b == output) {
         const GridChannel& measured = s.data->channels.at(channels_[b]);
         de = measured.mean.array() - measured.reading_offset;  // what the gain scales
@@ -837,7 +838,7 @@ std::vector<double> FitProblem::NoiseRatios() const {
       const auto it = s.data->channels.find(channels_[b]);
       if (!s.channel_fitted[b] || it == s.data->channels.end() || !(it->second.mean_noise_variance > 0)) continue;
       sum[b] += s.Residual(channels_[b], output_row_[b]).squaredNorm() / it->second.mean_noise_variance;
-      count[b] += static_cast<double>(s.j0.size()) - s.InputDof(b);
+      count[b] += static_cast<double>(s.taps.size()) - s.InputDof(b);
     }
   }
   std::vector<double> ratio(all);

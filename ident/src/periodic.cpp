@@ -80,6 +80,109 @@ Stencil Stencil::For(Scheme scheme, int n) {
   return s;
 }
 
+namespace {
+
+// Weights w_j of sum_j w_j x(t_j) ~ x^(derivative)(t0) from the nodes t_j (offsets from t0): the
+// Lagrange interpolant's derivative, by the moment conditions sum_j w_j t_j^p / p! = [p == derivative].
+void DerivativeWeights(const std::vector<double>& nodes, int derivative, std::vector<double>& weights) {
+  const int count = static_cast<int>(nodes.size());
+  double scale = 0.0;
+  for (double t : nodes) scale = std::max(scale, std::abs(t));
+  Eigen::MatrixXd moments(count, count);
+  for (int p = 0; p < count; ++p)
+    for (int j = 0; j < count; ++j) moments(p, j) = std::pow(nodes[j] / scale, p) / std::tgamma(p + 1.0);
+  Eigen::VectorXd rhs = Eigen::VectorXd::Zero(count);
+  rhs[derivative] = 1.0;
+  const Eigen::VectorXd w = moments.fullPivLu().solve(rhs) / std::pow(scale, derivative);
+  weights.assign(w.data(), w.data() + count);
+}
+
+}  // namespace
+
+Stencil Stencil::For(Scheme scheme, const std::vector<double>& phases) {
+  const int n = static_cast<int>(phases.size());
+  if (scheme == Scheme::kSpectral)
+    throw std::invalid_argument("periodic solver: the spectral scheme needs an equidistant grid");
+  if (n < 8) throw std::invalid_argument(fmt::format("periodic solver needs n >= 8, got {}", n));
+  Stencil s = For(scheme, n);
+  for (int mu = 0; mu < n; ++mu)
+    if (!(phases[mu] >= 0.0 && phases[mu] < 1.0) || (mu > 0 && !(phases[mu] > phases[mu - 1])))
+      throw std::invalid_argument(
+          fmt::format("periodic solver: grid phases must increase strictly in [0, 1) (point {}: {})", mu, phases[mu]));
+  // The offsets each derivative reads (the equidistant stencil's nonzero ones).
+  std::vector<int> first_offsets, second_offsets;
+  for (int k = s.kmin; k <= s.kmax; ++k) {
+    if (s.first[k - s.kmin] != 0.0 || k == 0) first_offsets.push_back(k);  // central: x_mu too
+    if (s.second[k - s.kmin] != 0.0) second_offsets.push_back(k);
+  }
+  const int width = s.kmax - s.kmin + 1;
+  s.first_at.assign(static_cast<std::size_t>(n) * width, 0.0);
+  s.second_at.assign(static_cast<std::size_t>(n) * width, 0.0);
+  const auto offset_phase = [&](int mu, int k) {  // phase of point mu + k, unwrapped around mu
+    const int nu = mu + k;
+    if (nu < 0) return phases[nu + n] - 1.0;
+    if (nu >= n) return phases[nu - n] + 1.0;
+    return phases[nu];
+  };
+  std::vector<double> nodes, weights;
+  for (int mu = 0; mu < n; ++mu)
+    for (int derivative = 1; derivative <= 2; ++derivative) {
+      const std::vector<int>& offsets = derivative == 1 ? first_offsets : second_offsets;
+      nodes.clear();
+      for (int k : offsets) nodes.push_back(offset_phase(mu, k) - phases[mu]);
+      DerivativeWeights(nodes, derivative, weights);
+      std::vector<double>& at = derivative == 1 ? s.first_at : s.second_at;
+      for (std::size_t j = 0; j < offsets.size(); ++j)
+        at[static_cast<std::size_t>(mu) * width + (offsets[j] - s.kmin)] = weights[j];
+    }
+  return s;
+}
+
+PhaseInterpolation PhaseInterpolation::Cubic(const std::vector<double>& grid, int n, std::span<const double> targets) {
+  if (!grid.empty() && static_cast<int>(grid.size()) != n)
+    throw std::invalid_argument("phase interpolation: the grid's phases do not match its size");
+  if (n < 4) throw std::invalid_argument("phase interpolation needs at least 4 grid points");
+  const auto phase = [&](int j) { return grid.empty() ? static_cast<double>(j) / n : grid[j]; };
+  PhaseInterpolation p;
+  p.taps.resize(targets.size());
+  p.weights.resize(targets.size());
+  for (std::size_t i = 0; i < targets.size(); ++i) {
+    const double tau = targets[i] - std::floor(targets[i]);
+    int j0;
+    if (grid.empty()) {
+      j0 = static_cast<int>(std::floor(tau * n)) % n;
+    } else {
+      j0 = static_cast<int>(std::upper_bound(grid.begin(), grid.end(), tau) - grid.begin()) - 1;
+      if (j0 < 0) j0 = n - 1;  // before the first point: the interval from the last one, wrapped
+    }
+    double x[4];
+    for (int k = 0; k < 4; ++k) {
+      const int j = j0 + k - 1;
+      const int wrapped = (j % n + n) % n;
+      p.taps[i][k] = wrapped;
+      x[k] = phase(wrapped) + std::floor(static_cast<double>(j) / n);  // unwrapped around j0
+    }
+    double t = tau;
+    if (j0 == n - 1 && tau < x[1]) t += 1.0;
+    for (int k = 0; k < 4; ++k) {
+      double w = 1.0;
+      for (int l = 0; l < 4; ++l)
+        if (l != k) w *= (t - x[l]) / (x[k] - x[l]);
+      p.weights[i][k] = w;
+    }
+  }
+  return p;
+}
+
+Eigen::MatrixXd PhaseInterpolation::Rows(const Eigen::MatrixXd& rows) const {
+  Eigen::MatrixXd out(rows.rows(), static_cast<Eigen::Index>(taps.size()));
+  for (std::size_t i = 0; i < taps.size(); ++i) {
+    out.col(static_cast<Eigen::Index>(i)) = weights[i][0] * rows.col(taps[i][0]);
+    for (int k = 1; k < 4; ++k) out.col(static_cast<Eigen::Index>(i)) += weights[i][k] * rows.col(taps[i][k]);
+  }
+  return out;
+}
+
 PeriodicInput PeriodicInput::Sine(double frequency, double mean, double amplitude, int n) {
   PeriodicInput in;
   in.frequency = frequency;
@@ -131,7 +234,8 @@ bool PeriodicSolverOptions::IsValid(std::string* error) const {
 
 std::vector<double> PeriodicSolution::time() const {
   std::vector<double> t(n);
-  for (int mu = 0; mu < n; ++mu) t[mu] = mu / (n * frequency);
+  const bool at_phases = static_cast<int>(input.phases.size()) == n;
+  for (int mu = 0; mu < n; ++mu) t[mu] = (at_phases ? input.phases[mu] : static_cast<double>(mu) / n) / frequency;
   return t;
 }
 
@@ -215,13 +319,18 @@ PeriodicSolver::PeriodicSolver(Model model, PeriodicSolverOptions options)
   for (int j = 0; j < m; ++j) equation_weight_[j] = 1.0 / model_.equation_scale(j);
 }
 
-void PeriodicSolver::Prepare(int n) {
-  if (n == prepared_n_) return;
+void PeriodicSolver::Prepare(const PeriodicInput& grid) {
+  const int n = static_cast<int>(grid.values.size());
+  if (n == prepared_n_ && grid.phases == prepared_phases_) return;
   const int minimum = options_.scheme == Scheme::kSpectral ? 4 : 8;
   if (n < minimum) throw std::invalid_argument(fmt::format("periodic solver needs n >= {}, got {}", minimum, n));
-  stencil_ = Stencil::For(options_.scheme, n);
+  if (!grid.phases.empty() && static_cast<int>(grid.phases.size()) != n)
+    throw std::invalid_argument(
+        fmt::format("periodic solver: the input has {} values but {} grid phases", n, grid.phases.size()));
+  stencil_ = grid.phases.empty() ? Stencil::For(options_.scheme, n) : Stencil::For(options_.scheme, grid.phases);
   jacobian_ = CyclicBlockBanded(n, model_.unknown_count(), stencil_.kmin, stencil_.kmax);
   prepared_n_ = n;
+  prepared_phases_ = grid.phases;
 }
 
 namespace {
@@ -239,8 +348,8 @@ Rates RatesAt(const Stencil& s, const Row& values, int mu, int n, double frequen
     if (nu < 0) nu += n;
     if (nu >= n) nu -= n;
     const double v = values(nu);
-    d1 += s.first[k - s.kmin] * v;
-    d2 += s.second[k - s.kmin] * v;
+    d1 += s.First(mu, k) * v;
+    d2 += s.Second(mu, k) * v;
   }
   return {d1 * frequency, d2 * frequency * frequency};
 }
@@ -265,6 +374,21 @@ void GridRates(const Stencil& s, const Eigen::MatrixXd& z, double frequency, Eig
       d2[i] += c2 * v;
     }
   };
+  if (!s.equidistant()) {  // each point its own weights
+    for (int mu = 0; mu < n; ++mu) {
+      double* d1 = first.data() + static_cast<Eigen::Index>(mu) * m;
+      double* d2 = second.data() + static_cast<Eigen::Index>(mu) * m;
+      for (int k = s.kmin; k <= s.kmax; ++k) {
+        const double c1 = s.First(mu, k) * frequency, c2 = s.Second(mu, k) * frequency * frequency;
+        const double* src = z.data() + static_cast<Eigen::Index>(((mu + k) % n + n) % n) * m;
+        for (Eigen::Index i = 0; i < m; ++i) {
+          d1[i] += c1 * src[i];
+          d2[i] += c2 * src[i];
+        }
+      }
+    }
+    return;
+  }
   for (int k = s.kmin; k <= s.kmax; ++k) {
     const double c1 = s.first[k - s.kmin] * frequency, c2 = s.second[k - s.kmin] * frequency * frequency;
     if (c1 == 0.0 && c2 == 0.0) continue;
@@ -418,9 +542,9 @@ struct PeriodicSolver::InputRates {
 Eigen::MatrixXd PeriodicSolver::Residual(const Eigen::MatrixXd& z, const PeriodicInput& input,
                                          std::span<const double> theta) const {
   const int n = static_cast<int>(z.cols());
-  if (n == prepared_n_) return ResidualAt(z, input, InputRates(stencil_, input), theta);
+  if (n == prepared_n_ && input.phases == prepared_phases_) return ResidualAt(z, input, InputRates(stencil_, input), theta);
   PeriodicSolver other(model_, options_);
-  other.Prepare(n);
+  other.Prepare(input);
   return other.ResidualAt(z, input, InputRates(other.stencil_, input), theta);
 }
 
@@ -486,8 +610,8 @@ void PeriodicSolver::AssembleJacobianWith(const Eigen::MatrixXd& z, const Period
       const double* rxdd = points.rxdd.data() + k * mm;
       for (int offset = stencil_.kmin; offset <= stencil_.kmax; ++offset) {
         double* block = jacobian_.block(start + k, offset).data();
-        const double a = stencil_.first[offset - stencil_.kmin] * f;
-        const double b = stencil_.second[offset - stencil_.kmin] * f * f;
+        const double a = stencil_.First(start + k, offset) * f;
+        const double b = stencil_.Second(start + k, offset) * f * f;
         for (int e = 0; e < mm; ++e) block[e] = a * rxd[e] + b * rxdd[e];
         if (offset == 0)
           for (int e = 0; e < mm; ++e) block[e] += rx[e];
@@ -505,11 +629,11 @@ Eigen::MatrixXd March(const Model& model, const Eigen::VectorXd& equation_weight
   const int n = static_cast<int>(z.cols());
   const int m = model.unknown_count();
   const double f = input.frequency;
-  const Stencil march = Stencil::For(Scheme::kBackward2, n);
+  const Stencil march =
+      input.phases.empty() ? Stencil::For(Scheme::kBackward2, n) : Stencil::For(Scheme::kBackward2, input.phases);
   Eigen::MatrixXd input_first, input_second;
   GridRates(march, Eigen::Map<const Eigen::RowVectorXd>(input.values.data(), n), f, input_first, input_second);
   Linearization<J> point(model, theta, equation_weight);
-  const double a0 = march.first[-march.kmin] * f, b0 = march.second[-march.kmin] * f * f;
   Eigen::VectorXd step_scale(m);
   for (int j = 0; j < m; ++j) step_scale[j] = model.unknown_spec(j).scale;
   std::vector<double> zd(m), zdd(m);
@@ -528,7 +652,7 @@ Eigen::MatrixXd March(const Model& model, const Eigen::VectorXd& equation_weight
         point.Load(0, z.col(mu).data(), zd.data(), zdd.data(), input.values[mu], input_first(0, mu),
                    input_second(0, mu));
         point.Evaluate(1);
-        jacobian = point.Rx(0) + a0 * point.Rxd(0) + b0 * point.Rxdd(0);
+        jacobian = point.Rx(0) + march.First(mu, 0) * f * point.Rxd(0) + march.Second(mu, 0) * f * f * point.Rxdd(0);
         lu.compute(jacobian);
         step.noalias() = lu.solve(-point.r.col(0));
         if (!step.allFinite()) break;
@@ -586,10 +710,14 @@ Eigen::MatrixXd PeriodicSolver::ColdStart(const PeriodicInput& input, std::span<
     options.scheme = Scheme::kBackward2;
     options.coarse_points = 0;
     PeriodicSolver coarse(model_, options);
+    const Eigen::Map<const Eigen::RowVectorXd> values(input.values.data(), n);
+    std::vector<double> coarse_phases(coarse_n);
+    for (int mu = 0; mu < coarse_n; ++mu) coarse_phases[mu] = static_cast<double>(mu) / coarse_n;
     const PeriodicInput coarse_input{
         input.frequency, [&] {
-          const Eigen::MatrixXd u = PeriodicResample(
-              Eigen::Map<const Eigen::RowVectorXd>(input.values.data(), input.values.size()), coarse_n);
+          const Eigen::MatrixXd u = input.phases.empty()
+                                        ? PeriodicResample(values, coarse_n)
+                                        : PhaseInterpolation::Cubic(input.phases, n, coarse_phases).Rows(values);
           return std::vector<double>(u.data(), u.data() + coarse_n);
         }()};
     PeriodicSolution guess;
@@ -600,7 +728,8 @@ Eigen::MatrixXd PeriodicSolver::ColdStart(const PeriodicInput& input, std::span<
     try {
       const PeriodicSolution s = coarse.Solve(coarse_input, theta, &guess);
       spdlog::trace("periodic cold start: {} Newton steps on {} points", s.newton_iterations, coarse_n);
-      return PeriodicResample(s.unknowns, n);
+      return input.phases.empty() ? PeriodicResample(s.unknowns, n)
+                                  : PhaseInterpolation::Cubic({}, coarse_n, input.phases).Rows(s.unknowns);
     } catch (const PeriodicSolverError& e) {
       spdlog::debug("periodic cold start: no solution on {} points ({}); starting on all {}", coarse_n, e.what(), n);
     }
@@ -644,7 +773,7 @@ PeriodicSolution PeriodicSolver::Solve(const PeriodicInput& input, std::span<con
                                             model_.parameter_count()));
   for (double v : input.values)
     if (!std::isfinite(v)) throw std::invalid_argument("periodic solver: the input has non-finite values");
-  Prepare(n);
+  Prepare(input);
   const InputRates rates(stencil_, input);
 
   if (warm_start && warm_start->n == n && warm_start->unknowns.rows() == m && warm_start->unknowns.cols() == n) {
@@ -926,8 +1055,8 @@ Eigen::MatrixXd PeriodicSolver::InputGradients(const PeriodicSolution& solution,
     if (w.rows() != n || w.cols() != columns)
       throw std::invalid_argument("periodic solver: output weights must be n x k, the same k for every output");
   if (m + 1 > kStateDirections) throw std::invalid_argument("periodic solver: too many unknowns for input gradients");
-  Prepare(n);
   const PeriodicInput& input = solution.input;
+  Prepare(input);
   const InputRates rates(stencil_, input);
   MakeJacobianCurrent(solution, rates, theta);
   using J = StateJet;
@@ -984,14 +1113,13 @@ Eigen::MatrixXd PeriodicSolver::InputGradients(const PeriodicSolution& solution,
                      });
   // (D1^T a1)(nu) = f sum_k first[k] a1(nu - k): the stencil read backwards.
   const double f = input.frequency;
-  for (int k = stencil_.kmin; k <= stencil_.kmax; ++k) {
-    const double c1 = stencil_.first[k - stencil_.kmin] * f, c2 = stencil_.second[k - stencil_.kmin] * f * f;
-    if (c1 == 0.0 && c2 == 0.0) continue;
+  for (int k = stencil_.kmin; k <= stencil_.kmax; ++k)
     for (int mu = 0; mu < n; ++mu) {
+      const double c1 = stencil_.First(mu, k) * f, c2 = stencil_.Second(mu, k) * f * f;
+      if (c1 == 0.0 && c2 == 0.0) continue;
       const int nu = ((mu + k) % n + n) % n;  // row mu reads the input at nu
       a0.col(nu) += c1 * a1.col(mu) + c2 * a2.col(mu);
     }
-  }
   gradient -= a0.transpose();
   return gradient;
 }
@@ -1007,8 +1135,8 @@ std::vector<Eigen::MatrixXd> PeriodicSolver::InputSensitivities(const PeriodicSo
   if (directions.rows() != n) throw std::invalid_argument("periodic solver: input directions must be n x k");
   if (m + 1 > kStateDirections) throw std::invalid_argument("periodic solver: too many unknowns for input sensitivities");
   const Eigen::Index columns = directions.cols();
-  Prepare(n);
   const PeriodicInput& input = solution.input;
+  Prepare(input);
   const InputRates rates(stencil_, input);
   const bool close_enough = !exact && solution.jacobian && solution.jacobian->rows() == solution.unknowns.size() &&
                             solution.jacobian_contraction <= 0.05;
@@ -1023,15 +1151,19 @@ std::vector<Eigen::MatrixXd> PeriodicSolver::InputSensitivities(const PeriodicSo
   // blocks of rows per stencil offset).
   const double f = input.frequency;
   Eigen::MatrixXd d1 = Eigen::MatrixXd::Zero(n, columns), d2 = Eigen::MatrixXd::Zero(n, columns);
+  Eigen::VectorXd c1(n), c2(n);  // the offset's weight at every point
   for (int k = stencil_.kmin; k <= stencil_.kmax; ++k) {
-    const double c1 = stencil_.first[k - stencil_.kmin] * f, c2 = stencil_.second[k - stencil_.kmin] * f * f;
-    if (c1 == 0.0 && c2 == 0.0) continue;
+    for (int mu = 0; mu < n; ++mu) {
+      c1[mu] = stencil_.First(mu, k) * f;
+      c2[mu] = stencil_.Second(mu, k) * f * f;
+    }
+    if (c1.isZero(0.0) && c2.isZero(0.0)) continue;
     const int shift = ((k % n) + n) % n;  // row mu reads row (mu + shift) mod n
-    d1.topRows(n - shift) += c1 * directions.middleRows(shift, n - shift);
-    d2.topRows(n - shift) += c2 * directions.middleRows(shift, n - shift);
+    d1.topRows(n - shift) += c1.head(n - shift).asDiagonal() * directions.middleRows(shift, n - shift);
+    d2.topRows(n - shift) += c2.head(n - shift).asDiagonal() * directions.middleRows(shift, n - shift);
     if (shift > 0) {
-      d1.bottomRows(shift) += c1 * directions.topRows(shift);
-      d2.bottomRows(shift) += c2 * directions.topRows(shift);
+      d1.bottomRows(shift) += c1.tail(shift).asDiagonal() * directions.topRows(shift);
+      d2.bottomRows(shift) += c2.tail(shift).asDiagonal() * directions.topRows(shift);
     }
   }
   // -(G_u0, G_u1, G_u2) per equation (a row each) and point, scaled like G.
@@ -1090,7 +1222,7 @@ std::vector<Eigen::MatrixXd> PeriodicSolver::OutputSensitivities(const PeriodicS
   for (int i : wanted)
     if (i < 0 || i >= np) throw std::invalid_argument(fmt::format("periodic solver: no parameter at position {}", i));
   const int nd = static_cast<int>(wanted.size());
-  Prepare(n);
+  Prepare(solution.input);
   const InputRates rates(stencil_, solution.input);
   const bool close_enough = !exact && solution.jacobian && solution.jacobian->rows() == solution.unknowns.size() &&
                             solution.jacobian_contraction <= 0.05;

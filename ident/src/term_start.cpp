@@ -190,18 +190,13 @@ Regression GaussNewtonSize(const FitSummary& baseline, const Model& model, const
       const double w = 1.0 / std::sqrt(variance->second);
       Eigen::MatrixXd block(residual.size(), grid.cols());
       // Cubic (4-point Lagrange) interpolation from the grid to the data phases, as the estimator.
-      for (Eigen::Index i = 0; i < residual.size(); ++i) {
-        const double position = e.phases[i] * n;
-        const int j0 = static_cast<int>(std::floor(position)) % n;
-        const double t = position - std::floor(position);
-        const double c[4] = {-t * (t - 1) * (t - 2) / 6, (t + 1) * (t - 1) * (t - 2) / 2,
-                             -(t + 1) * t * (t - 2) / 2, (t + 1) * t * (t - 1) / 6};
+      const PhaseInterpolation map = PhaseInterpolation::Cubic(solution.input.phases, n, e.phases);
+      for (Eigen::Index i = 0; i < residual.size(); ++i)
         for (Eigen::Index k = 0; k < grid.cols(); ++k) {
           double v = 0.0;
-          for (int q = 0; q < 4; ++q) v += c[q] * grid((j0 + q - 1 + n) % n, k);
+          for (int q = 0; q < 4; ++q) v += map.weights[i][q] * grid(map.taps[i][q], k);
           block(i, k) = w * v;
         }
-      }
       blocks.push_back(std::move(block));
       targets.push_back(w * residual);
     }

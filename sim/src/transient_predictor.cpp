@@ -160,6 +160,8 @@ ident::PeriodicSolution TransientPredictor::Solve(const ident::PeriodicInput& in
                                                   const ident::PeriodicSolution* warm_start) {
   const int n = static_cast<int>(input.values.size());
   const int m = model_.unknown_count();
+  if (!input.phases.empty())  // its outputs are sampled at mu / n
+    throw std::invalid_argument("transient predictor: the input must be on an equidistant grid (give the fit an n)");
   InitialState initial;
   if (warm_start && warm_start->n == n && warm_start->unknowns.rows() == m && warm_start->unknowns.cols() == n &&
       warm_start->unknowns.allFinite()) {

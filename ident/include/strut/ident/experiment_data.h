@@ -32,6 +32,8 @@ struct PeriodicSeries {
   Eigen::VectorXd OnPhases(int count, int derivative = 0) const;
   //! Values on the n-point grid tau_mu = mu / n, as a solver input.
   PeriodicInput OnGrid(int n) const;
+  //! Values at any grid phases (strictly increasing in [0, 1)), as a solver input on that grid.
+  PeriodicInput AtPhases(const std::vector<double>& phases) const;
 };
 
 //! One measured channel of one experiment, averaged over its periods.
@@ -82,6 +84,17 @@ struct ExperimentData {
 //! so it keeps the paper's backward2 on 800.
 int DefaultGridPoints(Causality causality);
 Scheme DefaultScheme(Causality causality);
+
+//! The grid of a slow experiment by default under stroke input: of its `count` equidistant sample
+//! phases, every one where the model may not be smooth and every k-th elsewhere, k up to
+//! count / `points` (the spacing of a `points`-point equidistant grid). Fine: where the measured
+//! input's speed (`velocity` at the phases) is below half its peak times k / (count / points) (the
+//! friction's switch at a reversal and the Stribeck hump), and 4 samples around any sample where a
+//! measured output's second difference exceeds 4 times its noise's (`outputs`, each with the
+//! variance of its averaged samples: a contact or a clipped peak). Steps grow by at most half a
+//! sample per sample, so neighbouring steps differ little. Returns the kept phases i / count.
+std::vector<double> ThinnedSamplePhases(const Eigen::VectorXd& velocity, int points,
+                                        const std::vector<std::pair<const Eigen::VectorXd*, double>>& outputs);
 
 //! Brings periodic experiments onto an n-point grid for a model's causality (n 0: DefaultGridPoints). Experiments that are
 //! not periodic or are aborted are skipped with a log line. Detects data defects and reports them

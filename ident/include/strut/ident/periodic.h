@@ -7,6 +7,7 @@
 #pragma once
 
 #include <Eigen/Dense>
+#include <array>
 #include <cmath>
 #include <memory>
 #include <optional>
@@ -39,11 +40,27 @@ std::string_view ToString(Scheme s);
 Scheme ParseScheme(std::string_view text);  //!< backward2, central2, central4, spectral
 
 //! Difference operators on the periodic grid in cyclic time tau (period 1):
-//! dx/dtau at point mu ~ sum_k first[k - kmin] x[mu + k], likewise second for d2x/dtau2.
+//! dx/dtau at point mu ~ sum_k First(mu, k) x[mu + k], likewise Second for d2x/dtau2. On an
+//! equidistant grid the weights are the same at every point (`first`, `second`); on any other
+//! (`PeriodicInput::phases`) each point has its own, the Lagrange weights of the scheme's offsets at
+//! the actual phases (backward2: first derivative from offsets -2..0, second from -3..0; central2
+//! -1..1; central4 -2..2), `first_at` and `second_at` point-major.
 struct Stencil {
   int kmin = 0, kmax = 0;
   std::vector<double> first, second;
+  std::vector<double> first_at, second_at;  //!< n x (kmax - kmin + 1); empty when equidistant
+  double First(int mu, int k) const {
+    return first_at.empty() ? first[k - kmin] : first_at[static_cast<std::size_t>(mu) * (kmax - kmin + 1) + (k - kmin)];
+  }
+  double Second(int mu, int k) const {
+    return second_at.empty() ? second[k - kmin]
+                             : second_at[static_cast<std::size_t>(mu) * (kmax - kmin + 1) + (k - kmin)];
+  }
+  bool equidistant() const { return first_at.empty(); }
   static Stencil For(Scheme scheme, int n);
+  //! At the given phases (strictly increasing in [0, 1); empty: equidistant on n = 0 points is not
+  //! allowed, use For(scheme, n)). Throws std::invalid_argument for the spectral scheme.
+  static Stencil For(Scheme scheme, const std::vector<double>& phases);
 };
 
 //! The record at grid time t_mu of every period: an n x periods matrix, linearly interpolated from
@@ -56,10 +73,27 @@ Eigen::MatrixXd PeriodSynchronousSamples(std::span<const double> samples, double
 //! at phase 0) onto `points` equidistant points: the coarse-grid start's interpolation both ways.
 Eigen::MatrixXd PeriodicResample(const Eigen::MatrixXd& rows, int points);
 
-//! One period of the input (force or measured stroke) on the grid t_mu = mu / (n f).
+//! Periodic cubic (4-point Lagrange) interpolation from the n grid points at `grid` phases (empty:
+//! mu / n) to any phases in [0, 1): for each target the four grid points around it (wrapped) and
+//! their weights. A target on a grid point gets that point's value exactly.
+struct PhaseInterpolation {
+  std::vector<std::array<int, 4>> taps;
+  std::vector<std::array<double, 4>> weights;
+  static PhaseInterpolation Cubic(const std::vector<double>& grid, int n, std::span<const double> targets);
+  //! Every row of `rows` (n columns) at the targets.
+  Eigen::MatrixXd Rows(const Eigen::MatrixXd& rows) const;
+};
+
+//! One period of the input (force or measured stroke) on the grid t_mu = phase_mu / f.
 struct PeriodicInput {
   double frequency = 0.0;      //!< Hz
   std::vector<double> values;  //!< n values
+  //! The grid's phases, strictly increasing in [0, 1), when it is not equidistant (empty: mu / n):
+  //! a grid that keeps every recorded sample around the velocity reversals and fewer elsewhere.
+  std::vector<double> phases;
+  double phase(int mu) const {
+    return phases.empty() ? static_cast<double>(mu) / static_cast<double>(values.size()) : phases[mu];
+  }
 
   //! mean + amplitude sin(2 pi f t).
   static PeriodicInput Sine(double frequency, double mean, double amplitude, int n);
@@ -254,12 +288,14 @@ class PeriodicSolver : public PeriodicPredictor {
                                    bool march_start = false) const;
   Eigen::MatrixXd MarchGuess(Eigen::MatrixXd z, const PeriodicInput& input, std::span<const double> theta,
                              int periods) const;
-  void Prepare(int n);
+  //! The stencil and the Jacobian's buffer for the input's grid (its n and phases).
+  void Prepare(const PeriodicInput& grid);
 
   Model model_;
   PeriodicSolverOptions options_;
   Stencil stencil_;
   int prepared_n_ = -1;
+  std::vector<double> prepared_phases_;
   Eigen::VectorXd equation_weight_;  //!< 1 / equation scale, per unknown
   CyclicBlockBanded jacobian_;       //!< assembly buffer
   //! Factorisations to reuse: one no solution holds any more is refactorised in place, which

@@ -50,7 +50,7 @@ struct BenchDiscover {
         ident::PrepareFitData(session, "simulated session", ident::Model::Build("1dof", fit.causality), fit.estimator.n);
     nlohmann::json rows = nlohmann::json::array();
     std::cout << "discover on the 14-experiment standard matrix from the simulated rig (every effect on), "
-                 "stroke input, n = 800:\n";
+                 "stroke input, the default grid:\n";
     // The thread counts alternate within each repeat, so a change in the machine's load falls on both.
     const std::vector<int> counts{1, 2};
     std::vector<std::vector<double>> wall(counts.size()), cpu(counts.size());

@@ -3,6 +3,7 @@
 // such a grid against the equidistant solution and finite differences.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <numbers>
 
@@ -103,6 +104,28 @@ TEST(PhaseInterpolation, ExactOnGridPointsAndFourthOrderBetween) {
   };
   EXPECT_LT(error(50), 1e-4);
   EXPECT_GT(std::log2(error(50) / error(100)), 3.7);
+}
+
+TEST(PhaseProducts, GiveTheProductsOverTheTargetsAtTheGridsSize) {
+  const int n = 40;
+  const std::vector<double> grid = WarpedPhases(n);
+  std::vector<double> targets(grid);  // every grid point, and 333 phases between
+  for (int i = 0; i < 333; ++i) targets.push_back((i + 0.37) / 333.0);
+  std::sort(targets.begin(), targets.end());
+  const PhaseInterpolation map = PhaseInterpolation::Cubic(grid, n, targets);
+  const PhaseProducts products(map, n);
+  const Eigen::MatrixXd g = Eigen::MatrixXd::Random(n, 5);
+  const Eigen::VectorXd r = Eigen::VectorXd::Random(static_cast<Eigen::Index>(targets.size()));
+  const Eigen::MatrixXd j = map.Rows(g.transpose()).transpose();  // J = P G, targets x 5
+  const Eigen::MatrixXd c = products.Columns(g);
+  ASSERT_EQ(c.rows(), n);
+  EXPECT_LT((c.transpose() * c - j.transpose() * j).norm(), 1e-12 * (j.transpose() * j).norm());
+  EXPECT_LT((c.transpose() * products.Vector(r) - j.transpose() * r).norm(), 1e-12 * j.norm() * r.norm());
+  // P^T P g back on the grid.
+  Eigen::VectorXd spread = Eigen::VectorXd::Zero(n);
+  for (std::size_t i = 0; i < targets.size(); ++i)
+    for (int k = 0; k < 4; ++k) spread[map.taps[i][k]] += map.weights[i][k] * j(static_cast<Eigen::Index>(i), 2);
+  EXPECT_LT((products.GridWeights(c.col(2)) - spread).norm(), 1e-12 * spread.norm());
 }
 
 TEST(ThinnedSamplePhases, KeepsEverySampleAtTheReversalsAndAroundAKink) {

@@ -191,7 +191,8 @@ struct FitProblem::Experiment {
     Eigen::MatrixXd directions;  // n x (2 harmonics + 1): the coefficients' grid functions times their sd
     Eigen::VectorXd base;        // the input at the measured coefficients (kept harmonics above: the series')
     Eigen::VectorXd xi;
-    //! Per fitted channel, d(prediction at the phases)/d xi, reused as the parameters' are.
+    //! Per fitted channel, d(prediction at the phases)/d xi in the products' rows (SampleColumns),
+    //! reused as the parameters' are.
     std::vector<Eigen::MatrixXd> sensitivities_at_phases;
     //! Per fitted channel, unweighted products of the sensitivities above: J_c^T J_c (lower triangle)
     //! and J^T J_c with the parameters' of the same call; kept while both are reused.
@@ -205,7 +206,8 @@ struct FitProblem::Experiment {
         estimate->base + estimate->directions * estimate->xi;
   }
   //! Per fitted channel, d(prediction at the phases)/d(scaled parameters) of the last call that
-  //! computed them: reused while the fit's steps are below a percent of the parameters.
+  //! computed them, in the products' rows (SampleColumns): reused while the fit's steps are below a
+  //! percent of the parameters.
   std::vector<Eigen::MatrixXd> sensitivities_at_phases;
   // Cubic (4-point Lagrange) interpolation from the grid to the data phases (exact where a data
   // phase is a grid point). Linear interpolation would bias the fit by h^2 y''/8, comparable to
@@ -213,10 +215,27 @@ struct FitProblem::Experiment {
   std::vector<std::array<int, 4>> taps;  // the grid points around each data phase, wrapped
   std::vector<std::array<double, 4>> weights;
 
+  // A grid much smaller than the phases (a thinned slow experiment) forms the fit's products at the
+  // grid's size: its rows stand for the phases' (PhaseProducts). Null: products over the phases.
+  std::shared_ptr<const PhaseProducts> products;
+
   void MapPhases() {
     PhaseInterpolation map = PhaseInterpolation::Cubic(data->input.phases, n(), data->phases);
+    if (4 * static_cast<std::size_t>(n()) < 3 * map.taps.size()) products = std::make_shared<PhaseProducts>(map, n());
     taps = std::move(map.taps);
     weights = std::move(map.weights);
+  }
+  //! Grid functions (n rows) as the rows the products use: at the phases, or PhaseProducts' rows.
+  Eigen::MatrixXd SampleColumns(const Eigen::MatrixXd& grid) const {
+    return products ? products->Columns(grid) : AtPhasesColumns(grid);
+  }
+  //! Values at the phases (a residual) as the rows the products use.
+  Eigen::VectorXd SampleVector(const Eigen::VectorXd& at_phases) const {
+    return products ? products->Vector(at_phases) : at_phases;
+  }
+  //! P^T of a column of SampleColumns' rows mapped back to the phases: the weights on the grid.
+  Eigen::VectorXd GridWeights(const Eigen::VectorXd& column, int n) const {
+    return products ? products->GridWeights(column) : ToGrid(column, n);
   }
   //! A grid function (n values, any stride) at the data phases.
   template <class Grid>
@@ -660,7 +679,7 @@ NormalEquations FitProblem::Linearise(const std::vector<double>& theta, const st
         s.estimate->gram.assign(nc, Eigen::MatrixXd());
         for (int b = 0; b < nc; ++b) {
           if (!s.channel_fitted[b]) continue;
-          const Eigen::MatrixXd& jc = s.estimate->sensitivities_at_phases[b] = s.AtPhasesColumns(sens[output_row_[b]]);
+          const Eigen::MatrixXd& jc = s.estimate->sensitivities_at_phases[b] = s.SampleColumns(sens[output_row_[b]]);
           Eigen::MatrixXd& g = s.estimate->gram[b];
           g.setZero(jc.cols(), jc.cols());
           g.selfadjointView<Eigen::Lower>().rankUpdate(jc.transpose());
@@ -674,9 +693,8 @@ NormalEquations FitProblem::Linearise(const std::vector<double>& theta, const st
       s.sensitivities_at_phases.assign(nc, Eigen::MatrixXd());
       for (int b = 0; b < nc; ++b) {
         if (!s.channel_fitted[b]) continue;
-        Eigen::MatrixXd& j = s.sensitivities_at_phases[b];
-        j.resize(static_cast<Eigen::Index>(s.taps.size()), l);
-        for (int k = 0; k < l; ++k) j.col(k) = s.AtPhases(sens[output_row_[b]].col(k)) * scale_[estimated_[k]];
+        Eigen::MatrixXd& j = s.sensitivities_at_phases[b] = s.SampleColumns(sens[output_row_[b]]);
+        for (int k = 0; k < l; ++k) j.col(k) *= scale_[estimated_[k]];
       }
       parameters_fresh = true;
     }
@@ -707,12 +725,12 @@ NormalEquations FitProblem::Linearise(const std::vector<double>& theta, const st
     for (int b = 0; b < nc; ++b) {
       if (!s.channel_fitted[b]) continue;
       const Eigen::MatrixXd& j = s.sensitivities_at_phases[b];
-      const Eigen::VectorXd r = s.Residual(channels_[b], output_row_[b]);
+      const Eigen::VectorXd r = s.SampleVector(s.Residual(channels_[b], output_row_[b]));
       const double w = 1.0 / variance[b];
       hs[a].noalias() += w * (j.transpose() * j);  // the weight folds into the product (no temporary)
       eq.experiment_gradient[a].noalias() += w * (j.transpose() * r);
       if (with_input)
-        for (int k = 0; k < l; ++k) weights[output_row_[b]].col(k) += s.ToGrid(j.col(k), n) / variance[b];
+        for (int k = 0; k < l; ++k) weights[output_row_[b]].col(k) += s.GridWeights(j.col(k), n) / variance[b];
       if (with_estimate) {
         block.information.triangularView<Eigen::Lower>() += w * s.estimate->gram[b];
         block.coupling += w * s.estimate->coupling[b];
@@ -808,8 +826,9 @@ FitProblem::GainGradient FitProblem::GainGradients(const std::string& channel, c
         de = measured.mean.array() - measured.reading_offset;  // what the gain scales
       }
       if (input) de -= s.AtPhases(along_input[output_row_[b]].col(0));
-      parameters[a].noalias() += s.sensitivities_at_phases[b].transpose() * de / variance[b];
-      if (with_estimate) g.inputs[a].noalias() += s.estimate->sensitivities_at_phases[b].transpose() * de / variance[b];
+      const Eigen::VectorXd rows = s.SampleVector(de);
+      parameters[a].noalias() += s.sensitivities_at_phases[b].transpose() * rows / variance[b];
+      if (with_estimate) g.inputs[a].noalias() += s.estimate->sensitivities_at_phases[b].transpose() * rows / variance[b];
     }
   });
   for (const Eigen::VectorXd& p : parameters) g.parameters += p;

@@ -183,6 +183,33 @@ Eigen::MatrixXd PhaseInterpolation::Rows(const Eigen::MatrixXd& rows) const {
   return out;
 }
 
+PhaseProducts::PhaseProducts(const PhaseInterpolation& map, int n) {
+  std::vector<Eigen::Triplet<double>> entries;
+  for (std::size_t i = 0; i < map.taps.size(); ++i)
+    for (int k = 0; k < 4; ++k)
+      if (map.weights[i][k] != 0.0) entries.emplace_back(map.taps[i][k], static_cast<int>(i), map.weights[i][k]);
+  transpose_map_.resize(n, static_cast<Eigen::Index>(map.taps.size()));
+  transpose_map_.setFromTriplets(entries.begin(), entries.end());
+  const Eigen::SparseMatrix<double> normal = transpose_map_ * transpose_map_.transpose();
+  const Eigen::SimplicialLLT<Eigen::SparseMatrix<double>> llt(normal);
+  if (llt.info() != Eigen::Success)
+    throw std::invalid_argument("phase products: a grid point carries no weight at the targets");
+  lower_ = llt.matrixL();
+  order_ = llt.permutationP();
+}
+
+Eigen::MatrixXd PhaseProducts::Columns(const Eigen::MatrixXd& grid) const {
+  return Eigen::MatrixXd(lower_.transpose() * (order_ * grid));
+}
+
+Eigen::VectorXd PhaseProducts::Vector(const Eigen::VectorXd& at_targets) const {
+  return lower_.triangularView<Eigen::Lower>().solve(Eigen::VectorXd(order_ * (transpose_map_ * at_targets)));
+}
+
+Eigen::VectorXd PhaseProducts::GridWeights(const Eigen::VectorXd& column) const {
+  return order_.transpose() * Eigen::VectorXd(lower_ * column);
+}
+
 PeriodicInput PeriodicInput::Sine(double frequency, double mean, double amplitude, int n) {
   PeriodicInput in;
   in.frequency = frequency;

@@ -196,10 +196,11 @@ PhaseProducts::PhaseProducts(const PhaseInterpolation& map, int n) {
     throw std::invalid_argument("phase products: a grid point carries no weight at the targets");
   lower_ = llt.matrixL();
   order_ = llt.permutationP();
+  upper_ordered_ = Eigen::SparseMatrix<double, Eigen::RowMajor>(lower_.transpose()) * order_;
 }
 
 Eigen::MatrixXd PhaseProducts::Columns(const Eigen::MatrixXd& grid) const {
-  return Eigen::MatrixXd(lower_.transpose() * (order_ * grid));
+  return Eigen::MatrixXd(upper_ordered_ * grid);
 }
 
 Eigen::VectorXd PhaseProducts::Vector(const Eigen::VectorXd& at_targets) const {
@@ -358,6 +359,7 @@ void PeriodicSolver::Prepare(const PeriodicInput& grid) {
   jacobian_ = CyclicBlockBanded(n, model_.unknown_count(), stencil_.kmin, stencil_.kmax);
   prepared_n_ = n;
   prepared_phases_ = grid.phases;
+  rated_directions_.resize(0, 0);
 }
 
 namespace {
@@ -1175,24 +1177,32 @@ std::vector<Eigen::MatrixXd> PeriodicSolver::InputSensitivities(const PeriodicSo
   Eigen::MatrixXd zd, zdd;
   GridRates(stencil_, z, input.frequency, zd, zdd);
   // The directions' rates as the solver takes the input's (n x k like the directions: whole shifted
-  // blocks of rows per stencil offset).
+  // blocks of rows per stencil offset), kept for the next call with the same directions.
   const double f = input.frequency;
-  Eigen::MatrixXd d1 = Eigen::MatrixXd::Zero(n, columns), d2 = Eigen::MatrixXd::Zero(n, columns);
-  Eigen::VectorXd c1(n), c2(n);  // the offset's weight at every point
-  for (int k = stencil_.kmin; k <= stencil_.kmax; ++k) {
-    for (int mu = 0; mu < n; ++mu) {
-      c1[mu] = stencil_.First(mu, k) * f;
-      c2[mu] = stencil_.Second(mu, k) * f * f;
+  if (rated_directions_.rows() != n || rated_directions_.cols() != columns || direction_frequency_ != f ||
+      rated_directions_ != directions) {
+    direction_first_.setZero(n, columns);
+    direction_second_.setZero(n, columns);
+    Eigen::VectorXd c1(n), c2(n);  // the offset's weight at every point
+    for (int k = stencil_.kmin; k <= stencil_.kmax; ++k) {
+      for (int mu = 0; mu < n; ++mu) {
+        c1[mu] = stencil_.First(mu, k) * f;
+        c2[mu] = stencil_.Second(mu, k) * f * f;
+      }
+      if (c1.isZero(0.0) && c2.isZero(0.0)) continue;
+      const int shift = ((k % n) + n) % n;  // row mu reads row (mu + shift) mod n
+      direction_first_.topRows(n - shift) += c1.head(n - shift).asDiagonal() * directions.middleRows(shift, n - shift);
+      direction_second_.topRows(n - shift) += c2.head(n - shift).asDiagonal() * directions.middleRows(shift, n - shift);
+      if (shift > 0) {
+        direction_first_.bottomRows(shift) += c1.tail(shift).asDiagonal() * directions.topRows(shift);
+        direction_second_.bottomRows(shift) += c2.tail(shift).asDiagonal() * directions.topRows(shift);
+      }
     }
-    if (c1.isZero(0.0) && c2.isZero(0.0)) continue;
-    const int shift = ((k % n) + n) % n;  // row mu reads row (mu + shift) mod n
-    d1.topRows(n - shift) += c1.head(n - shift).asDiagonal() * directions.middleRows(shift, n - shift);
-    d2.topRows(n - shift) += c2.head(n - shift).asDiagonal() * directions.middleRows(shift, n - shift);
-    if (shift > 0) {
-      d1.bottomRows(shift) += c1.tail(shift).asDiagonal() * directions.topRows(shift);
-      d2.bottomRows(shift) += c2.tail(shift).asDiagonal() * directions.topRows(shift);
-    }
+    rated_directions_ = directions;
+    direction_frequency_ = f;
   }
+  const Eigen::MatrixXd& d1 = direction_first_;
+  const Eigen::MatrixXd& d2 = direction_second_;
   // -(G_u0, G_u1, G_u2) per equation (a row each) and point, scaled like G.
   Eigen::MatrixXd g0(n, m), g1(n, m), g2(n, m);
   ResidualJetBatches(model_, z, zd, zdd, input, rates.first, rates.second, jets, true,

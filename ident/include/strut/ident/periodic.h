@@ -102,6 +102,7 @@ class PhaseProducts {
  private:
   Eigen::SparseMatrix<double> transpose_map_;  // P^T
   Eigen::SparseMatrix<double> lower_;          // L
+  Eigen::SparseMatrix<double, Eigen::RowMajor> upper_ordered_;  // L^T Q, one product for Columns
   Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic> order_;  // Q
 };
 
@@ -317,6 +318,10 @@ class PeriodicSolver : public PeriodicPredictor {
   Stencil stencil_;
   int prepared_n_ = -1;
   std::vector<double> prepared_phases_;
+  //! InputSensitivities' last directions and their rates by the stencil: a fit asks for the same
+  //! directions (its input coefficients) at every linearisation.
+  Eigen::MatrixXd rated_directions_, direction_first_, direction_second_;
+  double direction_frequency_ = 0.0;
   Eigen::VectorXd equation_weight_;  //!< 1 / equation scale, per unknown
   CyclicBlockBanded jacobian_;       //!< assembly buffer
   //! Factorisations to reuse: one no solution holds any more is refactorised in place, which

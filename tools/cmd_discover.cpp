@@ -107,8 +107,9 @@ void RegisterDiscoverCommand(CLI::App& app) {
   sub->add_option("--json", command->json_path, "Write the findings as JSON to this file.");
   sub->add_option("--report", command->report_path, "Write a self-contained HTML report to this file.");
   sub->add_option("--n", command->n,
-                  "Least grid points per period of the periodic solver; a grid holds every recorded sample phase "
-                  "(default: 200 under stroke input, 800 under force input).")
+                  "Grid points per period of the periodic solver, at least: the grid is equidistant and holds every "
+                  "recorded sample phase. Default: under stroke input the sample phases, thinned where the model is "
+                  "smooth (200 a period there); under force input 800 (docs/identification.md).")
       ->check(Between(16, 100000));
   sub->add_option("--threads", command->threads, "Threads: candidate refits, cross-validation folds and the experiments of each fit side by side (the answers do not depend on it).")
       ->check(Between(1, 64))

@@ -7,8 +7,6 @@
 extern "C" {
 void dgbtrf_(const int* m, const int* n, const int* kl, const int* ku, double* ab, const int* ldab, int* ipiv,
              int* info);
-void dgbtrs_(const char* trans, const int* n, const int* kl, const int* ku, const int* nrhs, const double* ab,
-             const int* ldab, const int* ipiv, double* b, const int* ldb, int* info, std::size_t trans_len);
 }
 
 namespace strut::ident {
@@ -598,48 +596,51 @@ void CyclicBandedLU::SubtractBorderTransposedTimes(const Eigen::MatrixXd& y, Eig
 
 void CyclicBandedLU::SolveFolded(Eigen::Ref<Eigen::MatrixXd> b, char trans) const {
   // The band holds P A P^T (P: the folding order), so A^T = P^T (P A P^T)^T P reuses the order.
+  // dgbtrs's substitutions on every right-hand side at once, a row of the row-major y one
+  // contiguous vector (the reference BLAS's dtbsv walks the band once per column).
   const int rows = n_ * m_, ldab = 2 * kl_ + ku_ + 1, kd = kl_ + ku_;
-  if (b.cols() <= 2) {  // a Newton step: LAPACK's substitutions
-    const int cols = static_cast<int>(b.cols());
-    Eigen::MatrixXd y(rows, cols);
-    for (int mu = 0; mu < n_; ++mu) y.middleRows(position_[mu] * m_, m_) = b.middleRows(mu * m_, m_);
-    int info = 0;
-    dgbtrs_(&trans, &rows, &kl_, &ku_, &cols, band_.data(), &ldab, pivots_.data(), y.data(), &rows, &info, 1);
-    for (int mu = 0; mu < n_; ++mu) b.middleRows(mu * m_, m_) = y.middleRows(position_[mu] * m_, m_);
-    return;
-  }
-  // Sensitivities: dgbtrs's substitutions on every right-hand side at once, a row of the row-major
-  // y one contiguous vector (the reference BLAS's dtbsv walks the band once per column).
+  const Eigen::Index cols = b.cols();
   using RowMajor = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
-  RowMajor y(rows, b.cols());
-  for (int mu = 0; mu < n_; ++mu) y.middleRows(position_[mu] * m_, m_) = b.middleRows(mu * m_, m_);
+  RowMajor rhs(rows, cols);
+  for (int mu = 0; mu < n_; ++mu) rhs.middleRows(position_[mu] * m_, m_) = b.middleRows(mu * m_, m_);
+  double* y = rhs.data();
+  const auto row = [&](int i) { return y + static_cast<std::ptrdiff_t>(i) * cols; };
+  const auto subtract = [&](int to, double factor, int from) {  // row `to` -= factor * row `from`
+    double* a = row(to);
+    const double* f = row(from);
+    for (Eigen::Index q = 0; q < cols; ++q) a[q] -= factor * f[q];
+  };
+  const auto swap = [&](int i, int j) { std::swap_ranges(row(i), row(i) + cols, row(j)); };
+  const auto divide = [&](int i, double d) {
+    double* a = row(i);
+    for (Eigen::Index q = 0; q < cols; ++q) a[q] /= d;
+  };
   // U(i, j) at band row kd + i - j of column j; L's multipliers below the diagonal at rows kd + 1 ...
-  const auto u = [&](int i, int j) { return band_[static_cast<std::size_t>(kd + i - j) + static_cast<std::size_t>(j) * ldab]; };
-  const auto l = [&](int i, int j) { return band_[static_cast<std::size_t>(kd + i - j) + static_cast<std::size_t>(j) * ldab]; };
+  const auto band = [&](int i, int j) { return band_[static_cast<std::size_t>(kd + i - j) + static_cast<std::size_t>(j) * ldab]; };
   if (trans == 'N') {
     for (int j = 0; j + 1 < rows; ++j) {  // L, with the row interchanges as they were made
       const int p = pivots_[j] - 1;
-      if (p != j) y.row(j).swap(y.row(p));
+      if (p != j) swap(j, p);
       const int below = std::min(kl_, rows - 1 - j);
-      for (int i = 1; i <= below; ++i) y.row(j + i) -= l(j + i, j) * y.row(j);
+      for (int i = 1; i <= below; ++i) subtract(j + i, band(j + i, j), j);
     }
     for (int j = rows - 1; j >= 0; --j) {  // U
-      y.row(j) /= u(j, j);
-      for (int i = std::max(0, j - kd); i < j; ++i) y.row(i) -= u(i, j) * y.row(j);
+      divide(j, band(j, j));
+      for (int i = std::max(0, j - kd); i < j; ++i) subtract(i, band(i, j), j);
     }
   } else {
     for (int j = 0; j < rows; ++j) {  // U^T
-      for (int i = std::max(0, j - kd); i < j; ++i) y.row(j) -= u(i, j) * y.row(i);
-      y.row(j) /= u(j, j);
+      for (int i = std::max(0, j - kd); i < j; ++i) subtract(j, band(i, j), i);
+      divide(j, band(j, j));
     }
     for (int j = rows - 2; j >= 0; --j) {  // L^T, the interchanges undone in reverse
       const int below = std::min(kl_, rows - 1 - j);
-      for (int i = 1; i <= below; ++i) y.row(j) -= l(j + i, j) * y.row(j + i);
+      for (int i = 1; i <= below; ++i) subtract(j, band(j + i, j), j + i);
       const int p = pivots_[j] - 1;
-      if (p != j) y.row(j).swap(y.row(p));
+      if (p != j) swap(j, p);
     }
   }
-  for (int mu = 0; mu < n_; ++mu) b.middleRows(mu * m_, m_) = y.middleRows(position_[mu] * m_, m_);
+  for (int mu = 0; mu < n_; ++mu) b.middleRows(mu * m_, m_) = rhs.middleRows(position_[mu] * m_, m_);
 }
 
 void CyclicBandedLU::Solve(Eigen::Ref<Eigen::MatrixXd> b) const {

@@ -150,7 +150,7 @@ std::vector<double> ThinnedSamplePhases(const Eigen::VectorXd& velocity, int poi
   for (int i = 0; i < count;) {
     phases.push_back(static_cast<double>(i) / count);
     int step = static_cast<int>(allowed[i]);
-    for (int j = i + 1; j <= i + step && j < count + step; ++j) step = std::min(step, static_cast<int>(allowed[j % count]));
+    for (int j = i + 1; j <= i + step; ++j) step = std::min(step, static_cast<int>(allowed[j % count]));
     i += std::max(1, step);
   }
   return phases;

@@ -404,12 +404,19 @@ void GridRates(const Stencil& s, const Eigen::MatrixXd& z, double frequency, Eig
     }
   };
   if (!s.equidistant()) {  // each point its own weights
+    const int width = s.kmax - s.kmin + 1;
+    const double f2 = frequency * frequency;
     for (int mu = 0; mu < n; ++mu) {
       double* d1 = first.data() + static_cast<Eigen::Index>(mu) * m;
       double* d2 = second.data() + static_cast<Eigen::Index>(mu) * m;
+      const double* w1 = s.first_at.data() + static_cast<std::size_t>(mu) * width;
+      const double* w2 = s.second_at.data() + static_cast<std::size_t>(mu) * width;
       for (int k = s.kmin; k <= s.kmax; ++k) {
-        const double c1 = s.First(mu, k) * frequency, c2 = s.Second(mu, k) * frequency * frequency;
-        const double* src = z.data() + static_cast<Eigen::Index>(((mu + k) % n + n) % n) * m;
+        const double c1 = w1[k - s.kmin] * frequency, c2 = w2[k - s.kmin] * f2;
+        int nu = mu + k;
+        if (nu < 0) nu += n;
+        else if (nu >= n) nu -= n;
+        const double* src = z.data() + static_cast<Eigen::Index>(nu) * m;
         for (Eigen::Index i = 0; i < m; ++i) {
           d1[i] += c1 * src[i];
           d2[i] += c2 * src[i];

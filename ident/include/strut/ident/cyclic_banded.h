@@ -90,7 +90,7 @@ class CyclicBandedLU {
   Eigen::MatrixXd BorderTimes(const Eigen::Ref<const Eigen::MatrixXd>& x) const;
   //! x -= A_BI^T y.
   void SubtractBorderTransposedTimes(const Eigen::MatrixXd& y, Eigen::Ref<Eigen::MatrixXd> x) const;
-  //! The folded banded LU's solve (LAPACK dgbtrs, `trans` 'N' or 'T').
+  //! The folded banded LU's solve (dgbtrs's substitutions on all columns at once; `trans` 'N' or 'T').
   void SolveFolded(Eigen::Ref<Eigen::MatrixXd> b, char trans) const;
 
   int n_ = 0, m_ = 0, border_ = 0, interior_rows_ = 0, kl_ = 0, ku_ = 0, lower_ = 0, upper_ = 0;

@@ -193,7 +193,7 @@ struct FitProblem::Experiment {
     Eigen::VectorXd xi;
     //! Per fitted channel, d(prediction at the phases)/d xi in the products' rows (SampleColumns),
     //! reused as the parameters' are.
-    std::vector<Eigen::MatrixXd> sensitivities_at_phases;
+    std::vector<Eigen::MatrixXd> sensitivity_rows;
     //! Per fitted channel, unweighted products of the sensitivities above: J_c^T J_c (lower triangle)
     //! and J^T J_c with the parameters' of the same call; kept while both are reused.
     std::vector<Eigen::MatrixXd> gram, coupling;
@@ -208,7 +208,7 @@ struct FitProblem::Experiment {
   //! Per fitted channel, d(prediction at the phases)/d(scaled parameters) of the last call that
   //! computed them, in the products' rows (SampleColumns): reused while the fit's steps are below a
   //! percent of the parameters.
-  std::vector<Eigen::MatrixXd> sensitivities_at_phases;
+  std::vector<Eigen::MatrixXd> sensitivity_rows;
   // Cubic (4-point Lagrange) interpolation from the grid to the data phases (exact where a data
   // phase is a grid point). Linear interpolation would bias the fit by h^2 y''/8, comparable to
   // the parameter uncertainty at n = 800.
@@ -544,7 +544,7 @@ bool FitProblem::Readmit(const std::vector<double>& theta) {
       s.solution = FirstSolve(s, theta);
       s.active = true;
       s.error.clear();
-      s.sensitivities_at_phases.clear();
+      s.sensitivity_rows.clear();
       readmitted = true;
       spdlog::info("experiment '{}' has a periodic solution again; back in the fit", s.data->label);
     } catch (const PeriodicSolverError&) {
@@ -666,7 +666,7 @@ NormalEquations FitProblem::Linearise(const std::vector<double>& theta, const st
     if (!s.active) return;
     bool inputs_fresh = false, parameters_fresh = false;
     if (mode.inputs && s.estimate &&
-        (!mode.reuse || static_cast<int>(s.estimate->sensitivities_at_phases.size()) != nc)) {
+        (!mode.reuse || static_cast<int>(s.estimate->sensitivity_rows.size()) != nc)) {
       // d(outputs)/d xi: a forward solve per coefficient with eq. 14's factorisation.
       const auto sens = s.solver->InputSensitivities(s.solution, theta, s.estimate->directions, mode.exact);
       if (sens.empty()) {
@@ -675,11 +675,11 @@ NormalEquations FitProblem::Linearise(const std::vector<double>& theta, const st
                      s.data->label);
         s.estimate.reset();
       } else {
-        s.estimate->sensitivities_at_phases.assign(nc, Eigen::MatrixXd());
+        s.estimate->sensitivity_rows.assign(nc, Eigen::MatrixXd());
         s.estimate->gram.assign(nc, Eigen::MatrixXd());
         for (int b = 0; b < nc; ++b) {
           if (!s.channel_fitted[b]) continue;
-          const Eigen::MatrixXd& jc = s.estimate->sensitivities_at_phases[b] = s.SampleColumns(sens[output_row_[b]]);
+          const Eigen::MatrixXd& jc = s.estimate->sensitivity_rows[b] = s.SampleColumns(sens[output_row_[b]]);
           Eigen::MatrixXd& g = s.estimate->gram[b];
           g.setZero(jc.cols(), jc.cols());
           g.selfadjointView<Eigen::Lower>().rankUpdate(jc.transpose());
@@ -688,12 +688,12 @@ NormalEquations FitProblem::Linearise(const std::vector<double>& theta, const st
       }
     }
     const bool with_estimate = mode.inputs && s.estimate;
-    if (!mode.reuse || static_cast<int>(s.sensitivities_at_phases.size()) != nc) {
+    if (!mode.reuse || static_cast<int>(s.sensitivity_rows.size()) != nc) {
       const auto sens = s.solver->OutputSensitivities(s.solution, theta, estimated_, mode.exact);
-      s.sensitivities_at_phases.assign(nc, Eigen::MatrixXd());
+      s.sensitivity_rows.assign(nc, Eigen::MatrixXd());
       for (int b = 0; b < nc; ++b) {
         if (!s.channel_fitted[b]) continue;
-        Eigen::MatrixXd& j = s.sensitivities_at_phases[b] = s.SampleColumns(sens[output_row_[b]]);
+        Eigen::MatrixXd& j = s.sensitivity_rows[b] = s.SampleColumns(sens[output_row_[b]]);
         for (int k = 0; k < l; ++k) j.col(k) *= scale_[estimated_[k]];
       }
       parameters_fresh = true;
@@ -716,7 +716,7 @@ NormalEquations FitProblem::Linearise(const std::vector<double>& theta, const st
         s.estimate->coupling.assign(nc, Eigen::MatrixXd());
         for (int b = 0; b < nc; ++b)
           if (s.channel_fitted[b])
-            s.estimate->coupling[b].noalias() = s.sensitivities_at_phases[b].transpose() * s.estimate->sensitivities_at_phases[b];
+            s.estimate->coupling[b].noalias() = s.sensitivity_rows[b].transpose() * s.estimate->sensitivity_rows[b];
       }
       block.information = Eigen::MatrixXd::Identity(k, k);
       block.coupling = Eigen::MatrixXd::Zero(l, k);
@@ -724,7 +724,7 @@ NormalEquations FitProblem::Linearise(const std::vector<double>& theta, const st
     }
     for (int b = 0; b < nc; ++b) {
       if (!s.channel_fitted[b]) continue;
-      const Eigen::MatrixXd& j = s.sensitivities_at_phases[b];
+      const Eigen::MatrixXd& j = s.sensitivity_rows[b];
       const Eigen::VectorXd r = s.SampleVector(s.Residual(channels_[b], output_row_[b]));
       const double w = 1.0 / variance[b];
       hs[a].noalias() += w * (j.transpose() * j);  // the weight folds into the product (no temporary)
@@ -734,7 +734,7 @@ NormalEquations FitProblem::Linearise(const std::vector<double>& theta, const st
       if (with_estimate) {
         block.information.triangularView<Eigen::Lower>() += w * s.estimate->gram[b];
         block.coupling += w * s.estimate->coupling[b];
-        block.gradient.noalias() += w * (s.estimate->sensitivities_at_phases[b].transpose() * r);
+        block.gradient.noalias() += w * (s.estimate->sensitivity_rows[b].transpose() * r);
       }
     }
     if (with_estimate) {
@@ -805,7 +805,7 @@ FitProblem::GainGradient FitProblem::GainGradients(const std::string& channel, c
   ParallelFor(experiment_count(), threads_, [&](int a) {
     const Experiment& s = experiments_[a];
     parameters[a].setZero(g.parameters.size());
-    if (!s.active || static_cast<int>(s.sensitivities_at_phases.size()) != nc) return;
+    if (!s.active || static_cast<int>(s.sensitivity_rows.size()) != nc) return;
     // d(outputs on the grid)/dg when the input reads (1 + g) times the truth.
     std::vector<Eigen::MatrixXd> along_input;
     if (input) {
@@ -816,7 +816,7 @@ FitProblem::GainGradient FitProblem::GainGradients(const std::string& channel, c
         return;
       }
     }
-    const bool with_estimate = s.estimate && static_cast<int>(s.estimate->sensitivities_at_phases.size()) == nc;
+    const bool with_estimate = s.estimate && static_cast<int>(s.estimate->sensitivity_rows.size()) == nc;
     if (with_estimate) g.inputs[a].setZero(s.estimate->xi.size());
     for (int b = 0; b < nc; ++b) {
       if (!s.channel_fitted[b]) continue;
@@ -827,8 +827,8 @@ FitProblem::GainGradient FitProblem::GainGradients(const std::string& channel, c
       }
       if (input) de -= s.AtPhases(along_input[output_row_[b]].col(0));
       const Eigen::VectorXd rows = s.SampleVector(de);
-      parameters[a].noalias() += s.sensitivities_at_phases[b].transpose() * rows / variance[b];
-      if (with_estimate) g.inputs[a].noalias() += s.estimate->sensitivities_at_phases[b].transpose() * rows / variance[b];
+      parameters[a].noalias() += s.sensitivity_rows[b].transpose() * rows / variance[b];
+      if (with_estimate) g.inputs[a].noalias() += s.estimate->sensitivity_rows[b].transpose() * rows / variance[b];
     }
   });
   for (const Eigen::VectorXd& p : parameters) g.parameters += p;

@@ -290,6 +290,25 @@ TEST(IdentifyCommand, ExitCodesSayWhetherTheFitReachedTheNoiseFloor) {
   EXPECT_NE(poor.output.find("strut discover"), std::string::npos);
 }
 
+TEST(IdentifyCommand, AnotherSchemeWithoutNTakesTheEquidistantPaperGrid) {
+  // --scheme backward2 alone must not run backward2 on the thinned grid made for central4: it is
+  // the fit with --n 800, to the last digit.
+  test::TempDir dir;
+  test::WriteTwoDofSession(dir.file("s.h5"), "bh");
+  const auto estimates = [&](const std::string& options, const std::string& name) {
+    const auto run = test::RunStrut("identify " + dir.file("s.h5") + " --no-progress " + options + " --json " + dir.file(name));
+    EXPECT_EQ(run.exit_code, 0) << run.output;
+    std::ifstream in(dir.file(name));
+    const nlohmann::json fit = nlohmann::json::parse(in);
+    std::map<std::string, double> values;
+    for (const auto& p : fit["parameters"]) values[p["index"].get<std::string>()] = p["value"].get<double>();
+    return values;
+  };
+  const auto alone = estimates("--scheme backward2", "a.json");
+  EXPECT_GE(alone.size(), 10u);
+  EXPECT_EQ(alone, estimates("--scheme backward2 --n 800", "b.json"));
+}
+
 TEST(SessionFit, AFitStoppedBeforeItConvergedSaysSoAndWhatToTry) {
   // One iteration from 20 % off cannot converge: the verdict (identify's exit code 2) says so.
   const daq::Session session = DrawnSession(25);

@@ -54,7 +54,7 @@ struct IdentifyCommand {
     // Drop experiments are fitted beside the periodic ones, predicted by sim's transient integrator.
     options.estimator.transient_predictor = sim::DropPredictorFactory();
     const ident::Model m = model.BuildModel();
-    ident::FitData data = ident::ReadFitData(sessions, m, n, options.exclude);
+    ident::FitData data = ident::ReadFitData(sessions, m, options.estimator.n, options.exclude);
     for (const auto& issue : data.issues)
       spdlog::warn("{}: experiment '{}', channel '{}': {}: {}", sessions.size() == 1 ? sessions[0] : "session",
                    issue.experiment, issue.channel, issue.kind, issue.detail);

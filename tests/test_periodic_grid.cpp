@@ -104,6 +104,12 @@ TEST(PhaseInterpolation, ExactOnGridPointsAndFourthOrderBetween) {
   };
   EXPECT_LT(error(50), 1e-4);
   EXPECT_GT(std::log2(error(50) / error(100)), 3.7);
+  // A target a rounding short of a whole period is the first point's, on either kind of grid.
+  const std::vector<double> last = {std::nextafter(1.0, 0.0)};
+  EXPECT_NEAR(PhaseInterpolation::Cubic(grid, 50, last).Rows(rows)(0, 0), rows(0, 0), 1e-12);
+  Eigen::MatrixXd equidistant(1, 50);
+  for (int mu = 0; mu < 50; ++mu) equidistant(0, mu) = std::sin(kTwoPi * mu / 50.0);
+  EXPECT_NEAR(PhaseInterpolation::Cubic({}, 50, last).Rows(equidistant)(0, 0), 0.0, 1e-12);
 }
 
 TEST(PhaseProducts, GiveTheProductsOverTheTargetsAtTheGridsSize) {

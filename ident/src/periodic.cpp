@@ -162,8 +162,9 @@ PhaseInterpolation PhaseInterpolation::Cubic(const std::vector<double>& grid, in
       p.taps[i][k] = wrapped;
       x[k] = phase(wrapped) + std::floor(static_cast<double>(j) / n);  // unwrapped around j0
     }
-    double t = tau;
-    if (j0 == n - 1 && tau < x[1]) t += 1.0;
+    double t = tau;  // onto the unwrapped interval x[1] .. x[2] (it may sit a period away)
+    if (t < x[1] - 0.5) t += 1.0;
+    if (t > x[2] + 0.5) t -= 1.0;
     for (int k = 0; k < 4; ++k) {
       double w = 1.0;
       for (int l = 0; l < 4; ++l)

@@ -606,6 +606,7 @@ void CyclicBandedLU::SolveFolded(Eigen::Ref<Eigen::MatrixXd> b, char trans) cons
   double* y = rhs.data();
   const auto row = [&](int i) { return y + static_cast<std::ptrdiff_t>(i) * cols; };
   const auto subtract = [&](int to, double factor, int from) {  // row `to` -= factor * row `from`
+    if (factor == 0.0) return;  // U's fill-in room that pivoting left empty (most of it)
     double* a = row(to);
     const double* f = row(from);
     for (Eigen::Index q = 0; q < cols; ++q) a[q] -= factor * f[q];

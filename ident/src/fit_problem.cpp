@@ -49,10 +49,17 @@ Eigen::MatrixXd InputNoiseCovariance(const ExperimentData& d, const Eigen::Matri
       spectra.col(b) = column;
     }
   } else {
+    // exp(-i 2 pi h tau) for the harmonics in rising order, by powers of the first harmonic's wave.
+    Eigen::RowVectorXcd first(n), wave = Eigen::RowVectorXcd::Ones(n);
+    for (int mu = 0; mu < n; ++mu) first[mu] = std::polar(1.0, -2.0 * std::numbers::pi * d.input.phases[mu]);
+    int power = 0;
     for (const int h : d.input_harmonics) {
       if (h >= n) continue;
-      Eigen::RowVectorXcd wave(n);
-      for (int mu = 0; mu < n; ++mu) wave[mu] = std::polar(1.0, -2.0 * std::numbers::pi * h * d.input.phases[mu]);
+      if (h < power) {  // not in rising order: from the mean again
+        wave.setOnes();
+        power = 0;
+      }
+      for (; power < h; ++power) wave = wave.cwiseProduct(first);
       spectra.row(h) = wave * gradient;
     }
   }

@@ -290,6 +290,34 @@ TEST(IdentifyCommand, ExitCodesSayWhetherTheFitReachedTheNoiseFloor) {
   EXPECT_NE(poor.output.find("strut discover"), std::string::npos);
 }
 
+TEST(SessionFit, AnExperimentWithoutWholeSamplesPerPeriodKeepsEightHundredPoints) {
+  // Another tool's record at 0.3003 Hz and 200 Hz, 666.0007 samples a period: it is resampled onto
+  // an equidistant grid, 800 points by default (as before the thinned grid), while 0.1 Hz (2000
+  // samples) is thinned. (The simulated rig records whole periods only: the copy of b is relabelled.)
+  sim::MatrixPlan plan;
+  plan.experiments = {{"b", "middle", 0.1, 0.133, 0.127}};
+  const sim::SimulatedRig rig(sim::DrawUnit(IdealRig(), sim::UnitDraw{}, 26));
+  daq::Session session = rig.RunMatrix(plan);
+  ASSERT_EQ(session.experiments.size(), 1u);
+  daq::Experiment copy = session.experiments[0];
+  copy.label = "x";
+  copy.frequency = 0.3003;
+  session.experiments.push_back(copy);
+  const Model model = Model::Build("2dof", Causality::kStrokeInput);
+  const FitData data = PrepareFitData(session, "drawn", model, 0);
+  ASSERT_EQ(data.experiments.size(), 2u);
+  const ExperimentData& b = data.experiments[0];
+  const ExperimentData& x = data.experiments[1];
+  EXPECT_EQ(b.phases.size(), 2000u);
+  EXPECT_LT(b.input.values.size(), 1000u);
+  EXPECT_FALSE(b.input.phases.empty());
+  EXPECT_EQ(x.phases.size(), 800u);
+  EXPECT_EQ(x.input.values.size(), 800u);
+  EXPECT_TRUE(x.input.phases.empty());
+  // An explicit --n is what it says.
+  EXPECT_EQ(PrepareFitData(session, "drawn", model, 300).experiments[1].input.values.size(), 300u);
+}
+
 TEST(IdentifyCommand, AnotherSchemeWithoutNTakesTheEquidistantPaperGrid) {
   // --scheme backward2 alone must not run backward2 on the thinned grid made for central4: it is
   // the fit with --n 800, to the last digit.

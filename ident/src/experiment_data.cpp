@@ -271,7 +271,11 @@ std::vector<ExperimentData> Prepare(const daq::Session& session, const std::stri
     const double per_period = e.sample_rate / e.frequency;
     const long native = std::lround(per_period);
     const bool whole = std::abs(per_period - native) < 1e-6 * per_period && native >= 4;
-    const int points = whole ? static_cast<int>(native) : n;
+    // Not a whole number of samples a period: the record is resampled onto an equidistant grid; the
+    // default keeps the 800 points it had before the thinned grid (200 would smear the friction's
+    // switches of a slow experiment over a quarter as many phases).
+    const int equidistant = thin && !whole ? std::max(n, 800) : n;
+    const int points = whole ? static_cast<int>(native) : equidistant;
     std::optional<PeriodicSeries> input_series;
     d.phases.resize(points);
     for (int i = 0; i < points; ++i) d.phases[i] = static_cast<double>(i) / points;
@@ -298,7 +302,7 @@ std::vector<ExperimentData> Prepare(const daq::Session& session, const std::stri
         // few samples; on a coarser equidistant grid the model smears it over a grid step (a 0.04 Hz
         // test with a near-stiction seal, theta10 = 2.7e4 s/m, left force noise ratios of 2.6-4.9 at
         // n = 800).
-        const int grid = whole ? static_cast<int>(native * ((n + native - 1) / native)) : n;
+        const int grid = whole ? static_cast<int>(native * ((n + native - 1) / native)) : equidistant;
         if (!(thin && whole && native >= 2 * n)) d.input = series.OnGrid(grid);
         input_series = series;
         // c_h = (1/count) sum x_i exp(-i 2 pi h i / count) of white noise of variance s^2 has

@@ -219,22 +219,20 @@ struct FitProblem::Experiment {
   // Cubic (4-point Lagrange) interpolation from the grid to the data phases (exact where a data
   // phase is a grid point). Linear interpolation would bias the fit by h^2 y''/8, comparable to
   // the parameter uncertainty at n = 800.
-  std::vector<std::array<int, 4>> taps;  // the grid points around each data phase, wrapped
-  std::vector<std::array<double, 4>> weights;
-
+  PhaseInterpolation map;
   // A grid much smaller than the phases (a thinned slow experiment) forms the fit's products at the
   // grid's size: its rows stand for the phases' (PhaseProducts). Null: products over the phases.
   std::shared_ptr<const PhaseProducts> products;
 
   void MapPhases() {
-    PhaseInterpolation map = PhaseInterpolation::Cubic(data->input.phases, n(), data->phases);
+    map = PhaseInterpolation::Cubic(data->input.phases, n(), data->phases);
     if (4 * static_cast<std::size_t>(n()) < 3 * map.taps.size()) products = std::make_shared<PhaseProducts>(map, n());
-    taps = std::move(map.taps);
-    weights = std::move(map.weights);
   }
+  //! The number of data phases (the residuals per channel).
+  std::size_t phase_count() const { return map.taps.size(); }
   //! Grid functions (n rows) as the rows the products use: at the phases, or PhaseProducts' rows.
   Eigen::MatrixXd SampleColumns(const Eigen::MatrixXd& grid) const {
-    return products ? products->Columns(grid) : AtPhasesColumns(grid);
+    return products ? products->Columns(grid) : map.Columns(grid);
   }
   //! Values at the phases (a residual) as the rows the products use.
   Eigen::VectorXd SampleVector(const Eigen::VectorXd& at_phases) const {
@@ -247,31 +245,19 @@ struct FitProblem::Experiment {
   //! A grid function (n values, any stride) at the data phases.
   template <class Grid>
   Eigen::VectorXd AtPhases(const Grid& grid) const {
-    Eigen::VectorXd out(taps.size());
-    for (std::size_t i = 0; i < taps.size(); ++i) {
+    Eigen::VectorXd out(map.taps.size());
+    for (std::size_t i = 0; i < map.taps.size(); ++i) {
       double v = 0.0;
-      for (int k = 0; k < 4; ++k) v += weights[i][k] * grid(taps[i][k]);
+      for (int k = 0; k < 4; ++k) v += map.weights[i][k] * grid(map.taps[i][k]);
       out[i] = v;
-    }
-    return out;
-  }
-  //! Every column of an n-row matrix at the data phases.
-  Eigen::MatrixXd AtPhasesColumns(const Eigen::MatrixXd& grid) const {
-    Eigen::MatrixXd out(static_cast<Eigen::Index>(taps.size()), grid.cols());
-    for (Eigen::Index c = 0; c < grid.cols(); ++c) {
-      const double* g = grid.col(c).data();
-      double* o = out.col(c).data();
-      for (std::size_t i = 0; i < taps.size(); ++i)
-        o[i] = weights[i][0] * g[taps[i][0]] + weights[i][1] * g[taps[i][1]] + weights[i][2] * g[taps[i][2]] +
-               weights[i][3] * g[taps[i][3]];
     }
     return out;
   }
   //! The transpose of AtPhases: values at the data phases spread back onto the n grid points.
   Eigen::VectorXd ToGrid(const Eigen::VectorXd& at_phases, int n) const {
     Eigen::VectorXd grid = Eigen::VectorXd::Zero(n);
-    for (std::size_t i = 0; i < taps.size(); ++i)
-      for (int k = 0; k < 4; ++k) grid[taps[i][k]] += weights[i][k] * at_phases[static_cast<int>(i)];
+    for (std::size_t i = 0; i < map.taps.size(); ++i)
+      for (int k = 0; k < 4; ++k) grid[map.taps[i][k]] += map.weights[i][k] * at_phases[static_cast<int>(i)];
     return grid;
   }
   double InputDof(int b) const {
@@ -827,7 +813,7 @@ FitProblem::GainGradient FitProblem::GainGradients(const std::string& channel, c
     if (with_estimate) g.inputs[a].setZero(s.estimate->xi.size());
     for (int b = 0; b < nc; ++b) {
       if (!s.channel_fitted[b]) continue;
-      Eigen::VectorXd de = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(s.taps.size()));  // d(residual)/dg
+      Eigen::VectorXd de = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(s.phase_count()));  // d(residual)/dg
       if (b == output) {
         const GridChannel& measured = s.data->channels.at(channels_[b]);
         de = measured.mean.array() - measured.reading_offset;  // what the gain scales
@@ -864,7 +850,7 @@ std::vector<double> FitProblem::NoiseRatios() const {
       const auto it = s.data->channels.find(channels_[b]);
       if (!s.channel_fitted[b] || it == s.data->channels.end() || !(it->second.mean_noise_variance > 0)) continue;
       sum[b] += s.Residual(channels_[b], output_row_[b]).squaredNorm() / it->second.mean_noise_variance;
-      count[b] += static_cast<double>(s.taps.size()) - s.InputDof(b);
+      count[b] += static_cast<double>(s.phase_count()) - s.InputDof(b);
     }
   }
   std::vector<double> ratio(all);

@@ -138,6 +138,16 @@ Stencil Stencil::For(Scheme scheme, const std::vector<double>& phases) {
   return s;
 }
 
+namespace {
+
+// The scheme's stencil on an input's grid: its phases, or n equidistant points.
+Stencil GridStencil(Scheme scheme, const PeriodicInput& grid) {
+  return grid.phases.empty() ? Stencil::For(scheme, static_cast<int>(grid.values.size()))
+                             : Stencil::For(scheme, grid.phases);
+}
+
+}  // namespace
+
 PhaseInterpolation PhaseInterpolation::Cubic(const std::vector<double>& grid, int n, std::span<const double> targets) {
   if (!grid.empty() && static_cast<int>(grid.size()) != n)
     throw std::invalid_argument("phase interpolation: the grid's phases do not match its size");
@@ -175,13 +185,20 @@ PhaseInterpolation PhaseInterpolation::Cubic(const std::vector<double>& grid, in
   return p;
 }
 
-Eigen::MatrixXd PhaseInterpolation::Rows(const Eigen::MatrixXd& rows) const {
-  Eigen::MatrixXd out(rows.rows(), static_cast<Eigen::Index>(taps.size()));
-  for (std::size_t i = 0; i < taps.size(); ++i) {
-    out.col(static_cast<Eigen::Index>(i)) = weights[i][0] * rows.col(taps[i][0]);
-    for (int k = 1; k < 4; ++k) out.col(static_cast<Eigen::Index>(i)) += weights[i][k] * rows.col(taps[i][k]);
+Eigen::MatrixXd PhaseInterpolation::Columns(const Eigen::MatrixXd& grid) const {
+  Eigen::MatrixXd out(static_cast<Eigen::Index>(taps.size()), grid.cols());
+  for (Eigen::Index c = 0; c < grid.cols(); ++c) {
+    const double* g = grid.col(c).data();
+    double* o = out.col(c).data();
+    for (std::size_t i = 0; i < taps.size(); ++i)
+      o[i] = weights[i][0] * g[taps[i][0]] + weights[i][1] * g[taps[i][1]] + weights[i][2] * g[taps[i][2]] +
+             weights[i][3] * g[taps[i][3]];
   }
   return out;
+}
+
+Eigen::MatrixXd PhaseInterpolation::Rows(const Eigen::MatrixXd& rows) const {
+  return Columns(rows.transpose()).transpose();
 }
 
 PhaseProducts::PhaseProducts(const PhaseInterpolation& map, int n) {
@@ -356,7 +373,7 @@ void PeriodicSolver::Prepare(const PeriodicInput& grid) {
   if (!grid.phases.empty() && static_cast<int>(grid.phases.size()) != n)
     throw std::invalid_argument(
         fmt::format("periodic solver: the input has {} values but {} grid phases", n, grid.phases.size()));
-  stencil_ = grid.phases.empty() ? Stencil::For(options_.scheme, n) : Stencil::For(options_.scheme, grid.phases);
+  stencil_ = GridStencil(options_.scheme, grid);
   jacobian_ = CyclicBlockBanded(n, model_.unknown_count(), stencil_.kmin, stencil_.kmax);
   prepared_n_ = n;
   prepared_phases_ = grid.phases;
@@ -666,8 +683,7 @@ Eigen::MatrixXd March(const Model& model, const Eigen::VectorXd& equation_weight
   const int n = static_cast<int>(z.cols());
   const int m = model.unknown_count();
   const double f = input.frequency;
-  const Stencil march =
-      input.phases.empty() ? Stencil::For(Scheme::kBackward2, n) : Stencil::For(Scheme::kBackward2, input.phases);
+  const Stencil march = GridStencil(Scheme::kBackward2, input);
   Eigen::MatrixXd input_first, input_second;
   GridRates(march, Eigen::Map<const Eigen::RowVectorXd>(input.values.data(), n), f, input_first, input_second);
   Linearization<J> point(model, theta, equation_weight);

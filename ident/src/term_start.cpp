@@ -188,16 +188,8 @@ Regression GaussNewtonSize(const FitSummary& baseline, const Model& model, const
       if (variance == e.noise_variance.end() || !(variance->second > 0) || row == solution.channels.end()) continue;
       const Eigen::MatrixXd& grid = sensitivities[row - solution.channels.begin()];
       const double w = 1.0 / std::sqrt(variance->second);
-      Eigen::MatrixXd block(residual.size(), grid.cols());
       // Cubic (4-point Lagrange) interpolation from the grid to the data phases, as the estimator.
-      const PhaseInterpolation map = PhaseInterpolation::Cubic(solution.input.phases, n, e.phases);
-      for (Eigen::Index i = 0; i < residual.size(); ++i)
-        for (Eigen::Index k = 0; k < grid.cols(); ++k) {
-          double v = 0.0;
-          for (int q = 0; q < 4; ++q) v += map.weights[i][q] * grid(map.taps[i][q], k);
-          block(i, k) = w * v;
-        }
-      blocks.push_back(std::move(block));
+      blocks.push_back(w * PhaseInterpolation::Cubic(solution.input.phases, n, e.phases).Columns(grid));
       targets.push_back(w * residual);
     }
   }

@@ -81,6 +81,8 @@ struct PhaseInterpolation {
   std::vector<std::array<int, 4>> taps;
   std::vector<std::array<double, 4>> weights;
   static PhaseInterpolation Cubic(const std::vector<double>& grid, int n, std::span<const double> targets);
+  //! Every column of `grid` (n rows) at the targets (a targets x columns matrix).
+  Eigen::MatrixXd Columns(const Eigen::MatrixXd& grid) const;
   //! Every row of `rows` (n columns) at the targets.
   Eigen::MatrixXd Rows(const Eigen::MatrixXd& rows) const;
 };

@@ -43,12 +43,8 @@ struct IdentifyCommand {
       throw std::invalid_argument("--json and --report name the same file " + json_path);
     ident::SessionFitOptions options = model.FitOptions(n);
     options.estimate = estimate;
-    if (scheme != "auto") {
-      options.estimator.scheme = ident::ParseScheme(scheme);
-      // The thinned sample grid is made for its causality's default scheme; another scheme without
-      // --n gets the paper's 800 equidistant points (backward2 on 200 is biased by half an sd).
-      if (n == 0 && *options.estimator.scheme != ident::DefaultScheme(options.causality)) options.estimator.n = 800;
-    }
+    if (scheme != "auto") options.estimator.scheme = ident::ParseScheme(scheme);
+    options.estimator.n = ident::FitGridPoints(n, options.estimator.scheme, options.causality);
     if (estimate_input != "auto") options.estimator.estimate_input = estimate_input == "on";
     options.estimator.input_harmonics = input_harmonics;
     // Drop experiments are fitted beside the periodic ones, predicted by sim's transient integrator.

@@ -274,7 +274,8 @@ std::vector<ExperimentData> Prepare(const daq::Session& session, const std::stri
     // Not a whole number of samples a period: the record is resampled onto an equidistant grid; the
     // default keeps the 800 points it had before the thinned grid (200 would smear the friction's
     // switches of a slow experiment over a quarter as many phases).
-    const int equidistant = thin && !whole ? std::max(n, 800) : n;
+    const int equidistant = thin && !whole ? std::max(n, kPaperGridPoints) : n;
+    const bool thinned = thin && whole && native >= 2 * n;  // ThinnedSamplePhases below
     const int points = whole ? static_cast<int>(native) : equidistant;
     std::optional<PeriodicSeries> input_series;
     d.phases.resize(points);
@@ -303,7 +304,7 @@ std::vector<ExperimentData> Prepare(const daq::Session& session, const std::stri
         // test with a near-stiction seal, theta10 = 2.7e4 s/m, left force noise ratios of 2.6-4.9 at
         // n = 800).
         const int grid = whole ? static_cast<int>(native * ((n + native - 1) / native)) : equidistant;
-        if (!(thin && whole && native >= 2 * n)) d.input = series.OnGrid(grid);
+        if (!thinned) d.input = series.OnGrid(grid);
         input_series = series;
         // c_h = (1/count) sum x_i exp(-i 2 pi h i / count) of white noise of variance s^2 has
         // complex variance s^2 / count, so the mean's is s^2 / count and each of a_h = 2 Re c_h,
@@ -317,7 +318,7 @@ std::vector<ExperimentData> Prepare(const daq::Session& session, const std::stri
       }
       d.channels[c.name] = std::move(g);
     }
-    if (thin && whole && native >= 2 * n && input_series) {
+    if (thinned && input_series) {
       // Every sample phase only where the model may not be smooth (docs/identification.md).
       std::vector<std::pair<const Eigen::VectorXd*, double>> outputs;
       for (const auto& [name, g] : d.channels)
@@ -337,10 +338,15 @@ std::vector<ExperimentData> Prepare(const daq::Session& session, const std::stri
 
 }  // namespace
 
-int DefaultGridPoints(Causality causality) { return causality == Causality::kStrokeInput ? 200 : 800; }
+int DefaultGridPoints(Causality causality) { return causality == Causality::kStrokeInput ? 200 : kPaperGridPoints; }
 
 Scheme DefaultScheme(Causality causality) {
   return causality == Causality::kStrokeInput ? Scheme::kCentral4 : Scheme::kBackward2;
+}
+
+int FitGridPoints(int n, std::optional<Scheme> scheme, Causality causality) {
+  if (n > 0) return n;
+  return scheme && *scheme != DefaultScheme(causality) ? kPaperGridPoints : 0;
 }
 
 std::vector<ExperimentData> PrepareExperiments(const daq::Session& session, Causality causality, int n,

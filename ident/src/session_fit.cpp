@@ -325,7 +325,8 @@ SessionFit FitSessions(const std::vector<std::string>& sessions, const SessionFi
   std::string error;
   if (!options.IsValid(&error)) throw std::invalid_argument(error);
   const Model model = Model::Build(options.composition, options.causality);
-  return FitPrepared(ReadFitData(sessions, model, options.estimator.n, options.exclude), model, options, progress);
+  const int n = FitGridPoints(options.estimator.n, options.estimator.scheme, model.causality());
+  return FitPrepared(ReadFitData(sessions, model, n, options.exclude), model, options, progress);
 }
 
 }  // namespace strut::ident

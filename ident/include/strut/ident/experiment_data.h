@@ -4,6 +4,7 @@
 #include <Eigen/Dense>
 #include <complex>
 #include <map>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -84,15 +85,23 @@ struct ExperimentData {
 //! so it keeps the paper's backward2 on 800.
 int DefaultGridPoints(Causality causality);
 Scheme DefaultScheme(Causality causality);
+//! The paper's equidistant grid: the default under force input, and where the thinned sample grid
+//! does not serve (no whole number of samples a period, a scheme other than the default).
+inline constexpr int kPaperGridPoints = 800;
+//! The least grid points a fit prepares its data with for these options (EstimatorOptions::n and
+//! ::scheme; 0: the default thinned grid): n when given, else kPaperGridPoints for a scheme other than
+//! the causality's default (backward2 on the thinned grid moved theta7 by 0.8 sd), else 0.
+int FitGridPoints(int n, std::optional<Scheme> scheme, Causality causality);
 
 //! The grid of a slow experiment by default under stroke input: of its `count` equidistant sample
-//! phases, every one where the model may not be smooth and every k-th elsewhere, k up to
-//! count / `points` (the spacing of a `points`-point equidistant grid). Fine: where the measured
-//! input's speed (`velocity` at the phases) is below half its peak times k / (count / points) (the
-//! friction's switch at a reversal and the Stribeck hump), and 4 samples around any sample where a
-//! measured output's second difference exceeds 4 times its noise's (`outputs`, each with the
-//! variance of its averaged samples: a contact or a clipped peak). Steps grow by at most half a
-//! sample per sample, so neighbouring steps differ little. Returns the kept phases i / count.
+//! phases, every one where the model may not be smooth and every k-th elsewhere. The step at a
+//! sample is at most (count / `points`) times the measured input's speed there (`velocity` at the
+//! phases) over half its peak speed, and at least 1: every sample where the stroke is slow (the
+//! friction's switch at a reversal, the Stribeck hump), every (count / points)-th where it is fast
+//! (the spacing of a `points`-point grid). Every sample within 4 of one where a measured output's
+//! second difference exceeds 4 times its noise's is kept too (`outputs`, each with the variance of its
+//! averaged samples: a contact or a clipped peak). Steps grow by at most half a sample per sample.
+//! Returns the kept phases i / count.
 std::vector<double> ThinnedSamplePhases(const Eigen::VectorXd& velocity, int points,
                                         const std::vector<std::pair<const Eigen::VectorXd*, double>>& outputs);
 

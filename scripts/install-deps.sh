@@ -11,7 +11,7 @@ packages=(
   chromium
   python3-pymodbus python3-serial-asyncio
 )
-# npm fetches uPlot for the HTML reports at configure time (ident/web/package-lock.json); it comes
+# npm fetches uPlot for the HTML reports at configure time (report/web/package-lock.json); it comes
 # with the machine's Node.js, and Debian's package provides it where Node.js is missing.
 command -v npm >/dev/null 2>&1 || packages+=(npm)
 missing=()

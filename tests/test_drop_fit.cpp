@@ -9,7 +9,7 @@
 #include <cstdio>
 #include <nlohmann/json.hpp>
 
-#include "strut/ident/fit_report.h"
+#include "strut/report/fit_report.h"
 #include "strut/ident/session_fit.h"
 #include "strut/sim/draw.h"
 #include "strut/sim/drop_fit.h"
@@ -184,7 +184,7 @@ TEST(DropFit, ShakerMatrixPlusOneDropRecoversADrawnUnitsTruth) {
               want.value(*want.find("theta3")), drop->sd_without[theta3]);
   EXPECT_GT(drop->sd_without[theta3], 2.0 * s.sd[theta3]);
   // In the JSON: the drop with its channels, and every experiment's contribution.
-  const nlohmann::json j = ident::FitToJson(s);
+  const nlohmann::json j = report::FitToJson(s);
   ASSERT_EQ(j["transient_experiments"].size(), 1u);
   EXPECT_EQ(j["transient_experiments"][0]["label"], "drop");
   EXPECT_NEAR(j["transient_experiments"][0]["stroke"]["noise_ratio"].get<double>(), 1.0, 0.2);

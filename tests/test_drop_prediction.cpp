@@ -10,7 +10,7 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 
-#include "strut/ident/fit_report.h"
+#include "strut/report/fit_report.h"
 #include "strut/ident/session_fit.h"
 #include "strut/sim/draw.h"
 #include "strut/sim/drop_prediction.h"
@@ -199,7 +199,7 @@ TEST(DropPrediction, ShakerFitOfDrawnUnitsPredictsTheTruthsDrop) {
     ASSERT_EQ(fit.summary.Verdict(), ident::FitVerdict::kAtNoiseFloor) << "unit " << seed;
     // Through the JSON as strut predict drop reads it.
     const ident::FitRecord record =
-        ident::ParseFitJson(ident::FitToJson(fit.summary), "unit", ident::Causality::kForceInput);
+        ident::ParseFitJson(report::FitToJson(fit.summary), "unit", ident::Causality::kForceInput);
 
     std::mt19937_64 rng(seed);
     DropRunReport truth_drop;

@@ -10,15 +10,16 @@
 #include <regex>
 #include <string>
 
-#include "strut/ident/discover_report.h"
-#include "strut/ident/fit_report.h"
-#include "strut/ident/html_report.h"
+#include "strut/report/discover_report.h"
+#include "strut/report/fit_report.h"
+#include "strut/report/html_report.h"
 #include "strut/ident/session_fit.h"
 #include "test_support.h"
 
 namespace strut::ident {
 namespace {
 
+using namespace strut::report;
 using test::ChromiumCommand;
 using test::Count;
 using test::kChromium;

@@ -18,14 +18,14 @@
 #include <string>
 #include <vector>
 
-#include "strut/ident/html_report.h"
+#include "strut/report/html_report.h"
 #include "test_support.h"
 
 namespace {
 
-using strut::ident::ErrorBarSeries;
-using strut::ident::HtmlReport;
-using strut::ident::Series;
+using strut::report::ErrorBarSeries;
+using strut::report::HtmlReport;
+using strut::report::Series;
 using strut::test::TempDir;
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
@@ -79,7 +79,7 @@ TEST(HtmlReport, RendersOneSelfContainedDocument) {
   HtmlReport report("Damper <model> & \"friends\"");
   report.AddHeading("Section <1>");
   report.AddParagraph("This is <b>not bold</b> & stays text.");
-  report.AddCallout("Converged <at> the noise floor.", strut::ident::Tone::kGood);
+  report.AddCallout("Converged <at> the noise floor.", strut::report::Tone::kGood);
   report.AddTable({"name", "value"}, {{"<script>", "1.5e3"}, {"plain", "n/a"}}, "Table <caption>");
   report.AddLinePlot("Line", "x", "y", {{"with gap", {0, 1, 2}, {1.0, kNaN, 3.0}}});
   report.AddLinePlot("</script><script>alert(1)</script>", "x", "y",

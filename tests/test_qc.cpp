@@ -9,7 +9,8 @@
 #include <nlohmann/json.hpp>
 
 #include "strut/daq/session.h"
-#include "strut/ident/fit_report.h"
+#include "strut/report/fit_report.h"
+#include "strut/report/qc_report.h"
 #include "strut/qc/decision.h"
 #include "strut/qc/history.h"
 #include "strut/qc/lot.h"
@@ -127,7 +128,7 @@ TEST(QcReference, AGoldenFitGivesItsQuantitiesWithTheDefaultBands) {
   fit.parameters.set("theta3", 9000.0);
   fit.sd.assign(fit.parameters.size(), NAN);
   fit.estimated.assign(fit.parameters.size(), false);
-  nlohmann::json j = ident::FitToJson(fit);
+  nlohmann::json j = report::FitToJson(fit);
   j["verdict"] = "at-noise-floor";  // the summary here is made by hand, not fitted
   const Reference r = ReferenceFromFitJson(j.dump(), "golden.json");
   EXPECT_EQ(r.kind, "golden-fit");
@@ -196,7 +197,7 @@ TEST(QcDecision, VerdictNeverPassesAFitItCannotTrust) {
   EXPECT_EQ(ExitCodeOf(Verdict::kPass), 0);
   EXPECT_EQ(ExitCodeOf(Verdict::kFail), 1);
   EXPECT_EQ(ExitCodeOf(Verdict::kUndecided), 2);
-  const nlohmann::json j = ToJson(fail);
+  const nlohmann::json j = report::QcToJson(fail);
   EXPECT_EQ(j["verdict"], "FAIL");
   for (const char* key : {"name", "value", "sd", "nominal", "lower", "upper", "status", "meaning"})
     EXPECT_TRUE(j["quantities"][1].contains(key)) << key;
@@ -329,7 +330,7 @@ TEST(QcGolden, ARetestOfTheGoldenUnitPassesAgainstItsOwnFit) {
   ident::SessionFit golden;
   const Decision first = RunQc(QcSession(4242, Defect::kNone, 1), "golden", LotReference(), &golden);
   ASSERT_EQ(first.fit_verdict, "at-noise-floor");
-  nlohmann::json j = ident::FitToJson(golden.summary);
+  nlohmann::json j = report::FitToJson(golden.summary);
   const Reference ref = ReferenceFromFitJson(j.dump(), "golden.json");
   EXPECT_EQ(ref.model, kDefaultQcModel);
   const Decision again = RunQc(QcSession(4242, Defect::kNone, 2), "re-test", ref);

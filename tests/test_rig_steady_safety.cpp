@@ -9,7 +9,7 @@
 #include <nlohmann/json.hpp>
 #include <numbers>
 
-#include "strut/ident/fit_report.h"
+#include "strut/report/fit_report.h"
 #include "strut/ident/model.h"
 #include "strut/ident/periodic.h"
 #include "strut/rig/channel_file.h"

@@ -10,14 +10,16 @@
 
 #include "strut/daq/session.h"
 #include "strut/ident/estimator.h"
-#include "strut/ident/import.h"
-#include "strut/ident/oscillator.h"
-#include "strut/ident/silverbox.h"
+#include "strut/daq/import.h"
+#include "strut/study/oscillator.h"
+#include "strut/study/silverbox.h"
 #include "strut/sim/transient.h"
 #include "test_support.h"
 
 namespace strut::ident {
 namespace {
+using namespace strut::daq;
+using namespace strut::study;
 
 const std::string kData = std::string(STRUT_SHARED_DIR) + "/data/silverbox";
 const std::string kCsv = kData + "/SNLS80mV.csv";

@@ -15,7 +15,7 @@
 #include "commands.h"
 #include "output_files.h"
 #include "bench_support.h"
-#include "strut/ident/fit_report.h"
+#include "strut/report/fit_report.h"
 #include "strut/ident/session_fit.h"
 #include "strut/sim/draw.h"
 #include "strut/sim/drop_prediction.h"
@@ -65,7 +65,7 @@ struct BenchDrop {
       const bool floor = fit.summary.Verdict() == ident::FitVerdict::kAtNoiseFloor;
       at_floor += floor;
       const ident::FitRecord record =
-          ident::ParseFitJson(ident::FitToJson(fit.summary), fmt::format("unit {}", seed), ident::Causality::kForceInput);
+          ident::ParseFitJson(report::FitToJson(fit.summary), fmt::format("unit {}", seed), ident::Causality::kForceInput);
 
       // The truth's drop as the rig simulates it (clean: no sensors), its figures by the same code.
       std::mt19937_64 rng(seed);

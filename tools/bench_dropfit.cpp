@@ -15,7 +15,7 @@
 #include "commands.h"
 #include "option_checks.h"
 #include "output_files.h"
-#include "strut/ident/fit_report.h"
+#include "strut/report/fit_report.h"
 #include "strut/ident/session_fit.h"
 #include "strut/sim/draw.h"
 #include "strut/sim/drop_fit.h"
@@ -72,7 +72,7 @@ struct BenchDropFit {
       }
     }
     // The drop predicted from this fit as strut predict drop does (through its JSON).
-    const ident::FitRecord record = ident::ParseFitJson(ident::FitToJson(s), "fit", ident::Causality::kForceInput);
+    const ident::FitRecord record = ident::ParseFitJson(report::FitToJson(s), "fit", ident::Causality::kForceInput);
     sim::DropPredictionOptions po;
     po.duration = duration;
     const sim::DropPrediction p = sim::PredictDrop(record.model, record.parameters.values(), mass, velocity,

@@ -17,9 +17,9 @@
 #include "output_files.h"
 #include "strut/ident/estimator.h"
 #include "strut/ident/experiment_data.h"
-#include "strut/ident/oscillator.h"
+#include "strut/study/oscillator.h"
 #include "strut/ident/periodic.h"
-#include "strut/ident/silverbox.h"
+#include "strut/study/silverbox.h"
 #include "strut/rig/test_matrix.h"
 #include "strut/sim/periodic_session.h"
 #include "strut/sim/simulated_rig.h"
@@ -873,15 +873,15 @@ struct BenchSilverbox {
 
   void Run() const {
     const auto start = Clock::now();
-    const daq::Session session = ident::ReadSilverbox(data_dir);
+    const daq::Session session = study::ReadSilverbox(data_dir);
     const double import_seconds = std::chrono::duration<double>(Clock::now() - start).count();
-    ident::SilverboxOptions options;
-    options.models = models.empty() ? ident::SilverboxCandidateModels() : models;
+    study::SilverboxOptions options;
+    options.models = models.empty() ? study::SilverboxCandidateModels() : models;
     options.refine = refine;
     options.substeps = substeps;
     options.threads = threads;
-    const ident::SilverboxResult r = ident::RunSilverbox(session, options);
-    const ident::SilverboxCandidate& best = r.best();
+    const study::SilverboxResult r = study::RunSilverbox(session, options);
+    const study::SilverboxCandidate& best = r.best();
 
     // Cross-check of the test simulation: IDA (sim::TransientSimulator) on the same model and input.
     nlohmann::json check = nullptr;
@@ -893,7 +893,7 @@ struct BenchSilverbox {
       constexpr int kFine = 16;
       const double fs = arrow.sample_rate, h = 1.0 / (fs * kFine);
       // The same band-limited input as the RK4 run, evaluated between its fine points by cubic Lagrange.
-      const std::vector<double> fine = ident::BandLimitedRecord(u, kFine);
+      const std::vector<double> fine = study::BandLimitedRecord(u, kFine);
       const sim::InputSignal input([&fine, h](double t) {
         const double p = t / h;
         const long i = static_cast<long>(std::floor(p));
@@ -917,7 +917,7 @@ struct BenchSilverbox {
       double max_diff = 0.0, sum = 0.0;
       long count = 0;
       for (std::size_t i = 0; i < times.size(); ++i) max_diff = std::max(max_diff, std::abs(y[i] - r.arrow_simulated[i]));
-      for (long i = ident::SilverboxLayout::kTransient; i < static_cast<long>(times.size()); ++i, ++count)
+      for (long i = study::SilverboxLayout::kTransient; i < static_cast<long>(times.size()); ++i, ++count)
         sum += std::pow(r.arrow_measured[i] - y[i], 2);
       const double ida_rms = 1e3 * std::sqrt(sum / count);
       check = {{"integrator", "IDA (sim::TransientSimulator), rtol 1e-8"},
@@ -951,14 +951,14 @@ struct BenchSilverbox {
                                1.96 * sd, v - 1.96 * sd, v + 1.96 * sd, spec.unit);
     }
     if (!json_path.empty()) {
-      nlohmann::json out = ident::SilverboxToJson(r, options);
+      nlohmann::json out = study::SilverboxToJson(r, options);
       out["import_seconds"] = import_seconds;
       out["data"] = session.source_path;
       out["test_simulation_check"] = check;
       WriteTextOutput(json_path, out.dump(1) + "\n");
     }
     if (!report_path.empty()) {
-      ident::WriteSilverboxReport(r, options, report_path, notes);
+      study::WriteSilverboxReport(r, options, report_path, notes);
       spdlog::info("wrote {}", report_path);
     }
   }

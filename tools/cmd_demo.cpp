@@ -20,7 +20,7 @@
 #include "strut/daq/session.h"
 #include "strut/ident/discover.h"
 #include "strut/ident/estimator.h"
-#include "strut/ident/fit_report.h"
+#include "strut/report/fit_report.h"
 #include "strut/ident/session_fit.h"
 #include "strut/sim/draw.h"
 #include "strut/sim/simulated_rig.h"
@@ -102,8 +102,8 @@ struct DemoCommand {
   }
 
   void WriteFit(const ident::FitSummary& fit, const std::string& stem, const std::string& title) const {
-    WriteTextOutput(stem + ".json", ident::FitToJson(fit).dump(1) + "\n");
-    ident::WriteFitReport(fit, stem + ".html", title);
+    WriteTextOutput(stem + ".json", report::FitToJson(fit).dump(1) + "\n");
+    report::WriteFitReport(fit, stem + ".html", title);
     spdlog::info("wrote {}.html", stem);
   }
 

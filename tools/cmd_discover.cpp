@@ -10,8 +10,8 @@
 #include "output_files.h"
 #include "strut/daq/session.h"
 #include "strut/ident/discover.h"
-#include "strut/ident/discover_report.h"
-#include "strut/ident/fit_report.h"
+#include "strut/report/discover_report.h"
+#include "strut/report/fit_report.h"
 
 namespace strut::tools {
 namespace {
@@ -64,7 +64,7 @@ nlohmann::json DiscoveryJson(const ident::DiscoveryResult& r) {
   j["unexplained"] = nlohmann::json::array();
   for (const auto& f : r.unexplained) j["unexplained"].push_back(FindingJson(f));
   j["conclusion"] = r.conclusion;
-  j["final_fit"] = ident::FitToJson(r.final_fit);
+  j["final_fit"] = report::FitToJson(r.final_fit);
   return j;
 }
 
@@ -89,7 +89,7 @@ struct DiscoverCommand {
     for (const auto& s : result.steps)
       std::cout << fmt::format("  + {:<20} ΔBIC {:+.1f}  {}\n", s.term, s.delta_bic, s.evidence);
     if (!json_path.empty()) WriteTextOutput(json_path, DiscoveryJson(result).dump(1) + "\n");
-    if (!report_path.empty()) ident::WriteDiscoveryReport(result, report_path);
+    if (!report_path.empty()) report::WriteDiscoveryReport(result, report_path);
   }
 };
 

@@ -10,7 +10,7 @@
 #include "model_options.h"
 #include "option_checks.h"
 #include "output_files.h"
-#include "strut/ident/fit_report.h"
+#include "strut/report/fit_report.h"
 #include "strut/ident/session_fit.h"
 #include "strut/sim/drop_fit.h"
 
@@ -72,13 +72,13 @@ struct IdentifyCommand {
     for (const auto& line : fit.plan.Describe()) spdlog::info("  {}", line);
     std::cout << fit.summary.FullReport();
     if (!json_path.empty()) {
-      nlohmann::json j = ident::FitToJson(fit.summary);
+      nlohmann::json j = report::FitToJson(fit.summary);
       j["sessions"] = sessions;
       j["excluded"] = options.exclude;
       WriteTextOutput(json_path, j.dump(1) + "\n");
     }
     if (!report_path.empty()) {
-      ident::WriteFitReport(fit.summary, report_path, "strut identify: " + m.composition());
+      report::WriteFitReport(fit.summary, report_path, "strut identify: " + m.composition());
       spdlog::info("wrote {}", report_path);
     }
     switch (fit.summary.Verdict()) {

@@ -9,7 +9,7 @@
 #include "option_checks.h"
 #include "output_files.h"
 #include "strut/daq/session.h"
-#include "strut/ident/import.h"
+#include "strut/daq/import.h"
 
 namespace strut::tools {
 namespace {
@@ -25,35 +25,35 @@ struct ImportCommand {
   bool force = false;
 
   void Run() const {
-    ident::ImportSpec spec;
-    if (preset == "silverbox") spec = ident::ImportSpec::Silverbox();
+    daq::ImportSpec spec;
+    if (preset == "silverbox") spec = daq::ImportSpec::Silverbox();
     if (!columns.empty()) {
       spec.columns.clear();
-      for (const auto& c : columns) spec.columns.push_back(ident::ColumnMapping::Parse(c));
+      for (const auto& c : columns) spec.columns.push_back(daq::ColumnMapping::Parse(c));
     }
     if (!periodic.empty()) {
       spec.periodic.clear();
-      for (const auto& p : periodic) spec.periodic.push_back(ident::PeriodicSegments::Parse(p));
+      for (const auto& p : periodic) spec.periodic.push_back(daq::PeriodicSegments::Parse(p));
     }
     if (!records.empty()) {
       spec.records.clear();
-      for (const auto& r : records) spec.records.push_back(ident::RecordSegment::Parse(r));
+      for (const auto& r : records) spec.records.push_back(daq::RecordSegment::Parse(r));
     }
     if (sample_rate > 0) spec.sample_rate = sample_rate;
     if (!input.empty()) spec.input_channel = input;
     if (!serial.empty()) spec.serial = serial;
     if (!rig.empty()) spec.rig = rig;
     if (spec.columns.empty())
-      throw ident::ImportError(fmt::format("{}: map at least one column (--column u=V1:V) or use --preset", file));
-    if (!(spec.sample_rate > 0)) throw ident::ImportError(fmt::format("{}: give --sample-rate (Hz)", file));
+      throw daq::ImportError(fmt::format("{}: map at least one column (--column u=V1:V) or use --preset", file));
+    if (!(spec.sample_rate > 0)) throw daq::ImportError(fmt::format("{}: give --sample-rate (Hz)", file));
 
     CheckOutputPath("--out", out, {file}, force);
     std::vector<std::string> wanted = variables;
     if (format == "mat" && wanted.empty())
       for (const auto& c : spec.columns) wanted.push_back(c.column);
-    const ident::Record record = format == "mat" ? ident::ReadMatRecord(file, wanted) : ident::ReadCsvRecord(file);
+    const daq::Record record = format == "mat" ? daq::ReadMatRecord(file, wanted) : daq::ReadCsvRecord(file);
     spdlog::info("{}: {} columns ({}), {} rows", file, record.names.size(), fmt::join(record.names, ", "), record.rows());
-    const daq::Session session = ident::BuildSession(record, spec);
+    const daq::Session session = daq::BuildSession(record, spec);
     daq::WriteOptions options;
     options.gzip_level = gzip;
     daq::WriteSession(out, session, options);

@@ -13,8 +13,8 @@
 #include "commands.h"
 #include "output_files.h"
 #include "strut/daq/session.h"
-#include "strut/ident/fit_report.h"
-#include "strut/ident/html_report.h"
+#include "strut/report/fit_report.h"
+#include "strut/report/html_report.h"
 #include "strut/sim/drop_prediction.h"
 #include "strut/sim/recorded_truth.h"
 #include "option_checks.h"
@@ -65,9 +65,9 @@ nlohmann::json FiguresJson(const sim::DropFigures& figures, const sim::DropPredi
 }
 
 //! Every `step`-th sample (at most ~4000 per trace in a plot), over t <= t_max.
-ident::Series Trace(const std::string& name, const std::vector<double>& t, const std::vector<double>& y, double scale,
+report::Series Trace(const std::string& name, const std::vector<double>& t, const std::vector<double>& y, double scale,
                     double t_max) {
-  ident::Series s;
+  report::Series s;
   s.name = name;
   std::size_t end = 0;
   while (end < t.size() && t[end] <= t_max) ++end;
@@ -256,7 +256,7 @@ struct PredictDropCommand {
       WriteTextOutput(json_path, j.dump(1) + "\n");
     }
     if (!report_path.empty()) {
-      ident::HtmlReport report(fmt::format("strut predict drop: {} kg at {} m/s", *mass, *velocity));
+      report::HtmlReport report(fmt::format("strut predict drop: {} kg at {} m/s", *mass, *velocity));
       report.AddParagraph(fmt::format(
           "Model {} fitted in {} (verdict {}), integrated in mass-load mode for {} s. Intervals: {:.0f} %, by "
           "linearisation (central differences over +-1 sd of each estimated parameter, the fit's covariance).{}",
@@ -271,7 +271,7 @@ struct PredictDropCommand {
       const double impact = std::min(2.5, options.duration);
       const auto plot = [&](const std::string& title, double t_max, const std::string& y_label,
                             std::vector<double> sim::DropTrace::*channel, double factor) {
-        std::vector<ident::Series> series;
+        std::vector<report::Series> series;
         if (!(predicted.trace.*channel).empty())
           series.push_back(Trace("predicted", predicted.trace.time, predicted.trace.*channel, factor, t_max));
         if (fitted && !(fitted->trace.*channel).empty())

@@ -13,6 +13,7 @@
 #include "commands.h"
 #include "qc_commands.h"
 #include "output_files.h"
+#include "strut/report/qc_report.h"
 #include "strut/qc/decision.h"
 #include "strut/qc/history.h"
 #include "strut/qc/lot.h"
@@ -56,9 +57,9 @@ struct QcCommand {
     ident::SessionFit fit;
     const qc::Decision d = qc::RunQc(session, ref, &fit);
     std::cout << qc::Table(d);
-    if (!json_path.empty()) WriteTextOutput(json_path, qc::ToJson(d).dump(1) + "\n");
+    if (!json_path.empty()) WriteTextOutput(json_path, report::QcToJson(d).dump(1) + "\n");
     if (!report_path.empty()) {
-      qc::WriteReport(d, d.fit_verdict.empty() ? nullptr : &fit, report_path);
+      report::WriteQcReport(d, d.fit_verdict.empty() ? nullptr : &fit, report_path);
       spdlog::info("wrote {}", report_path);
     }
     if (history) {

@@ -22,7 +22,7 @@
 #include "output_files.h"
 #include "rig_devices.h"
 #include "strut/daq/recorder.h"
-#include "strut/ident/fit_report.h"
+#include "strut/report/fit_report.h"
 #include "strut/rig/channel_file.h"
 #include "strut/rig/matrix_runner.h"
 #include "strut/rig/safety.h"

@@ -8,7 +8,7 @@
 #include <fstream>
 #include <stdexcept>
 
-#include "strut/ident/html_report.h"
+#include "strut/report/html_report.h"
 
 namespace strut::tools {
 namespace fs = std::filesystem;
@@ -44,7 +44,7 @@ void CheckOutputPath(const std::string& option, const std::string& path, const s
 }
 
 void WriteTextOutput(const std::string& path, const std::string& text) {
-  ident::WriteFileAtomically(path, text);
+  report::WriteFileAtomically(path, text);
   spdlog::info("wrote {}", path);
 }
 

@@ -8,7 +8,7 @@
 #include <set>
 
 #include "strut/daq/session.h"
-#include "strut/ident/fit_report.h"
+#include "strut/ident/fit_record.h"
 #include "strut/ident/periodic.h"
 #include "toml_reader.h"
 

@@ -73,12 +73,7 @@ Decision RunQc(const std::string& session_path, const Reference& reference, iden
 //! The model QC fits when the reference names none.
 inline constexpr const char* kDefaultQcModel = "2dof+viscous-damping";
 
-//! verdict, reasons, serial, session, reference, model, fit_verdict, seconds, quantities (name,
-//! unit, value, sd, nominal, lower, upper, status, meaning), data_issues.
-nlohmann::json ToJson(const Decision& decision);
 //! A table for the terminal.
 std::string Table(const Decision& decision);
-//! A self-contained HTML report: verdict, reasons, the quantities against their bands, the fit.
-void WriteReport(const Decision& decision, const ident::SessionFit* fit, const std::string& path);
 
 }  // namespace strut::qc

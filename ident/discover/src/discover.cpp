@@ -1,0 +1,536 @@
+#include "strut/ident/discover.h"
+
+#include <algorithm>
+#include <chrono>
+#include <climits>
+#include <cmath>
+#include <fmt/format.h>
+#include <numeric>
+#include <optional>
+#include <spdlog/spdlog.h>
+
+#include "strut/ident/parallel.h"
+#include "strut/ident/initial_values.h"
+#include "strut/ident/term_start.h"
+#include "strut/ident/catalogue.h"
+
+namespace strut::ident {
+namespace {
+
+// Residuals of one experiment and channel in units of the noise of the averaged data, with the
+// measured stroke, stroke rate and pressure at the same phases.
+struct Normalised {
+  const ExperimentFit* experiment = nullptr;
+  std::string channel;
+  Eigen::VectorXd z, stroke, rate, pressure;
+};
+
+std::vector<Normalised> Collect(const FitSummary& fit) {
+  std::vector<Normalised> out;
+  for (const ExperimentFit& e : fit.experiments) {
+    if (!e.converged || !e.measured.count("stroke")) continue;
+    const PeriodicSeries stroke = PeriodicSeries::Fit(e.measured.at("stroke"), e.frequency);
+    for (const auto& [channel, r] : e.residual) {
+      const double variance = e.noise_variance.count(channel) ? e.noise_variance.at(channel) : NAN;
+      if (!(variance > 0)) continue;
+      Normalised n{&e, channel, r / std::sqrt(variance), e.measured.at("stroke"), Eigen::VectorXd(r.size()), {}};
+      n.rate = stroke.OnPhases(static_cast<int>(r.size()), 1);
+      if (e.measured.count("pressure")) n.pressure = e.measured.at("pressure");
+      out.push_back(std::move(n));
+    }
+  }
+  return out;
+}
+
+// t-statistic of the least-squares coefficient of `x` in z ~ c + b x (white unit-variance noise).
+double TStatistic(const Eigen::VectorXd& z, const Eigen::VectorXd& x) {
+  const Eigen::VectorXd centred = x.array() - x.mean();
+  const double norm = centred.norm();
+  return norm > 0 ? centred.dot(z) / norm : 0.0;
+}
+
+std::string Group(const ExperimentFit& e) { return e.group.empty() ? "(none)" : e.group; }
+
+// Wall time of a stage, for the timing lines of the debug log.
+struct Stopwatch {
+  std::chrono::steady_clock::time_point start = std::chrono::steady_clock::now();
+  double Seconds() const { return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(); }
+};
+
+}  // namespace
+
+bool DiscoverOptions::IsValid(std::string* error) const {
+  const auto fail = [&](const std::string& m) {
+    if (error) *error = m;
+    return false;
+  };
+  if (!(bic_threshold >= 0)) return fail("bic_threshold must not be negative");
+  if (cv_folds < 0 || cv_folds == 1) return fail("cv_folds must be 0 (off) or at least 2");
+  if (!(cv_improvement > 0 && cv_improvement <= 1)) return fail("cv_improvement must be in (0, 1]");
+  if (!(noise_ratio_threshold > 1)) return fail("noise_ratio_threshold must be above 1");
+  if (max_terms < 0 || threads < 1) return fail("max_terms must not be negative and threads at least 1");
+  return true;
+}
+
+std::map<std::string, double> PooledNoiseRatio(const FitSummary& fit) {
+  std::map<std::string, double> ratio;
+  for (const FitChannel& c : fit.channels) ratio[c.name] = c.noise_ratio;
+  return ratio;
+}
+
+std::vector<Finding> LocateMismatch(const FitSummary& fit) {
+  const std::vector<Normalised> all = Collect(fit);
+  std::vector<Finding> findings;
+  std::map<std::string, std::vector<const Normalised*>> by_channel;
+  for (const Normalised& n : all) by_channel[n.channel].push_back(&n);
+  for (const auto& [channel, items] : by_channel) {
+    // Group bias: the mean residual per static-position group.
+    std::map<std::string, std::pair<double, long>> groups;
+    double total = 0.0;
+    long count = 0;
+    for (const Normalised* n : items) {
+      groups[Group(*n->experiment)].first += n->z.sum();
+      groups[Group(*n->experiment)].second += n->z.size();
+      total += n->z.sum();
+      count += n->z.size();
+    }
+    if (groups.size() >= 2) {
+      double chi = 0.0;
+      std::string detail;
+      for (const auto& [g, s] : groups) {
+        const double mean = s.first / s.second;
+        chi += s.second * std::pow(mean - total / count, 2);
+        detail += fmt::format("{}{} {:+.2f}", detail.empty() ? "" : ", ", g, mean);
+      }
+      findings.push_back({"group-bias", channel, std::sqrt(chi),
+                          fmt::format("mean {} residual by static-position group (noise units): {}", channel, detail)});
+    }
+    // Loop area against frequency: residual in phase with the stroke rate, slow against fast tests.
+    double slow = 0.0, fast = 0.0;
+    int n_slow = 0, n_fast = 0;
+    double velocity_t = 0.0;
+    for (const Normalised* n : items) {
+      const double t = TStatistic(n->z, n->rate);
+      velocity_t += t;
+      if (n->experiment->frequency <= 0.2) slow += t * t, ++n_slow;
+      if (n->experiment->frequency >= 1.0) fast += t * t, ++n_fast;
+    }
+    if (n_slow > 0 && n_fast > 0) {
+      const double score = std::sqrt(slow / n_slow) - std::sqrt(fast / n_fast);
+      findings.push_back({"loop-frequency", channel, score,
+                          fmt::format("{} residual in phase with the stroke rate (a loop): rms t {:.1f} at <= 0.2 Hz "
+                                      "against {:.1f} at >= 1 Hz",
+                                      channel, std::sqrt(slow / n_slow), std::sqrt(fast / n_fast))});
+    }
+    findings.push_back({"velocity", channel, std::abs(velocity_t) / std::sqrt(std::max<std::size_t>(1, items.size())),
+                        fmt::format("{} residual proportional to the stroke rate: pooled t {:+.1f}", channel,
+                                    velocity_t / std::sqrt(std::max<std::size_t>(1, items.size())))});
+    // Where in the cycle and in the stroke: near reversals, near full extension.
+    const auto localised = [&](const char* locus, auto&& inside, const std::string& where) {
+      double in = 0.0, out = 0.0;
+      long n_in = 0, n_out = 0;
+      for (const Normalised* n : items)
+        for (Eigen::Index i = 0; i < n->z.size(); ++i) {
+          if (inside(*n, i))
+            in += n->z[i] * n->z[i], ++n_in;
+          else
+            out += n->z[i] * n->z[i], ++n_out;
+        }
+      if (n_in < 8 || n_out < 8) return;
+      const double ms_in = in / n_in, ms_out = out / n_out;
+      // Excess mean square inside over outside, in standard errors of a chi-square mean.
+      const double score = (ms_in - ms_out) / (std::sqrt(2.0 / n_in) * std::max(ms_out, 1.0));
+      findings.push_back({locus, channel, score,
+                          fmt::format("{} residual mean square {:.1f} {} against {:.1f} elsewhere (noise units)",
+                                      channel, ms_in, where, ms_out)});
+    };
+    localised("reversal",
+              [](const Normalised& n, Eigen::Index i) {
+                return std::abs(n.rate[i]) < 0.1 * n.rate.cwiseAbs().maxCoeff();
+              },
+              "near the velocity reversals");
+    localised("extension", [](const Normalised& n, Eigen::Index i) { return n.stroke[i] < 0.015; },
+              "within 15 mm of full extension");
+    // Stiffness that changes with pressure: the curvature of the residual in the pressure.
+    Eigen::VectorXd z_all, p2_all;
+    std::vector<double> zs, p2s;
+    for (const Normalised* n : items) {
+      if (n->pressure.size() != n->z.size()) continue;
+      for (Eigen::Index i = 0; i < n->z.size(); ++i) {
+        zs.push_back(n->z[i]);
+        p2s.push_back(n->pressure[i] * n->pressure[i] * 1e-12);
+      }
+    }
+    if (zs.size() > 16) {
+      const double t = TStatistic(Eigen::Map<Eigen::VectorXd>(zs.data(), zs.size()),
+                                  Eigen::Map<Eigen::VectorXd>(p2s.data(), p2s.size()));
+      findings.push_back({t > 0 ? "pressure-stiffening" : "pressure-softening", channel, std::abs(t),
+                          fmt::format("{} residual {} with the square of the pressure: t {:+.1f}", channel,
+                                      t > 0 ? "grows" : "falls", t)});
+    }
+  }
+  std::sort(findings.begin(), findings.end(), [](const Finding& a, const Finding& b) { return a.score > b.score; });
+  return findings;
+}
+
+namespace {
+
+// The held-out noise ratios of fold k of `folds` (experiments a with a % folds == k), all channels
+// pooled per experiment; empty when the refit or a prediction has no solution.
+// `iterations`: the refit's.
+std::optional<std::vector<double>> HeldOutRatios(const FitData& data, const Model& model, const FitSummary& fit,
+                                                 const EstimatorOptions& estimator, int folds, int k, int& iterations) {
+  std::vector<ParameterChoice> choices(fit.parameters.size());
+  for (int i = 0; i < fit.parameters.size(); ++i) {
+    choices[i].estimate = fit.estimated[i];
+    if (fit.estimated[i] && fit.parameters.spec(i).prior_sd > 0) choices[i].prior_sd = fit.parameters.spec(i).prior_sd;
+  }
+  const std::vector<ParameterChoice> fixed(fit.parameters.size());
+  // Only the refit's estimate is used: no posterior at its end.
+  EstimatorOptions refit_options = estimator;
+  refit_options.uncertainty = false;
+  std::vector<ExperimentData> train, held;
+  for (int a = 0; a < static_cast<int>(data.experiments.size()); ++a)
+    (a % folds == k ? held : train).push_back(data.experiments[a]);
+  std::vector<double> ratios;
+  try {
+    const FitSummary refit = Estimator(model, refit_options).Fit(train, fit.parameters, choices, data.issues);
+    iterations = refit.iterations;
+    if (!refit.IsSolutionUsable()) return std::nullopt;
+    const FitSummary predicted = Estimator(model, refit_options).Fit(held, refit.parameters, fixed, data.issues);
+    for (const ExperimentFit& e : predicted.experiments) {
+      if (!e.converged) return std::nullopt;
+      double sum = 0.0;
+      long n = 0;
+      for (const auto& [channel, r] : e.residual) {
+        const double variance = e.noise_variance.at(channel);
+        if (!(variance > 0)) continue;
+        sum += r.squaredNorm() / variance;
+        n += r.size();
+      }
+      if (n > 0) ratios.push_back(sum / n);
+    }
+  } catch (const std::exception& e) {
+    spdlog::debug("cross-validation fold {} of {}: {}", k + 1, model.composition(), e.what());
+    return std::nullopt;
+  }
+  return ratios;
+}
+
+// The median of the held-out ratios over all folds' experiments; NaN when a fold had no solution.
+double MedianHeldOut(const std::vector<std::optional<std::vector<double>>>& folds) {
+  std::vector<double> held_ratios;  // one per held-out experiment, all channels pooled
+  for (const auto& fold : folds) {
+    if (!fold) return NAN;
+    held_ratios.insert(held_ratios.end(), fold->begin(), fold->end());
+  }
+  if (held_ratios.empty()) return NAN;
+  // The median over the held-out experiments: an effect that only one experiment shows (an end
+  // stop that only the deepest low-position experiment reaches) cannot be learnt without that
+  // experiment, and its one wild prediction must not outweigh the others, which it fits well.
+  const auto middle = held_ratios.begin() + static_cast<std::ptrdiff_t>(held_ratios.size() / 2);
+  std::nth_element(held_ratios.begin(), middle, held_ratios.end());
+  if (held_ratios.size() % 2 == 1) return *middle;
+  return 0.5 * (*middle + *std::max_element(held_ratios.begin(), middle));
+}
+
+// A model and its fit whose held-out noise ratio is wanted.
+struct CrossValidation {
+  const Model* model;
+  const FitSummary* fit;
+};
+
+// The held-out noise ratios of several models at once: all their folds' refits, `threads` at a time.
+std::vector<double> CrossValidate(const FitData& data, const std::vector<CrossValidation>& models,
+                                  const EstimatorOptions& estimator, int folds, int threads) {
+  folds = std::min(folds, static_cast<int>(data.experiments.size()));
+  if (folds < 2) return std::vector<double>(models.size(), NAN);
+  // Folds interleave the experiments (a, e, i, m; b, f, j, n; ...), so no fold takes a whole
+  // static-position group or frequency away and the refit need not extrapolate.
+  std::vector<std::optional<std::vector<double>>> ratios(models.size() * folds);
+  std::vector<double> seconds(ratios.size());
+  std::vector<int> iterations(ratios.size());
+  ParallelFor(static_cast<int>(ratios.size()), threads, [&](int task) {
+    const Stopwatch watch;
+    const CrossValidation& m = models[task / folds];
+    ratios[task] = HeldOutRatios(data, *m.model, *m.fit, estimator, folds, task % folds, iterations[task]);
+    seconds[task] = watch.Seconds();
+  });
+  std::vector<double> out;
+  for (std::size_t m = 0; m < models.size(); ++m) {
+    const auto first = ratios.begin() + static_cast<std::ptrdiff_t>(m * folds);
+    out.push_back(MedianHeldOut({first, first + folds}));
+    std::string fold_times;
+    for (int k = 0; k < folds; ++k)
+      fold_times += fmt::format(" {:.2f} s ({} iterations)", seconds[m * folds + k], iterations[m * folds + k]);
+    spdlog::debug("timing: cross-validation of {}, folds:{}", models[m].model->composition(), fold_times);
+  }
+  return out;
+}
+
+}  // namespace
+
+double CrossValidatedNoiseRatio(const FitData& data, const Model& model, const FitSummary& fit,
+                                const EstimatorOptions& estimator, int folds, int threads) {
+  return CrossValidate(data, {{&model, &fit}}, estimator, folds, threads).front();
+}
+
+DiscoveryResult Discover(const FitData& data, const SessionFitOptions& fit_options, const DiscoverOptions& options,
+                         const std::function<void(const std::string&)>& progress) {
+  std::string error;
+  if (!options.IsValid(&error) || !fit_options.IsValid(&error)) throw std::invalid_argument("discover options: " + error);
+  const Causality causality = fit_options.causality;
+  // Every fit also solves its experiments on `threads` threads, beside the candidates and folds run
+  // side by side: the baseline, and the last candidate of a round, still use every core. A fit sums
+  // its experiments in order, so the answers do not depend on the count.
+  SessionFitOptions session_options = fit_options;
+  session_options.estimator.threads = options.threads;
+  const EstimatorOptions& estimator = session_options.estimator;
+  const Stopwatch total_watch;
+  double baseline_seconds = 0.0, candidate_seconds = 0.0, cv_seconds = 0.0;
+  const auto say = [&](const std::string& text) {
+    spdlog::info("{}", text);
+    if (progress) progress(text);
+  };
+  // A candidate: the current fit's values and estimated set, plus the new term's own parameters
+  // (sizes and shapes estimated, from where the located mismatch puts them: CandidateStartingValues).
+  const auto candidate_fit = [&](const std::string& term, const std::string& composition, const FitSummary& previous) {
+    const Model model = Model::Build(composition, causality);
+    ParameterSet start = model.defaults();
+    std::vector<ParameterChoice> choices = DefaultChoices(model);
+    for (int i = 0; i < start.size(); ++i) {
+      const ParameterSpec& spec = start.spec(i);
+      const auto p = previous.parameters.find(spec.key());
+      if (p && previous.parameters.spec(*p).name == spec.name) {
+        start.values()[i] = previous.parameters.value(*p);
+        if (!previous.estimated[*p]) choices[i] = ParameterChoice{};
+      }
+    }
+    if (causality == Causality::kStrokeInput) {
+      std::vector<std::string> log;
+      for (const auto& [key, value] : CandidateStartingValues(term, previous, &log)) start.set(key, value);
+      for (const std::string& line : log) spdlog::debug("candidate {}: {}", term, line);
+    }
+    const Estimator fitter(model, estimator);
+    FitSummary fit = fitter.Fit(data.experiments, start, choices, data.issues);
+    // Only a stalled candidate that already explains something (its BIC below the current one by the
+    // threshold) is worth the second try: the others would be refused anyway.
+    if (fit.converged || !fit.IsSolutionUsable() || !(fit.bic - previous.bic < -options.bic_threshold)) return fit;
+    // A candidate can stall on its way from the current fit's values when that fit is itself far off
+    // (an unconverged baseline beside a plain end stop): go on from where it stalled (fresh
+    // sensitivities and damping), and else fit from the data's own starting values as `strut
+    // identify` does. The converged fit with the higher likelihood is kept.
+    const Stopwatch retry_watch;
+    std::vector<FitSummary> tries{fitter.Fit(data.experiments, fit.parameters, choices, data.issues)};
+    if (!tries.front().converged) {
+      SessionFitOptions own = session_options;
+      own.composition = composition;
+      tries.push_back(FitPrepared(data, model, own).summary);
+    }
+    for (const FitSummary& t : tries)
+      if (t.converged && (!fit.converged || t.loglik > fit.loglik)) fit = t;
+    spdlog::debug("candidate {}: stalled from the current fit; {} (timing: {} more fits, {:.2f} s)", term,
+                  fit.converged ? "converged on a second try" : "not converged on a second try either", tries.size(),
+                  retry_watch.Seconds());
+    return fit;
+  };
+  const auto worst_ratio = [](const std::map<std::string, double>& ratio) {
+    double worst = 0.0;
+    for (const auto& [c, r] : ratio) worst = std::max(worst, std::isfinite(r) ? r : INFINITY);
+    return worst;
+  };
+  const auto mean_ratio = [](const std::map<std::string, double>& ratio) {
+    double sum = 0.0;
+    for (const auto& [c, r] : ratio) sum += r;
+    return ratio.empty() ? 0.0 : sum / ratio.size();
+  };
+
+  DiscoveryResult result;
+  bool exhausted = false;  // stopped because no candidate qualified (not because of max_terms)
+  const std::string base = fit_options.composition;
+  say(fmt::format("fitting the baseline {} (every parameter the data can determine)", base));
+  const Stopwatch baseline_watch;
+  result.baseline = FitPrepared(data, Model::Build(base, causality), session_options).summary;
+  baseline_seconds = baseline_watch.Seconds();
+  spdlog::debug("timing: baseline {} {:.2f} s ({} iterations)", base, baseline_seconds, result.baseline.iterations);
+  result.mismatch = LocateMismatch(result.baseline);
+  FitSummary current = result.baseline;
+  std::map<std::string, double> ratio = PooledNoiseRatio(current);
+  result.nothing_missing = worst_ratio(ratio) < options.noise_ratio_threshold;
+  if (!result.baseline.converged)
+    say("the baseline fit did not converge: " + result.baseline.VerdictText());
+
+  const auto& catalogue = Catalogue();
+  std::optional<double> current_cv;  // held-out noise ratio of `current` (NaN: no solution), once a candidate needs it
+  std::map<std::string, int> last_iterations;  // per term, its refit's in the round before
+  for (int round = 0; round < options.max_terms && worst_ratio(ratio) >= options.noise_ratio_threshold; ++round) {
+    const std::vector<Finding> findings = LocateMismatch(current);
+    const Model model = Model::Build(current.model, causality);
+    std::vector<std::pair<std::string, std::string>> candidates;  // term, composition
+    for (const TermEntry& entry : catalogue) {
+      if (entry.locus.empty() || model.has_term(entry.name)) continue;
+      const std::string composition = current.model + "+" + entry.name;
+      try {
+        Model::Build(composition, causality);
+        candidates.emplace_back(entry.name, composition);
+      } catch (const ModelError& e) {
+        spdlog::debug("candidate {} left out: {}", entry.name, e.what());
+      }
+    }
+    say(fmt::format("round {}: {} candidates refitted, {} at a time", round + 1, candidates.size(), options.threads));
+    std::vector<CandidateFit> results(candidates.size());
+    std::vector<FitSummary> fits(candidates.size());
+    std::vector<double> seconds(candidates.size());
+    const Stopwatch round_watch;
+    // A thread takes the next candidate as it finishes one (refits differ in length several times),
+    // the longest first as far as the last round tells (its iterations), so that a long one does
+    // not start last. Only the order of the work changes: each result has its own slot.
+    std::vector<int> queue(candidates.size());
+    std::iota(queue.begin(), queue.end(), 0);
+    const auto expected = [&](int c) {
+      const auto it = last_iterations.find(candidates[c].first);
+      return it == last_iterations.end() ? INT_MAX : it->second;
+    };
+    std::stable_sort(queue.begin(), queue.end(), [&](int a, int b) { return expected(a) > expected(b); });
+    ParallelFor(static_cast<int>(candidates.size()), options.threads, [&](int k) {
+      const int c = queue[k];
+      const Stopwatch watch;
+      results[c].term = candidates[c].first;
+      try {
+        fits[c] = candidate_fit(candidates[c].first, candidates[c].second, current);
+        results[c].ok = fits[c].IsSolutionUsable() && fits[c].converged;
+        if (!results[c].ok) results[c].error = fits[c].VerdictText();
+        results[c].delta_bic = fits[c].bic - current.bic;
+        results[c].noise_ratio = PooledNoiseRatio(fits[c]);
+      } catch (const std::exception& e) {
+        results[c].error = e.what();
+      }
+      seconds[c] = watch.Seconds();
+    });
+    const double refits_seconds = round_watch.Seconds();
+    for (std::size_t c = 0; c < candidates.size(); ++c) last_iterations[candidates[c].first] = fits[c].iterations;
+    candidate_seconds += refits_seconds;
+    for (std::size_t c = 0; c < candidates.size(); ++c)
+      spdlog::debug("timing: round {} candidate {} {:.2f} s ({} iterations)", round + 1, candidates[c].first,
+                    seconds[c], fits[c].iterations);
+    spdlog::debug("timing: round {} candidates {:.2f} s wall, {:.2f} s summed", round + 1, refits_seconds,
+                  std::accumulate(seconds.begin(), seconds.end(), 0.0));
+    for (CandidateFit& c : results) {
+      const auto entry = std::find_if(catalogue.begin(), catalogue.end(), [&](const TermEntry& e) { return e.name == c.term; });
+      for (const Finding& f : findings)
+        if (f.locus == entry->locus) c.evidence = std::max(c.evidence, f.score);
+    }
+    // Candidates by BIC; the best that also brings the off channels down and predicts experiments
+    // left out of its fit better than the current model is kept.
+    std::vector<std::size_t> order;
+    for (std::size_t c = 0; c < results.size(); ++c) {
+      CandidateFit& r = results[c];
+      if (!r.ok) {
+        r.verdict = "no converged fit";
+      } else if (r.delta_bic > -options.bic_threshold) {
+        r.verdict = fmt::format("BIC does not fall by {}", options.bic_threshold);
+      } else if (mean_ratio(r.noise_ratio) > options.min_improvement * mean_ratio(ratio)) {
+        r.verdict = "noise ratio barely falls";
+      } else {
+        order.push_back(c);
+      }
+    }
+    std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return results[a].delta_bic < results[b].delta_bic; });
+    int best = -1;
+    for (const std::size_t c : order) {
+      if (options.cv_folds == 0) {
+        best = static_cast<int>(c);
+        break;
+      }
+      // The current model's folds beside the first candidate's, when it has none yet.
+      const Stopwatch cv_watch;
+      const Model candidate_model = Model::Build(candidates[c].second, causality);
+      std::vector<CrossValidation> wanted{{&candidate_model, &fits[c]}};
+      if (!current_cv) wanted.push_back({&model, &current});
+      const std::vector<double> cv = CrossValidate(data, wanted, estimator, options.cv_folds, options.threads);
+      results[c].cv_ratio = cv[0];
+      if (!current_cv) current_cv = cv[1];
+      cv_seconds += cv_watch.Seconds();
+      spdlog::debug("timing: round {} cross-validation {:.2f} s", round + 1, cv_watch.Seconds());
+      spdlog::info("  {:<20} cross-validated noise ratio {:.3f} against {:.3f}", results[c].term, results[c].cv_ratio,
+                   *current_cv);
+      if (std::isfinite(results[c].cv_ratio) &&
+          (!std::isfinite(*current_cv) || results[c].cv_ratio <= options.cv_improvement * *current_cv)) {
+        best = static_cast<int>(c);
+        break;
+      }
+      results[c].verdict = "does not predict left-out experiments better";
+    }
+    for (const CandidateFit& c : results)
+      spdlog::info("  {:<20} ΔBIC {:>12.1f}  worst noise ratio {:8.2f}  evidence {:6.1f}  {}", c.term, c.delta_bic,
+                   worst_ratio(c.noise_ratio), c.evidence, c.ok ? c.verdict : c.error);
+    if (best < 0) {
+      say("no candidate improves the fit beyond what its parameters cost and predicts left-out experiments better");
+      exhausted = true;
+      break;
+    }
+    results[best].verdict = "kept";
+    DiscoveryStep step;
+    step.term = results[best].term;
+    step.delta_bic = results[best].delta_bic;
+    step.noise_before = ratio;
+    step.noise_after = results[best].noise_ratio;
+    step.cv_before = current_cv.value_or(NAN);
+    step.cv_after = results[best].cv_ratio;
+    step.candidates = results;
+    const auto entry = std::find_if(catalogue.begin(), catalogue.end(), [&](const TermEntry& e) { return e.name == step.term; });
+    step.evidence = entry->signature;
+    for (const Finding& f : findings)
+      if (f.locus == entry->locus) {
+        step.evidence += "; " + f.detail;
+        break;
+      }
+    const FitSummary& chosen = fits[best];
+    for (int i = 0; i < chosen.parameters.size(); ++i)
+      if (!current.parameters.find(chosen.parameters.spec(i).key()) && chosen.estimated[i])
+        step.parameters.emplace_back(chosen.parameters.spec(i).key(), chosen.parameters.value(i));
+    say(fmt::format("added {}: ΔBIC {:+.1f}; {}", step.term, step.delta_bic, step.evidence));
+    result.missing.push_back(step.term);
+    result.steps.push_back(std::move(step));
+    current = chosen;
+    current_cv = results[best].cv_ratio;
+    ratio = PooledNoiseRatio(current);
+  }
+
+  result.final_model = current.model;
+  result.final_fit = current;
+  const double final_worst = worst_ratio(ratio);
+  if (final_worst >= options.noise_ratio_threshold) {
+    for (const Finding& f : LocateMismatch(current))
+      if (f.score > 5.0) result.unexplained.push_back(f);
+  }
+  std::string ratios;
+  for (const auto& [c, r] : PooledNoiseRatio(result.baseline)) ratios += fmt::format(" {} {:.2f}", c, r);
+  if (result.nothing_missing) {
+    result.conclusion = fmt::format("{} explains the data to the noise floor (noise ratios{}): nothing is missing.",
+                                    base, ratios);
+  } else {
+    std::string added;
+    for (const auto& t : result.missing) added += (added.empty() ? "" : ", ") + t;
+    std::string after;
+    for (const auto& [c, r] : ratio) after += fmt::format(" {} {:.2f}", c, r);
+    result.conclusion = fmt::format(
+        "{} left residuals above the noise floor (noise ratios{}). {} Final model {} (noise ratios{}{}).{}", base, ratios,
+        added.empty() ? "No catalogue term explains them." : "Missing: " + added + ".", result.final_model, after,
+        final_worst < options.noise_ratio_threshold ? ", at the noise floor" : ", still above the noise floor",
+        result.unexplained.empty()
+            ? ""
+            : (exhausted ? " What is left matches no catalogue term: "
+                         : fmt::format(" Stopped after {} terms; the strongest feature left: ", options.max_terms)) +
+                  result.unexplained.front().detail + ".");
+  }
+  spdlog::debug("timing: discover {:.2f} s: baseline {:.2f} s, candidates {:.2f} s, cross-validation {:.2f} s",
+                total_watch.Seconds(), baseline_seconds, candidate_seconds, cv_seconds);
+  // The conclusion is the result, which the caller prints as data (stdout); logging it as well
+  // showed it twice on a terminal.
+  spdlog::debug("{}", result.conclusion);
+  if (progress) progress(result.conclusion);
+  return result;
+}
+
+}  // namespace strut::ident

@@ -1,0 +1,345 @@
+#include "strut/ident/term_start.h"
+
+#include <algorithm>
+#include <cmath>
+#include <fmt/format.h>
+#include <functional>
+#include <optional>
+#include <stdexcept>
+
+#include "strut/ident/periodic.h"
+#include "strut/ident/catalogue.h"
+
+namespace strut::ident {
+namespace {
+
+// One averaged sample of one experiment: the measured signals the force terms are written in, and
+// the force equation error (the force residual less theta4 times the pressure residual: the force
+// balance with the measured pressure) with its weight (1 / noise sd).
+struct Sample {
+  double q = 0.0, rate = 0.0, accel = 0.0, p = 0.0;
+  double force_error = 0.0, force_weight = 0.0;
+};
+
+// The baseline's parameter values by paper index.
+class Values {
+ public:
+  explicit Values(const FitSummary& fit) : fit_(fit) {}
+  bool has(int index) const { return fit_.parameters.position_of_index(index) >= 0; }
+  double at(int index, double fallback = 0.0) const {
+    const int p = fit_.parameters.position_of_index(index);
+    return p >= 0 ? fit_.parameters.value(p) : fallback;
+  }
+  //! The baseline estimated theta<index>: its sensitivity belongs among the regressors.
+  bool estimated(int index) const {
+    const int p = fit_.parameters.position_of_index(index);
+    return p >= 0 && p < static_cast<int>(fit_.estimated.size()) && fit_.estimated[p];
+  }
+
+ private:
+  const FitSummary& fit_;
+};
+
+std::vector<Sample> Collect(const FitSummary& fit, const Values& v) {
+  std::vector<Sample> out;
+  const double area = v.at(4), offset = v.at(12);
+  for (const ExperimentFit& e : fit.experiments) {
+    if (!e.converged) continue;
+    const auto channel = [&](const std::map<std::string, Eigen::VectorXd>& m, const char* name) {
+      const auto it = m.find(name);
+      return it != m.end() && it->second.size() == static_cast<Eigen::Index>(e.phases.size()) ? &it->second : nullptr;
+    };
+    const Eigen::VectorXd *stroke = channel(e.measured, "stroke"), *pressure = channel(e.measured, "pressure"),
+                          *rf = channel(e.residual, "force"), *rp = channel(e.residual, "pressure");
+    if (!stroke || !pressure) continue;
+    const auto variance = [&](const char* name) {
+      const auto it = e.noise_variance.find(name);
+      return it != e.noise_variance.end() && it->second > 0 ? it->second : NAN;
+    };
+    const double vf = variance("force"), vp = variance("pressure");
+    const PeriodicSeries series = PeriodicSeries::Fit(*stroke, e.frequency);
+    const int count = static_cast<int>(e.phases.size());
+    const Eigen::VectorXd rate = series.OnPhases(count, 1), accel = series.OnPhases(count, 2);
+    for (int i = 0; i < count; ++i) {
+      Sample s;
+      s.q = (*stroke)[i] - offset;
+      s.rate = rate[i];
+      s.accel = accel[i];
+      s.p = (*pressure)[i];
+      if (rf && std::isfinite(vf)) {
+        const double r_p = rp ? (*rp)[i] : 0.0;
+        s.force_error = (*rf)[i] - area * r_p;
+        s.force_weight = 1.0 / std::sqrt(vf + (rp && std::isfinite(vp) ? area * area * vp : 0.0));
+      }
+      out.push_back(s);
+    }
+  }
+  return out;
+}
+
+using Column = std::function<double(const Sample&)>;
+
+struct Regression {
+  bool ok = false;
+  double coefficient = 0.0;  // of the first column
+  double rss = INFINITY;     // weighted residual sum of squares
+  double t = 0.0;            // coefficient over its standard error
+};
+
+// Least squares of b on the unit-norm columns of a (scaled by `norm` from the original ones); the
+// first column's coefficient, the residual sum of squares and the coefficient's t. Nuisance columns
+// that are collinear (a solubility and a stroke offset at one temperature) are dropped by the QR.
+Regression& Solve(const Eigen::MatrixXd& a, const Eigen::VectorXd& b, const Eigen::VectorXd& norm, Regression& r) {
+  const Eigen::Index k = a.cols();
+  const Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(a);
+  const Eigen::VectorXd x = qr.solve(b);
+  r.rss = (a * x - b).squaredNorm();
+  r.coefficient = x[0] / norm[0];
+  // The first column's standard error: its distance from the span of the other kept columns.
+  if (k > 1) {
+    const Eigen::ColPivHouseholderQR<Eigen::MatrixXd> rest(a.rightCols(k - 1));
+    const Eigen::VectorXd projection = a.rightCols(k - 1) * rest.solve(a.col(0));
+    const double distance = (a.col(0) - projection).norm();
+    const double sd = std::sqrt(r.rss / std::max<Eigen::Index>(1, a.rows() - qr.rank())) / distance;
+    r.t = distance > 0 && sd > 0 ? x[0] / sd : 0.0;
+  } else {
+    const double sd = std::sqrt(r.rss / std::max<Eigen::Index>(1, a.rows() - 1));
+    r.t = sd > 0 ? x[0] / sd : 0.0;
+  }
+  r.ok = std::isfinite(r.coefficient);
+  return r;
+}
+
+// Weighted least squares of the force equation error on `columns`: the first column is the
+// candidate's force, the others the baseline's nuisance directions.
+Regression Regress(const std::vector<Sample>& samples, const std::vector<Column>& columns) {
+  Regression r;
+  std::vector<const Sample*> used;
+  for (const Sample& s : samples)
+    if (s.force_weight > 0) used.push_back(&s);
+  const Eigen::Index m = static_cast<Eigen::Index>(used.size()), k = static_cast<Eigen::Index>(columns.size());
+  if (m < 4 * k + 8) return r;
+  Eigen::MatrixXd a(m, k);
+  Eigen::VectorXd b(m);
+  for (Eigen::Index i = 0; i < m; ++i) {
+    const Sample& s = *used[i];
+    for (Eigen::Index j = 0; j < k; ++j) a(i, j) = s.force_weight * columns[j](s);
+    b[i] = s.force_weight * s.force_error;
+  }
+  // Columns scaled to unit norm so that the QR's rank decision is about directions, not units.
+  Eigen::VectorXd norm = a.colwise().norm().transpose();
+  if (!(norm[0] > 0)) return r;
+  for (Eigen::Index j = 0; j < k; ++j)
+    if (norm[j] > 0) a.col(j) /= norm[j];
+  return Solve(a, b, norm, r);
+}
+
+// The force balance's sensitivities to the parameters the baseline estimated (method.md eq. 21).
+std::vector<Column> ForceNuisance(const Values& v) {
+  std::vector<Column> c;
+  const double sharpness = v.at(10), base = v.at(8), per_pressure = v.at(9), gravity = v.at(2, 9.81);
+  if (v.estimated(1)) c.push_back([=](const Sample& s) { return s.accel + gravity; });
+  if (v.estimated(3)) c.push_back([](const Sample& s) { return s.rate * std::abs(s.rate); });
+  if (v.estimated(4)) c.push_back([](const Sample& s) { return s.p; });
+  if (v.estimated(8)) c.push_back([=](const Sample& s) { return std::atan(sharpness * s.rate); });
+  if (v.estimated(9)) c.push_back([=](const Sample& s) { return s.p * std::atan(sharpness * s.rate); });
+  if (v.estimated(10))
+    c.push_back([=](const Sample& s) {
+      const double x = sharpness * s.rate;
+      return (base + per_pressure * s.p) * s.rate / (1.0 + x * x);
+    });
+  if (v.estimated(11) || !v.has(11)) c.push_back([](const Sample&) { return 1.0; });
+  if (v.estimated(18)) c.push_back([](const Sample& s) { return s.rate; });
+  return c;
+}
+
+// One Gauss-Newton step from the baseline into `candidate` with the size at 0 (where, by design,
+// the candidate is the baseline and its residual is nearly linear in the size): the fitted
+// channels' residuals regressed on the exact periodic sensitivities to the size and to every
+// parameter the baseline estimated, weighted by the noise. `theta` holds the candidate's values.
+Regression GaussNewtonSize(const FitSummary& baseline, const Model& model, const std::vector<double>& theta,
+                           int size_position, std::vector<std::string>& problems) {
+  Regression r;
+  std::vector<int> positions = {size_position};
+  for (int i = 0; i < baseline.parameters.size(); ++i)
+    if (i < static_cast<int>(baseline.estimated.size()) && baseline.estimated[i])
+      if (const auto p = model.defaults().find(baseline.parameters.spec(i).key())) positions.push_back(*p);
+  std::vector<Eigen::MatrixXd> blocks;
+  std::vector<Eigen::VectorXd> targets;
+  for (const ExperimentFit& e : baseline.experiments) {
+    if (!e.converged || e.solution.n == 0) continue;
+    PeriodicSolverOptions options;
+    options.scheme = e.solution.scheme;
+    PeriodicSolver solver(model, options);
+    PeriodicSolution solution;
+    std::vector<Eigen::MatrixXd> sensitivities;
+    try {
+      // The baseline's solution is the candidate's at size 0: Newton starts at the answer.
+      solution = solver.Solve(e.solution.input, theta, &e.solution);
+      sensitivities = solver.OutputSensitivities(solution, theta, positions);
+    } catch (const std::exception& ex) {
+      problems.push_back(fmt::format("experiment '{}': {}", e.label, ex.what()));
+      continue;
+    }
+    const int n = solution.n;
+    for (const auto& [channel, residual] : e.residual) {
+      const auto variance = e.noise_variance.find(channel);
+      const auto row = std::find(solution.channels.begin(), solution.channels.end(), channel);
+      if (variance == e.noise_variance.end() || !(variance->second > 0) || row == solution.channels.end()) continue;
+      const Eigen::MatrixXd& grid = sensitivities[row - solution.channels.begin()];
+      const double w = 1.0 / std::sqrt(variance->second);
+      // Cubic (4-point Lagrange) interpolation from the grid to the data phases, as the estimator.
+      blocks.push_back(w * PhaseInterpolation::Cubic(solution.input.phases, n, e.phases).Columns(grid));
+      targets.push_back(w * residual);
+    }
+  }
+  Eigen::Index rows = 0;
+  for (const auto& b : blocks) rows += b.rows();
+  if (rows < 8 * static_cast<Eigen::Index>(positions.size())) return r;
+  Eigen::MatrixXd a(rows, static_cast<Eigen::Index>(positions.size()));
+  Eigen::VectorXd b(rows);
+  rows = 0;
+  for (std::size_t i = 0; i < blocks.size(); ++i) {
+    a.middleRows(rows, blocks[i].rows()) = blocks[i];
+    b.segment(rows, blocks[i].rows()) = targets[i];
+    rows += blocks[i].rows();
+  }
+  Eigen::VectorXd norm = a.colwise().norm().transpose();
+  if (!(norm[0] > 0)) return r;
+  for (Eigen::Index j = 0; j < a.cols(); ++j)
+    if (norm[j] > 0) a.col(j) /= norm[j];
+  return Solve(a, b, norm, r);
+}
+
+// log(1 + e^x) without overflow, as the end-stop term.
+double Softplus(double x) { return x > 0 ? x + std::log1p(std::exp(-x)) : std::log1p(std::exp(x)); }
+
+}  // namespace
+
+std::vector<std::pair<std::string, double>> CandidateStartingValues(const std::string& term,
+                                                                    const FitSummary& baseline,
+                                                                    std::vector<std::string>* log) {
+  const auto& catalogue = Catalogue();
+  if (std::none_of(catalogue.begin(), catalogue.end(), [&](const TermEntry& e) { return e.name == term; }))
+    throw std::invalid_argument(fmt::format("CandidateStartingValues: '{}' is not a catalogue term", term));
+  const auto note = [&](const std::string& line) {
+    if (log) log->push_back(line);
+  };
+  // The candidate model gives the term's parameters: their defaults (for the fixed ones the
+  // sensitivities need) and their ranges.
+  std::optional<Model> built;
+  try {
+    built.emplace(Model::Build(baseline.model + "+" + term, Causality::kStrokeInput));
+  } catch (const std::exception& e) {
+    note(fmt::format("{}: no starting values: {}", term, e.what()));
+    return {};
+  }
+  const Model& model = *built;
+  const ParameterSet& candidate = model.defaults();
+  // The candidate's values: the baseline's where it has the parameter, else the defaults.
+  const auto baseline_values = [&] {
+    std::vector<double> theta = candidate.values();
+    for (int i = 0; i < candidate.size(); ++i)
+      if (const auto p = baseline.parameters.find(candidate.spec(i).key())) theta[i] = baseline.parameters.value(*p);
+    return theta;
+  };
+  const Values v(baseline);
+  const auto own = [&](int index, double fallback) {
+    // The baseline's value when it has the parameter, else the candidate's default.
+    if (v.has(index)) return v.at(index);
+    const int p = candidate.position_of_index(index);
+    return p >= 0 ? candidate.value(p) : fallback;
+  };
+  const std::vector<Sample> samples = Collect(baseline, v);
+  std::vector<std::pair<std::string, double>> out;
+  const auto give = [&](int index, double value, const std::string& how) {
+    const int p = candidate.position_of_index(index);
+    if (p < 0 || !std::isfinite(value)) return;
+    const ParameterSpec& spec = candidate.spec(p);
+    if (!spec.range.contains(value)) {
+      const double clipped = std::isfinite(spec.range.lower) && value < spec.range.lower ? spec.range.lower : spec.range.upper;
+      if (!spec.range.contains(clipped)) return;
+      note(fmt::format("{} {} = {:.4g} {} clipped into {} from {:.4g} ({})", spec.key(), spec.name, clipped, spec.unit,
+                       spec.range.ToString(), value, how));
+      value = clipped;
+    } else {
+      note(fmt::format("{} {} = {:.4g} {} ({})", spec.key(), spec.name, value, spec.unit, how));
+    }
+    out.emplace_back(spec.key(), value);
+  };
+  const auto with = [](Column first, std::vector<Column> rest) {
+    rest.insert(rest.begin(), std::move(first));
+    return rest;
+  };
+
+  if (term == "viscous-damping") {
+    const Regression r = Regress(samples, with([](const Sample& s) { return s.rate; }, ForceNuisance(v)));
+    if (r.ok) give(18, r.coefficient, fmt::format("force equation error on the stroke rate, t {:+.1f}", r.t));
+  } else if (term == "stribeck-friction") {
+    // The excess is linear at 0, the width is not: one Gauss-Newton step for the excess at each
+    // width of a log grid, 20 % apart from 0.5 to 40 mm/s; the width whose step leaves the least
+    // residual. (The force equation error alone would lose the part of the excess the baseline's
+    // friction level and sharpness absorbed, whose linearisation is poor this far from the truth.)
+    std::vector<double> theta = baseline_values();
+    const int excess = candidate.position_of_index(19), velocity = candidate.position_of_index(20);
+    theta[excess] = 0.0;
+    Regression best;
+    double width = NAN;
+    std::vector<std::string> problems;
+    for (double w = 5e-4; w <= 4e-2; w *= 1.2) {
+      theta[velocity] = w;
+      problems.clear();
+      const Regression r = GaussNewtonSize(baseline, model, theta, excess, problems);
+      if (r.ok && r.coefficient > 0 && r.rss < best.rss) best = r, width = w;
+    }
+    for (const auto& p : problems) note(fmt::format("{}: left out: {}", term, p));
+    if (best.ok) {
+      give(19, best.coefficient, fmt::format("one Gauss-Newton step from the baseline with the excess at 0, t {:+.1f}",
+                                             best.t));
+      give(20, width, "the width in stroke rate whose step explains the residual best");
+    } else {
+      note("stribeck-friction: no width gives a positive excess; defaults kept");
+    }
+  } else if (term == "end-stop") {
+    const double smoothing = own(24, 1e-4), dissipation = own(22, 0.0);
+    double q_min = INFINITY;
+    for (const Sample& s : samples)
+      if (s.force_weight > 0) q_min = std::min(q_min, s.q);
+    Regression best;
+    double position = NAN;
+    // Positions from 2 mm outside the least stroke to 30 mm inside it, 0.1 mm apart: the stop
+    // position is the largest stroke from which down the extension-end force residual grows.
+    for (double x = q_min - 2e-3; x <= q_min + 30e-3; x += 1e-4) {
+      const Column shape = [=](const Sample& s) {
+        const double d = smoothing * Softplus((x - s.q) / smoothing);
+        return -d * (1.0 - dissipation * s.rate);
+      };
+      const Regression r = Regress(samples, with(shape, ForceNuisance(v)));
+      if (r.ok && r.coefficient > 0 && r.rss < best.rss) best = r, position = x;
+    }
+    if (best.ok) {
+      give(23, position, fmt::format("least residual over stop positions near the least stroke {:.4f} m", q_min));
+      give(21, best.coefficient, fmt::format("force equation error on the penetration, t {:+.1f}", best.t));
+    } else {
+      note("end-stop: no position gives a positive stiffness; defaults kept");
+    }
+  } else if (term == "oil-compressibility" || term == "real-gas") {
+    // Sizes of the gas law: the pressure (and, through theta4 p, the force) residual on the exact
+    // sensitivity to the size at 0, next to those of the parameters the baseline estimated.
+    const int index = term == "real-gas" ? 31 : 26;
+    std::vector<double> theta = baseline_values();
+    const int size = candidate.position_of_index(index);
+    theta[size] = 0.0;
+    std::vector<std::string> problems;
+    const Regression r = GaussNewtonSize(baseline, model, theta, size, problems);
+    for (const auto& p : problems) note(fmt::format("{}: left out: {}", term, p));
+    if (r.ok)
+      give(index, r.coefficient,
+           fmt::format("one Gauss-Newton step from the baseline with the size at 0, t {:+.1f}", r.t));
+  } else {
+    note(fmt::format("{}: no rule for starting values; defaults kept", term));
+  }
+  return out;
+}
+
+}  // namespace strut::ident

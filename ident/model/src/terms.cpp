@@ -1,0 +1,741 @@
+// The physics terms of the damper models (method.md, paper eqs. 21-24) and the catalogue that
+// compositions are built from. Adding a term: a class here and one row in Catalogue().
+#include "strut/ident/catalogue.h"
+
+#include <cmath>
+
+namespace strut::ident {
+namespace {
+
+
+// Gas pressure as a model state: an algebraic unknown whose equation is the gas law. Keeping p as
+// an unknown lets terms that make the law implicit (solubility, compliance) stay local.
+const StateSpec kPressureState{"pressure", "Pa", 0, 7.0e5, 1e-3, 1e-3};
+// Gas temperature: first-order state of the heat balance.
+const StateSpec kTemperatureState{"temperature", "K", 1, 293.15, 1e-6, 1e-6};
+
+constexpr double kAmbientK = 293.15;
+
+// Physical ranges of the parameters (ParameterSpec::range).
+constexpr PhysicalRange kPositive = PhysicalRange::Positive();
+constexpr PhysicalRange kNonNegative = PhysicalRange::NonNegative();
+constexpr PhysicalRange kNegative = PhysicalRange::Negative();
+
+//! theta1 (q'' + theta2): moving mass under gravity.
+class Inertia final : public Term {
+ public:
+  unsigned phases() const override { return kBalancePhase; }
+  std::string_view name() const override { return "inertia"; }
+  void Declare(ModelBuilder& b) override {
+    b.add_parameter({.index = 1, .name = "moving_mass", .unit = "kg", .default_value = 40.0,
+                     .description = "mass moving with the stroke (piston, axle, fixture)", .estimate_by_default = true, .range = kPositive});
+    b.add_parameter({.index = 2, .name = "gravity", .unit = "m/s^2", .default_value = 9.81,
+                     .description = "gravitational acceleration (0: a horizontal rig)", .range = kNonNegative});
+  }
+  void Bind(const ModelBuilder& b) override {
+    mass_ = b.parameter_position(1);
+    gravity_ = b.parameter_position(2);
+  }
+  template <class S>
+  void Eval(TermContext<S>& c) const {
+    if (c.phase != TermContext<S>::Phase::kBalance) return;
+    c.force += c.theta[mass_] * (c.v->stroke_accel + c.theta[gravity_]);
+  }
+  STRUT_TERM_EVALUATE
+
+ private:
+  int mass_ = -1, gravity_ = -1;
+};
+
+//! theta4 p: gas force on the piston.
+class GasForce final : public Term {
+ public:
+  unsigned phases() const override { return kBalancePhase; }
+  std::string_view name() const override { return "gas-force"; }
+  void Declare(ModelBuilder& b) override {
+    b.add_parameter({.index = 4, .name = "gas_area", .unit = "m^2", .default_value = 5.0e-3,
+                     .description = "pneumatic piston area", .estimate_by_default = true, .range = kPositive});
+  }
+  void Bind(const ModelBuilder& b) override {
+    area_ = b.parameter_position(4);
+    pressure_ = b.state_position("pressure", name());
+  }
+  template <class S>
+  void Eval(TermContext<S>& c) const {
+    if (c.phase != TermContext<S>::Phase::kBalance) return;
+    c.force += c.theta[area_] * c.v->states[pressure_];
+  }
+  STRUT_TERM_EVALUATE
+
+ private:
+  int area_ = -1, pressure_ = -1;
+};
+
+//! theta3 q'|q'|: orifice damping.
+class QuadraticDamping final : public Term {
+ public:
+  unsigned phases() const override { return kBalancePhase; }
+  std::string_view name() const override { return "quadratic-damping"; }
+  void Declare(ModelBuilder& b) override {
+    b.add_parameter({.index = 3, .name = "orifice_damping", .unit = "N s^2/m^2", .default_value = 8.0e3,
+                     .description = "quadratic (orifice) damping coefficient", .estimate_by_default = true, .range = kNonNegative});
+  }
+  void Bind(const ModelBuilder& b) override { damping_ = b.parameter_position(3); }
+  template <class S>
+  void Eval(TermContext<S>& c) const {
+    if (c.phase != TermContext<S>::Phase::kBalance) return;
+    const S& v = c.v->stroke_rate;
+    c.force += c.theta[damping_] * v * Abs(v);
+  }
+  STRUT_TERM_EVALUATE
+
+ private:
+  int damping_ = -1;
+};
+
+//! (theta8 + theta9 p) atan(theta10 q'): seal friction growing with pressure, smoothed by atan.
+class PressureFriction final : public Term {
+ public:
+  unsigned phases() const override { return kBalancePhase; }
+  std::string_view name() const override { return "pressure-friction"; }
+  void Declare(ModelBuilder& b) override {
+    // theta8 has no sign of its own: the amplitude theta8 + theta9 p is what must not be negative,
+    // and p is an absolute pressure, never near 0.
+    b.add_parameter({.index = 8, .name = "friction_base", .unit = "N", .default_value = 190.0,
+                     .description = "pressure-independent friction amplitude", .estimate_by_default = true});
+    b.add_parameter({.index = 9, .name = "friction_pressure", .unit = "m^2", .default_value = 4.8e-5,
+                     .description = "friction amplitude per unit gas pressure", .estimate_by_default = true, .range = kNonNegative});
+    b.add_parameter({.index = 10, .name = "friction_sharpness", .unit = "s/m", .default_value = 2000.0,
+                     .description = "arctan sharpness of friction in stroke rate", .estimate_by_default = true, .range = kNonNegative});
+  }
+  void Bind(const ModelBuilder& b) override {
+    base_ = b.parameter_position(8);
+    per_pressure_ = b.parameter_position(9);
+    sharpness_ = b.parameter_position(10);
+    pressure_ = b.state_position("pressure", name());
+  }
+  template <class S>
+  void Eval(TermContext<S>& c) const {
+    if (c.phase != TermContext<S>::Phase::kBalance) return;
+    const S amplitude = c.theta[base_] + c.theta[per_pressure_] * c.v->states[pressure_];
+    c.force += amplitude * Atan(S(c.theta[sharpness_] * c.v->stroke_rate));
+  }
+  STRUT_TERM_EVALUATE
+
+ private:
+  int base_ = -1, per_pressure_ = -1, sharpness_ = -1, pressure_ = -1;
+};
+
+//! theta11: constant force offset (atmospheric pressure on the piston, load-cell zero).
+class ForceOffset final : public Term {
+ public:
+  unsigned phases() const override { return kBalancePhase; }
+  std::string_view name() const override { return "force-offset"; }
+  void Declare(ModelBuilder& b) override {
+    b.add_parameter({.index = 11, .name = "force_offset", .unit = "N", .default_value = -507.0,
+                     .description = "constant force offset (-p_atm A plus load-cell zero)", .estimate_by_default = true});
+  }
+  void Bind(const ModelBuilder& b) override { offset_ = b.parameter_position(11); }
+  template <class S>
+  void Eval(TermContext<S>& c) const {
+    if (c.phase == TermContext<S>::Phase::kBalance) c.force += c.theta[offset_];
+  }
+  STRUT_TERM_EVALUATE
+
+ private:
+  int offset_ = -1;
+};
+
+//! theta12: stroke sensor offset, y = q + theta12. Used by Model for inputs and outputs.
+class StrokeOffset final : public Term {
+ public:
+  unsigned phases() const override { return 0; }
+  std::string_view name() const override { return "stroke-offset"; }
+  void Declare(ModelBuilder& b) override {
+    b.add_parameter({.index = 12, .name = "stroke_offset", .unit = "m", .default_value = 0.0,
+                     .description = "stroke sensor offset: measured = true + offset", .estimate_by_default = true,
+                     .typical = 1e-3, .prior_sd = kStrokeZeroPriorSd});
+    b.set_output_offset(12);
+  }
+  void Bind(const ModelBuilder&) override {}
+  template <class S>
+  void Eval(TermContext<S>&) const {}
+  STRUT_TERM_EVALUATE
+};
+
+//! 1 + theta6 q: gas volume relative to full extension (theta6 = -A/V0).
+class GasVolume final : public Term {
+ public:
+  unsigned phases() const override { return kGasStatePhase; }
+  std::string_view name() const override { return "gas-volume"; }
+  void Declare(ModelBuilder& b) override {
+    b.add_parameter({.index = 6, .name = "volume_per_stroke", .unit = "1/m", .default_value = -1.0 / 0.3,
+                     .description = "relative gas-volume change per stroke, -A/V0", .estimate_by_default = true,
+                     .range = kNegative});
+  }
+  void Bind(const ModelBuilder& b) override { per_stroke_ = b.parameter_position(6); }
+  template <class S>
+  void Eval(TermContext<S>& c) const {
+    if (c.phase == TermContext<S>::Phase::kGasState) c.gas_volume += 1.0 + c.theta[per_stroke_] * c.v->stroke;
+  }
+  STRUT_TERM_EVALUATE
+
+ private:
+  int per_stroke_ = -1;
+};
+
+//! 1 dof gas law p = theta5 (N/V)^theta7 (eq. 22; N = 1 without further terms).
+class PolytropicGas final : public Term {
+ public:
+  unsigned phases() const override { return kGasStatePhase | kGasLawPhase; }
+  std::string_view name() const override { return "polytropic-gas"; }
+  void Declare(ModelBuilder& b) override {
+    b.add_parameter({.index = 5, .name = "extended_pressure", .unit = "Pa", .default_value = 7.0e5,
+                     .description = "absolute gas pressure at full extension", .estimate_by_default = true, .range = kPositive});
+    // Between 1 (isothermal) and 1.4 (adiabatic) for a perfect gas; a fit of a gas that dissolves
+    // or exchanges heat may leave that band, so only the sign is physical.
+    b.add_parameter({.index = 7, .name = "polytropic_exponent", .unit = "-", .default_value = 1.2,
+                     .description = "polytropic exponent of the gas", .estimate_by_default = true, .range = kPositive});
+    b.add_state(kPressureState);
+  }
+  void Bind(const ModelBuilder& b) override {
+    p0_ = b.parameter_position(5);
+    exponent_ = b.parameter_position(7);
+    pressure_ = b.state_position("pressure", name());
+  }
+  template <class S>
+  void Eval(TermContext<S>& c) const {
+    using Phase = typename TermContext<S>::Phase;
+    if (c.phase == Phase::kGasState) {
+      c.gas_amount += 1.0;
+    } else if (c.phase == Phase::kGasLaw) {
+      c.state_residuals[pressure_] =
+          c.v->states[pressure_] - c.theta[p0_] * Pow(S(c.gas_amount / c.gas_volume), c.theta[exponent_]);
+    }
+  }
+  STRUT_TERM_EVALUATE
+
+ private:
+  int p0_ = -1, exponent_ = -1, pressure_ = -1;
+};
+
+//! 2 dof thermal gas (eqs. 23, 24): ideal gas p V = theta5 N T with a heat balance
+//! theta15 T' + theta16 (1 + theta6 q)(T + theta17) - (theta4 p + theta11) q' = 0.
+//! Replaces the polytropic law.
+class HeatExchange final : public Term {
+ public:
+  unsigned phases() const override { return kGasStatePhase | kGasLawPhase | kBalancePhase; }
+  std::string_view name() const override { return "heat-exchange"; }
+  void Declare(ModelBuilder& b) override {
+    b.add_parameter({.index = 5, .name = "pressure_per_temperature", .unit = "Pa/K",
+                     .default_value = 7.0e5 * (1.0 + 2.0e-5 * kAmbientK) / kAmbientK,
+                     .description = "gas pressure per temperature at full extension (m R / V0)", .estimate_by_default = true, .range = kPositive});
+    b.add_parameter({.index = 15, .name = "gas_heat_capacity", .unit = "J/K", .default_value = 17.9,
+                     .description = "effective heat capacity of the gas", .estimate_by_default = true, .range = kPositive});
+    b.add_parameter({.index = 16, .name = "wall_heat_conductance", .unit = "W/K", .default_value = 2.24,
+                     .description = "heat conductance through the wall at full extension (0: adiabatic)",
+                     .estimate_by_default = true, .sizes_term = true, .range = kNonNegative});
+    b.add_parameter({.index = 17, .name = "minus_ambient_temperature", .unit = "K", .default_value = -kAmbientK,
+                     .description = "minus the ambient (wall) temperature", .range = kNegative});
+    b.add_state(kPressureState);
+    b.add_state(kTemperatureState);
+  }
+  void Bind(const ModelBuilder& b) override {
+    scale_ = b.parameter_position(5);
+    capacity_ = b.parameter_position(15);
+    conductance_ = b.parameter_position(16);
+    minus_ambient_ = b.parameter_position(17);
+    per_stroke_ = b.parameter_position(6);
+    area_ = b.parameter_position(4);
+    offset_ = b.has_term("force-offset") ? b.parameter_position(11) : -1;
+    pressure_ = b.state_position("pressure", name());
+    temperature_ = b.state_position("temperature", name());
+  }
+  template <class S>
+  void Eval(TermContext<S>& c) const {
+    using Phase = typename TermContext<S>::Phase;
+    const auto& v = *c.v;
+    const S& p = v.states[pressure_];
+    const S& T = v.states[temperature_];
+    if (c.phase == Phase::kGasState) {
+      c.gas_amount += 1.0;
+    } else if (c.phase == Phase::kGasLaw) {
+      c.state_residuals[pressure_] = p - c.theta[scale_] * T * c.gas_amount / c.gas_volume;
+    } else {
+      S work_force = c.theta[area_] * p;
+      if (offset_ >= 0) work_force += c.theta[offset_];
+      c.state_residuals[temperature_] =
+          c.theta[capacity_] * v.state_rates[temperature_] +
+          c.theta[conductance_] * (1.0 + c.theta[per_stroke_] * v.stroke) * (T + c.theta[minus_ambient_]) -
+          work_force * v.stroke_rate;
+    }
+  }
+  STRUT_TERM_EVALUATE
+
+ private:
+  int scale_ = -1, capacity_ = -1, conductance_ = -1, minus_ambient_ = -1, per_stroke_ = -1, area_ = -1,
+      offset_ = -1, pressure_ = -1, temperature_ = -1;
+};
+
+//! The paper's linear gas 'solubility' (eq. 24): p = theta5 T / (1 + theta6 q + theta7 T),
+//! i.e. the free gas falls linearly with pressure: N = 1 - theta7 p / theta5.
+class GasSolubility final : public Term {
+ public:
+  unsigned phases() const override { return kGasStatePhase; }
+  std::string_view name() const override { return "gas-solubility"; }
+  void Declare(ModelBuilder& b) override {
+    b.add_parameter({.index = 7, .name = "gas_solubility", .unit = "1/K", .default_value = 2.0e-5,
+                     .description = "linear gas solubility coefficient (0: none)", .sizes_term = true,
+                     .range = kNonNegative});
+  }
+  void Bind(const ModelBuilder& b) override {
+    if (!b.has_term("heat-exchange"))
+      throw ModelError("gas-solubility needs heat-exchange in the model (the paper's solubility is written "
+                       "with the gas temperature); use 2dof or 1dof+heat-exchange+gas-solubility");
+    solubility_ = b.parameter_position(7);
+    scale_ = b.parameter_position(5);
+    pressure_ = b.state_position("pressure", name());
+  }
+  template <class S>
+  void Eval(TermContext<S>& c) const {
+    if (c.phase == TermContext<S>::Phase::kGasState)
+      c.gas_amount -= c.theta[solubility_] * c.v->states[pressure_] / c.theta[scale_];
+  }
+  STRUT_TERM_EVALUATE
+
+ private:
+  int solubility_ = -1, scale_ = -1, pressure_ = -1;
+};
+
+// ---------------------------------------------------------------------------------------------
+// Extra physics for the simulated rig (damper-physics.md §2; docs/simulated-rig.md). Each term is
+// smooth in every unknown so that Newton and IDA see a well-behaved Jacobian.
+
+//! log(1 + e^x) without overflow; smooth max(0, x).
+template <class S>
+S Softplus(const S& x) {
+  using std::exp;
+  using std::log;
+  if (Value(x) > 0.0) return S(x + log(1.0 + exp(S(-x))));
+  return S(log(1.0 + exp(x)));
+}
+
+//! theta18 q': linear (viscous) damping of the seals and laminar flow.
+class ViscousDamping final : public Term {
+ public:
+  unsigned phases() const override { return kBalancePhase; }
+  std::string_view name() const override { return "viscous-damping"; }
+  void Declare(ModelBuilder& b) override {
+    b.add_parameter({.index = 18, .name = "viscous_damping", .unit = "N s/m", .default_value = 300.0,
+                     .description = "linear (viscous) damping of seals and laminar flow (0: none)", .sizes_term = true,
+                     .range = kNonNegative});
+  }
+  void Bind(const ModelBuilder& b) override { damping_ = b.parameter_position(18); }
+  template <class S>
+  void Eval(TermContext<S>& c) const {
+    if (c.phase == TermContext<S>::Phase::kBalance) c.force += c.theta[damping_] * c.v->stroke_rate;
+  }
+  STRUT_TERM_EVALUATE
+
+ private:
+  int damping_ = -1;
+};
+
+//! theta19 (theta8 + theta9 p) atan(theta10 q') exp(-(q'/theta20)^2): the Stribeck rise of the
+//! seal friction at low speed. With the Coulomb level F_C = (theta8 + theta9 p) pi/2 of
+//! pressure-friction the friction reads F_C sgn(q') [1 + theta19 exp(-(q'/theta20)^2)]
+//! (sgn smoothed by atan), i.e. theta19 = F_S / F_C - 1 (damper-physics.md §2.8).
+class StribeckFriction final : public Term {
+ public:
+  unsigned phases() const override { return kBalancePhase; }
+  std::string_view name() const override { return "stribeck-friction"; }
+  void Declare(ModelBuilder& b) override {
+    b.add_parameter({.index = 19, .name = "stribeck_excess", .unit = "-", .default_value = 0.25,
+                     .description = "static over kinetic friction minus one, F_S / F_C - 1 (0: none)", .typical = 0.1,
+                     .sizes_term = true, .range = kNonNegative});
+    b.add_parameter({.index = 20, .name = "stribeck_velocity", .unit = "m/s", .default_value = 3.0e-3,
+                     .description = "Stribeck velocity: width of the static-friction rise", .typical = 3.0e-3,
+                     .shapes_term = true, .range = kPositive});
+  }
+  void Bind(const ModelBuilder& b) override {
+    if (!b.has_term("pressure-friction"))
+      throw ModelError("stribeck-friction scales the friction of pressure-friction, which the model lacks");
+    excess_ = b.parameter_position(19);
+    velocity_ = b.parameter_position(20);
+    base_ = b.parameter_position(8);
+    per_pressure_ = b.parameter_position(9);
+    sharpness_ = b.parameter_position(10);
+    pressure_ = b.state_position("pressure", name());
+  }
+  template <class S>
+  void Eval(TermContext<S>& c) const {
+    using std::exp;
+    if (c.phase != TermContext<S>::Phase::kBalance) return;
+    const S& v = c.v->stroke_rate;
+    const S ratio = v / c.theta[velocity_];
+    const S amplitude = c.theta[base_] + c.theta[per_pressure_] * c.v->states[pressure_];
+    c.force += c.theta[excess_] * amplitude * Atan(S(c.theta[sharpness_] * v)) * S(exp(S(-ratio * ratio)));
+  }
+  STRUT_TERM_EVALUATE
+
+ private:
+  int excess_ = -1, velocity_ = -1, base_ = -1, per_pressure_ = -1, sharpness_ = -1, pressure_ = -1;
+};
+
+//! Top-out end stop near full extension (Hunt-Crossley contact, smoothed): penetration
+//! d = theta24 softplus((theta23 - q) / theta24), contact force k d (1 + alpha (-q')) pushing
+//! towards compression, so the balance gets -theta21 d (1 - theta22 q'). The Hunt-Crossley damping
+//! is theta22 times the stiffness, so theta21 = 0 is no stop at all and the force is linear in it.
+//! A distance s inside the stop position leaves k theta24 exp(-s / theta24): 0.02 N at 10 theta24
+//! (damper-physics.md §2.9).
+class EndStop final : public Term {
+ public:
+  unsigned phases() const override { return kBalancePhase; }
+  std::string_view name() const override { return "end-stop"; }
+  void Declare(ModelBuilder& b) override {
+    b.add_parameter({.index = 21, .name = "end_stop_stiffness", .unit = "N/m", .default_value = 5.0e6,
+                     .description = "top-out stop contact stiffness, elastomer snubber (0: no stop)", .typical = 1.0e6,
+                     .sizes_term = true, .range = kNonNegative});
+    b.add_parameter({.index = 22, .name = "end_stop_dissipation", .unit = "s/m", .default_value = 2.0,
+                     .description = "top-out stop Hunt-Crossley damping over stiffness (restitution)",
+                     .range = kNonNegative});
+    b.add_parameter({.index = 23, .name = "end_stop_position", .unit = "m", .default_value = 0.0,
+                     .description = "stroke below which the top-out stop is in contact", .typical = 5.0e-3,
+                     .shapes_term = true});
+    b.add_parameter({.index = 24, .name = "end_stop_smoothing", .unit = "m", .default_value = 1.0e-4,
+                     .description = "length over which the contact onset is smoothed", .range = kPositive});
+  }
+  void Bind(const ModelBuilder& b) override {
+    stiffness_ = b.parameter_position(21);
+    dissipation_ = b.parameter_position(22);
+    position_ = b.parameter_position(23);
+    smoothing_ = b.parameter_position(24);
+  }
+  template <class S>
+  void Eval(TermContext<S>& c) const {
+    if (c.phase != TermContext<S>::Phase::kBalance) return;
+    const S& w = c.theta[smoothing_];
+    const S penetration = w * Softplus(S((c.theta[position_] - c.v->stroke) / w));
+    c.force -= c.theta[stiffness_] * penetration * (1.0 - c.theta[dissipation_] * c.v->stroke_rate);
+  }
+  STRUT_TERM_EVALUATE
+
+ private:
+  int stiffness_ = -1, dissipation_ = -1, position_ = -1, smoothing_ = -1;
+};
+
+//! Oil and cylinder compliance: the oil shrinks and the cylinder swells with pressure, giving the
+//! gas more room: V_g / V0 += theta25 theta26 (p - theta27), with theta25 = V_oil / V0 and
+//! theta26 the effective compliance of oil and cylinder, 1/K_eff = 1/K_oil + D/(E t)
+//! (damper-physics.md §2.3). Softens the gas spring at deep compression. Sized by the compliance,
+//! not the bulk modulus: 0 is rigid oil and the volume is linear in it.
+class OilCompressibility final : public Term {
+ public:
+  unsigned phases() const override { return kGasStatePhase; }
+  std::string_view name() const override { return "oil-compressibility"; }
+  void Declare(ModelBuilder& b) override {
+    b.add_parameter({.index = 25, .name = "oil_volume_ratio", .unit = "-", .default_value = 1.0,
+                     .description = "oil volume over the gas volume at full extension, V_oil / V0",
+                     .range = kNonNegative});
+    b.add_parameter({.index = 26, .name = "oil_compliance", .unit = "1/Pa", .default_value = 1.0 / 1.2e9,
+                     .description = "effective compliance of oil and cylinder, 1/K_eff (0: rigid)", .typical = 1.0e-9,
+                     .sizes_term = true, .range = kNonNegative});
+    b.add_parameter({.index = 27, .name = "compliance_reference_pressure", .unit = "Pa", .default_value = 7.0e5,
+                     .description = "pressure at which the compliance adds no volume (the charge pressure)",
+                     .range = kPositive});
+  }
+  void Bind(const ModelBuilder& b) override {
+    ratio_ = b.parameter_position(25);
+    compliance_ = b.parameter_position(26);
+    reference_ = b.parameter_position(27);
+    pressure_ = b.state_position("pressure", name());
+  }
+  template <class S>
+  void Eval(TermContext<S>& c) const {
+    if (c.phase == TermContext<S>::Phase::kGasState)
+      c.gas_volume += c.theta[ratio_] * c.theta[compliance_] * (c.v->states[pressure_] - c.theta[reference_]);
+  }
+  STRUT_TERM_EVALUATE
+
+ private:
+  int ratio_ = -1, compliance_ = -1, reference_ = -1, pressure_ = -1;
+};
+
+//! Real-gas nitrogen: the ideal-gas pressure times the compressibility factor
+//! Z = 1 + theta31 (B(T) rho + theta30 rho^2), B(T) = theta28 - theta29 / T (a two-constant fit of the N2
+//! second virial coefficient, damper-physics.md §2.10), rho the molar density of the free gas:
+//! theta5 N / (R V) in 2 dof (theta5 = n R / V0), theta5 N / (R T_amb V) in 1 dof (theta5 the
+//! charge pressure; the 1 dof model has no gas temperature, B is taken at ambient). It multiplies
+//! the free gas amount by Z (by Z^(1/theta7) under the polytropic law), so every gas law gets p Z.
+//! The gain theta31 sizes the correction: 0 is the ideal gas, 1 nitrogen.
+class RealGas final : public Term {
+ public:
+  unsigned phases() const override { return kGasStatePhase; }
+  std::string_view name() const override { return "real-gas"; }
+  void Declare(ModelBuilder& b) override {
+    // The coefficients shape Z - 1 (they are N2's, any sign a gas may have); theta31 sizes it.
+    b.add_parameter({.index = 28, .name = "virial_b0", .unit = "m^3/mol", .default_value = 4.88e-5,
+                     .description = "N2 second virial coefficient B(T) = b0 - a / T: b0"});
+    b.add_parameter({.index = 29, .name = "virial_a", .unit = "m^3 K/mol", .default_value = 1.59e-2,
+                     .description = "N2 second virial coefficient B(T) = b0 - a / T: a"});
+    b.add_parameter({.index = 30, .name = "virial_c", .unit = "m^6/mol^2", .default_value = 1.4e-9,
+                     .description = "N2 third virial coefficient C"});
+    b.add_parameter({.index = 31, .name = "virial_gain", .unit = "-", .default_value = 1.0,
+                     .description = "gain on the virial correction Z - 1 (0: ideal gas, 1: nitrogen)", .typical = 1.0,
+                     .sizes_term = true, .range = kNonNegative});
+  }
+  void Bind(const ModelBuilder& b) override {
+    b0_ = b.parameter_position(28);
+    a_ = b.parameter_position(29);
+    c_ = b.parameter_position(30);
+    gain_ = b.parameter_position(31);
+    scale_ = b.parameter_position(5);
+    thermal_ = b.has_term("heat-exchange");
+    exponent_ = thermal_ ? -1 : b.parameter_position(7);
+    temperature_ = thermal_ ? b.state_position("temperature", name()) : -1;
+    if (!thermal_ && !b.has_term("polytropic-gas"))
+      throw ModelError("real-gas needs a gas law (polytropic-gas or heat-exchange)");
+  }
+  template <class S>
+  void Eval(TermContext<S>& c) const {
+    using std::exp;
+    using std::log;
+    if (c.phase != TermContext<S>::Phase::kGasState) return;
+    constexpr double kGasConstant = 8.314462618;  // J/(mol K)
+    S rho, b;
+    if (thermal_) {
+      const S& T = c.v->states[temperature_];
+      rho = c.theta[scale_] * c.gas_amount / (kGasConstant * c.gas_volume);
+      b = c.theta[b0_] - c.theta[a_] / T;
+    } else {
+      rho = c.theta[scale_] * c.gas_amount / (kGasConstant * kAmbientK * c.gas_volume);
+      b = c.theta[b0_] - c.theta[a_] / kAmbientK;
+    }
+    const S z = 1.0 + c.theta[gain_] * (b * rho + c.theta[c_] * rho * rho);
+    if (thermal_)
+      c.gas_amount *= z;
+    else
+      c.gas_amount *= S(exp(S(log(z) / c.theta[exponent_])));
+  }
+  STRUT_TERM_EVALUATE
+
+ private:
+  int b0_ = -1, a_ = -1, c_ = -1, gain_ = -1, scale_ = -1, exponent_ = -1, temperature_ = -1;
+  bool thermal_ = false;
+};
+
+// ---------------------------------------------------------------------------------------------
+// Generic forced oscillators (docs/silverbox.md): m y'' + d y' + d3 y'^3 + k y + k2 y^2 + k3 y^3 + u0 = u,
+// measured output y + y0. The displacement slot is the output y, the drive slot the input u; both
+// in the units of the record ([y], [u]: volts for the Silverbox circuit). Indices from theta50 on.
+
+// The channels of a generic oscillator: output y (the unknown under input u), input u. Typical
+// values 0.1 (the static solve starts there and limits its steps by them), Newton scales 1e-9.
+const StateSpec kOutputY{"y", "[y]", 2, 0.1, 1e-9, 1e-9};
+const StateSpec kInputU{"u", "[u]", 0, 0.1, 1e-9, 1e-9};
+
+//! theta50 y'' + theta51 y' + theta52 y: mass, damping and stiffness of a forced oscillator
+//! driven by the input u. The base of the generic models; it names the channels y and u.
+class LinearOscillator final : public Term {
+ public:
+  unsigned phases() const override { return kBalancePhase; }
+  std::string_view name() const override { return "linear-oscillator"; }
+  void Declare(ModelBuilder& b) override {
+    // Tiny typical sizes: the estimator scales these by their (data-derived) starting values, whatever
+    // the units of the record.
+    // Mass and damping of a passive oscillator are positive; the linear stiffness is negative in a
+    // bistable (double-well) Duffing oscillator, so it has no sign.
+    b.add_parameter({.index = 50, .name = "mass", .unit = "[u] s^2/[y]", .default_value = 1.0,
+                     .description = "oscillator mass (input per output acceleration)", .estimate_by_default = true,
+                     .typical = 1e-12, .range = kPositive});
+    b.add_parameter({.index = 51, .name = "damping", .unit = "[u] s/[y]", .default_value = 0.1,
+                     .description = "linear damping (input per output rate)", .estimate_by_default = true,
+                     .typical = 1e-12, .range = kNonNegative});
+    b.add_parameter({.index = 52, .name = "stiffness", .unit = "[u]/[y]", .default_value = 1.0,
+                     .description = "linear stiffness (input per output)", .estimate_by_default = true,
+                     .typical = 1e-12});
+    b.declare_channels(kOutputY, kInputU, name());
+  }
+  void Bind(const ModelBuilder& b) override {
+    mass_ = b.parameter_position(50);
+    damping_ = b.parameter_position(51);
+    stiffness_ = b.parameter_position(52);
+  }
+  template <class S>
+  void Eval(TermContext<S>& c) const {
+    if (c.phase != TermContext<S>::Phase::kBalance) return;
+    const auto& v = *c.v;
+    c.force += c.theta[mass_] * v.stroke_accel + c.theta[damping_] * v.stroke_rate + c.theta[stiffness_] * v.stroke;
+  }
+  STRUT_TERM_EVALUATE
+
+ private:
+  int mass_ = -1, damping_ = -1, stiffness_ = -1;
+};
+
+//! theta53 y^2: quadratic (asymmetric) stiffness.
+class QuadraticStiffness final : public Term {
+ public:
+  unsigned phases() const override { return kBalancePhase; }
+  std::string_view name() const override { return "quadratic-stiffness"; }
+  void Declare(ModelBuilder& b) override {
+    b.add_parameter({.index = 53, .name = "quadratic_stiffness", .unit = "[u]/[y]^2", .default_value = 0.0,
+                     .description = "quadratic stiffness: input per output squared", .estimate_by_default = true,
+                     .typical = 1e-12, .sizes_term = true});
+  }
+  void Bind(const ModelBuilder& b) override { k2_ = b.parameter_position(53); }
+  template <class S>
+  void Eval(TermContext<S>& c) const {
+    if (c.phase == TermContext<S>::Phase::kBalance) c.force += c.theta[k2_] * c.v->stroke * c.v->stroke;
+  }
+  STRUT_TERM_EVALUATE
+
+ private:
+  int k2_ = -1;
+};
+
+//! theta54 y^3: cubic (hardening when positive) stiffness, the Duffing term.
+class CubicStiffness final : public Term {
+ public:
+  unsigned phases() const override { return kBalancePhase; }
+  std::string_view name() const override { return "cubic-stiffness"; }
+  void Declare(ModelBuilder& b) override {
+    b.add_parameter({.index = 54, .name = "cubic_stiffness", .unit = "[u]/[y]^3", .default_value = 0.0,
+                     .description = "cubic stiffness: input per output cubed", .estimate_by_default = true,
+                     .typical = 1e-12, .sizes_term = true});
+  }
+  void Bind(const ModelBuilder& b) override { k3_ = b.parameter_position(54); }
+  template <class S>
+  void Eval(TermContext<S>& c) const {
+    if (c.phase == TermContext<S>::Phase::kBalance)
+      c.force += c.theta[k3_] * c.v->stroke * c.v->stroke * c.v->stroke;
+  }
+  STRUT_TERM_EVALUATE
+
+ private:
+  int k3_ = -1;
+};
+
+//! theta58 y'^3: cubic (velocity-cubed) damping, growing with the rate like a saturating
+//! electronic element; odd in y', so it adds only odd harmonics like the cubic spring.
+class CubicDamping final : public Term {
+ public:
+  unsigned phases() const override { return kBalancePhase; }
+  std::string_view name() const override { return "cubic-damping"; }
+  void Declare(ModelBuilder& b) override {
+    b.add_parameter({.index = 58, .name = "cubic_damping", .unit = "[u] s^3/[y]^3", .default_value = 0.0,
+                     .description = "cubic damping: input per output rate cubed", .estimate_by_default = true,
+                     .typical = 1e-12, .sizes_term = true});
+  }
+  void Bind(const ModelBuilder& b) override { d3_ = b.parameter_position(58); }
+  template <class S>
+  void Eval(TermContext<S>& c) const {
+    if (c.phase != TermContext<S>::Phase::kBalance) return;
+    const S& v = c.v->stroke_rate;
+    c.force += c.theta[d3_] * v * v * v;
+  }
+  STRUT_TERM_EVALUATE
+
+ private:
+  int d3_ = -1;
+};
+
+//! theta55: input offset, the input reading that moves nothing (measured u = true u + theta55).
+class InputOffset final : public Term {
+ public:
+  unsigned phases() const override { return kBalancePhase; }
+  std::string_view name() const override { return "input-offset"; }
+  void Declare(ModelBuilder& b) override {
+    b.add_parameter({.index = 55, .name = "input_offset", .unit = "[u]", .default_value = 0.0,
+                     .description = "input sensor offset: measured = true + offset", .estimate_by_default = true,
+                     .typical = 1e-3, .prior_sd = kStrokeZeroPriorSd});
+  }
+  void Bind(const ModelBuilder& b) override { offset_ = b.parameter_position(55); }
+  template <class S>
+  void Eval(TermContext<S>& c) const {
+    if (c.phase == TermContext<S>::Phase::kBalance) c.force += c.theta[offset_];
+  }
+  STRUT_TERM_EVALUATE
+
+ private:
+  int offset_ = -1;
+};
+
+//! theta56: output offset, measured y = true y + theta56 (like stroke-offset for dampers).
+class OutputOffset final : public Term {
+ public:
+  unsigned phases() const override { return 0; }
+  std::string_view name() const override { return "output-offset"; }
+  void Declare(ModelBuilder& b) override {
+    b.add_parameter({.index = 56, .name = "output_offset", .unit = "[y]", .default_value = 0.0,
+                     .description = "output sensor offset: measured = true + offset", .estimate_by_default = true,
+                     .typical = 1e-3, .prior_sd = kStrokeZeroPriorSd});
+    b.set_output_offset(56);
+  }
+  void Bind(const ModelBuilder&) override {}
+  template <class S>
+  void Eval(TermContext<S>&) const {}
+  STRUT_TERM_EVALUATE
+};
+
+template <class T>
+std::shared_ptr<Term> Make() {
+  return std::make_shared<T>();
+}
+
+}  // namespace
+
+const std::vector<TermEntry>& Catalogue() {
+  static const std::vector<TermEntry> entries = {
+      {"inertia", &Make<Inertia>, "", "moving mass and gravity (theta1, theta2)"},
+      {"gas-force", &Make<GasForce>, "", "gas force theta4 p"},
+      {"quadratic-damping", &Make<QuadraticDamping>, "", "orifice damping theta3 q'|q'|"},
+      {"pressure-friction", &Make<PressureFriction>, "", "(theta8 + theta9 p) atan(theta10 q')"},
+      {"force-offset", &Make<ForceOffset>, "", "constant force offset theta11"},
+      {"stroke-offset", &Make<StrokeOffset>, "", "stroke sensor offset theta12"},
+      {"gas-volume", &Make<GasVolume>, "", "gas volume 1 + theta6 q"},
+      {"polytropic-gas", &Make<PolytropicGas>, "", "polytropic gas law theta5 / (1 + theta6 q)^theta7"},
+      {"heat-exchange", &Make<HeatExchange>, "polytropic-gas", "ideal gas with wall heat exchange (2 dof)", "loop-frequency",
+       "a pressure-stroke loop whose area depends on the frequency: heat flows through the wall"},
+      {"gas-solubility", &Make<GasSolubility>, "", "linear gas solubility theta7 (2 dof)", "group-bias",
+       "a pressure bias that depends on the static-position group: less free gas at high pressure"},
+      {"viscous-damping", &Make<ViscousDamping>, "", "linear seal damping theta18 q'", "velocity",
+       "residual force proportional to the stroke velocity: linear (viscous) damping"},
+      {"stribeck-friction", &Make<StribeckFriction>, "", "static friction above kinetic, theta19, theta20", "reversal",
+       "force spikes at the velocity reversals: static friction above kinetic"},
+      {"end-stop", &Make<EndStop>, "", "top-out contact near full extension, theta21..theta24", "extension",
+       "residual only near full extension: contact with the top-out stop"},
+      {"oil-compressibility", &Make<OilCompressibility>, "", "oil and cylinder compliance theta25..theta27 (theta26 = 1/K_eff)", "pressure-softening",
+       "softening that grows with pressure: oil and cylinder compliance"},
+      {"real-gas", &Make<RealGas>, "", "virial nitrogen Z(rho, T), theta28..theta31", "pressure-stiffening",
+       "stiffening that grows with pressure: real-gas (virial) nitrogen"},
+      // Generic oscillators (docs/silverbox.md); no locus yet: discovery does not propose them.
+      {"linear-oscillator", &Make<LinearOscillator>, "", "forced oscillator theta50 y'' + theta51 y' + theta52 y = u", "", ""},
+      {"quadratic-stiffness", &Make<QuadraticStiffness>, "", "quadratic stiffness theta53 y^2", "", ""},
+      {"cubic-stiffness", &Make<CubicStiffness>, "", "cubic (Duffing) stiffness theta54 y^3", "", ""},
+      {"cubic-damping", &Make<CubicDamping>, "", "cubic damping theta58 y'^3", "", ""},
+      {"input-offset", &Make<InputOffset>, "", "input sensor offset theta55", "", ""},
+      {"output-offset", &Make<OutputOffset>, "", "output sensor offset theta56", "", ""},
+  };
+  return entries;
+}
+
+const std::vector<std::string>& BaseTerms(std::string_view base) {
+  static const std::vector<std::string> one = {"inertia",        "gas-force",   "quadratic-damping",
+                                               "pressure-friction", "force-offset", "stroke-offset",
+                                               "gas-volume",     "polytropic-gas"};
+  static const std::vector<std::string> two = [] {
+    auto t = one;
+    t.back() = "heat-exchange";
+    t.push_back("gas-solubility");
+    return t;
+  }();
+  static const std::vector<std::string> oscillator = {"linear-oscillator"};
+  static const std::vector<std::string> none;
+  if (base == "1dof") return one;
+  if (base == "2dof") return two;
+  if (base == "linear-oscillator") return oscillator;
+  return none;
+}
+
+}  // namespace strut::ident

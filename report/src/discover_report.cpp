@@ -1,0 +1,137 @@
+#include "strut/report/discover_report.h"
+
+#include <fmt/format.h>
+
+#include <cmath>
+
+#include "strut/report/fit_report.h"
+#include "strut/report/html_report.h"
+#include "strut/ident/model.h"
+
+namespace strut::report {
+
+using namespace strut::ident;
+namespace {
+
+std::string Ratios(const std::map<std::string, double>& ratio) {
+  std::string out;
+  for (const auto& [channel, r] : ratio) out += fmt::format("{}{} {:.2f}", out.empty() ? "" : ", ", channel, r);
+  return out;
+}
+
+std::string Number(double v, const char* format) {
+  return std::isfinite(v) ? fmt::format(fmt::runtime(format), v) : std::string("—");
+}
+
+}  // namespace
+
+std::string CompositionNote(const DiscoveryResult& r) {
+  if (r.missing.empty()) return "";
+  std::string chain = r.baseline.model;
+  for (const auto& term : r.missing) chain += "+" + term;
+  if (chain == r.final_model) return "";
+  std::string canonical = r.final_model;
+  try {
+    canonical = Model::Build(chain, Causality::kStrokeInput).composition();
+  } catch (const std::exception&) {
+    // A chain the catalogue cannot build again: say only what discovery reported.
+  }
+  if (canonical != r.final_model) return "";
+  return fmt::format(
+      "{} is the model {}: terms are evaluated in catalogue order, so this composition and {} are the same "
+      "equations and print as {} (docs/models.md). The parameters below are {}'s.",
+      chain, r.final_model, r.final_model, r.final_model, r.final_model);
+}
+
+void WriteDiscoveryReport(const DiscoveryResult& r, const std::string& path) {
+  HtmlReport report("strut discover: " + r.baseline.model + " → " + r.final_model);
+  const bool at_floor = r.final_fit.Verdict() == FitVerdict::kAtNoiseFloor;
+  report.AddCallout(r.conclusion, at_floor ? Tone::kGood : r.final_fit.converged ? Tone::kWarning : Tone::kBad);
+  const std::string note = CompositionNote(r);
+  if (!note.empty()) report.AddParagraph(note);
+  report.AddParagraph(
+      "ΔBIC is the BIC with the added term minus the BIC before it: negative means the term explains more than its "
+      "parameters cost (a term is kept only below −10, very strong evidence). Noise ratios are the residual over the "
+      "noise variance of the averaged data (about 1 at the noise floor). Units throughout: stroke in mm, force in kN, "
+      "pressure in MPa.");
+
+  report.AddHeading("What was added");
+  std::vector<std::vector<std::string>> rows;
+  for (const auto& s : r.steps)
+    rows.push_back({s.term, fmt::format("{:+.1f}", s.delta_bic), Ratios(s.noise_before), Ratios(s.noise_after),
+                    Number(s.cv_before, "{:.3f}"), Number(s.cv_after, "{:.3f}"), s.evidence});
+  if (rows.empty()) {
+    report.AddParagraph(r.nothing_missing ? "Nothing: the baseline " + r.baseline.model +
+                                                " already explains the data to the noise floor."
+                                          : "Nothing: no catalogue term improved the fit enough to be kept.");
+  } else {
+    report.AddTable({"added term", "ΔBIC", "noise ratio before", "noise ratio after", "held-out noise ratio before",
+                     "held-out noise ratio after", "evidence"},
+                    rows,
+                    "Each step adds the catalogue term with the most negative ΔBIC that also brings the noise ratios "
+                    "down and predicts left-out experiments better.");
+  }
+  for (std::size_t k = 0; k < r.steps.size(); ++k) {
+    rows.clear();
+    for (const auto& c : r.steps[k].candidates)
+      rows.push_back({c.term, c.ok ? fmt::format("{:+.1f}", c.delta_bic) : "—", Ratios(c.noise_ratio),
+                      Number(c.cv_ratio, "{:.3f}"), fmt::format("{:.1f}", c.evidence),
+                      !c.ok                ? c.error
+                      : c.verdict.empty() ? "not needed: a candidate with a more negative ΔBIC was kept"
+                                          : c.verdict});
+    report.AddTable({"candidate", "ΔBIC", "noise ratio", "held-out noise ratio", "evidence", "verdict"}, rows,
+                    fmt::format("Round {}: every candidate refitted (ΔBIC negative is better).", k + 1));
+  }
+
+  report.AddHeading("Where the baseline did not fit");
+  rows.clear();
+  for (const auto& f : r.mismatch) rows.push_back({f.locus, f.channel, fmt::format("{:.1f}", f.score), f.detail});
+  if (rows.empty()) {
+    report.AddParagraph("No feature of the baseline's residuals stands above the noise.");
+  } else {
+    report.AddTable({"feature", "channel", "score", "detail"}, rows,
+                    "Scores are signed signal-to-noise ratios of each feature in the baseline's residuals: large "
+                    "and positive, the feature is there; about 1 or below, it is not (negative: the residuals are "
+                    "smaller there than elsewhere).");
+  }
+  if (!r.unexplained.empty()) {
+    rows.clear();
+    for (const auto& f : r.unexplained) rows.push_back({f.locus, f.channel, fmt::format("{:.1f}", f.score), f.detail});
+    report.AddTable({"feature", "channel", "score", "detail"}, rows,
+                    "Left unexplained by the final model " + r.final_model + " (signed signal-to-noise, as above).");
+  }
+
+  report.AddHeading("Residuals before and after");
+  for (const auto& channel : r.baseline.channels) {
+    const DisplayUnit d = ChannelDisplayUnit(channel.name);
+    std::vector<std::string> labels;
+    ErrorBarSeries before{"baseline " + r.baseline.model, {}, {}}, after{"final " + r.final_model, {}, {}};
+    for (std::size_t a = 0; a < r.baseline.experiments.size(); ++a) {
+      labels.push_back(r.baseline.experiments[a].label);
+      for (auto* series : {&before, &after}) {
+        const FitSummary& fit = series == &before ? r.baseline : r.final_fit;
+        double mean = NAN, sd = NAN;
+        if (a < fit.experiments.size() && fit.experiments[a].converged)
+          for (const auto& c : fit.experiments[a].channels)
+            if (c.channel == channel.name) mean = c.mean * d.scale, sd = c.sd * d.scale;
+        series->mean.push_back(mean);
+        series->sigma.push_back(sd);
+      }
+    }
+    report.AddErrorBars(channel.name + " residual per experiment, before and after",
+                        AxisLabel(channel.name + " residual", d), labels, {before, after});
+  }
+
+  report.AddHeading("The final model " + r.final_model);
+  AddVerdict(report, r.final_fit);
+  AddParameterTable(report, r.final_fit);
+  AddChannelTable(report, r.final_fit);
+  report.AddHeading("Measured and predicted by " + r.final_model + ", per experiment");
+  report.AddParagraph(
+      "Left: the measured values (dots) and the final model's prediction (line) over one period. Right: the "
+      "residual, measured − predicted, with the band of ± 2σ of the averaged data's noise.");
+  AddExperimentPlots(report, r.final_fit);
+  report.Write(path);
+}
+
+}  // namespace strut::report

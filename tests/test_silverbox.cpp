@@ -11,6 +11,7 @@
 #include "strut/daq/session.h"
 #include "strut/ident/estimator.h"
 #include "strut/daq/import.h"
+#include "strut/ident/initial_values.h"
 #include "strut/study/oscillator.h"
 #include "strut/study/silverbox.h"
 #include "strut/sim/transient.h"

@@ -101,7 +101,7 @@ TEST(Discover, GivesTheSameAnswerOnOneAndTwoThreads) {
   for (int i = 0; i < a.final_fit.parameters.size(); ++i) {
     const std::string key = a.final_fit.parameters.spec(i).key();
     same(a.final_fit.parameters.value(i), b.final_fit.parameters.value(i), key);
-    same(a.final_fit.sd[i], b.final_fit.sd[i], key + " sd");
+    same(a.final_fit.estimates[i].sd, b.final_fit.estimates[i].sd, key + " sd");
   }
 }
 

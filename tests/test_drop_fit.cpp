@@ -165,31 +165,31 @@ TEST(DropFit, ShakerMatrixPlusOneDropRecoversADrawnUnitsTruth) {
   const ident::ParameterSet want = truth.Parameters(rig.model());
   int estimated = 0, inside = 0;
   for (int i = 0; i < s.parameters.size(); ++i) {
-    if (!s.estimated[i]) continue;
+    if (!s.estimates[i].estimated) continue;
     const std::string key = s.parameters.spec(i).key();
     const double truth_value = want.value(*want.find(key));
-    EXPECT_LE(std::abs(s.parameters.value(i) - truth_value), 3.0 * s.sd[i]) << key;
+    EXPECT_LE(std::abs(s.parameters.value(i) - truth_value), 3.0 * s.estimates[i].sd) << key;
     ++estimated;
-    inside += std::abs(s.parameters.value(i) - truth_value) <= 1.96 * s.sd[i];
+    inside += std::abs(s.parameters.value(i) - truth_value) <= 1.96 * s.estimates[i].sd;
   }
   EXPECT_GE(estimated, 12);
   EXPECT_GE(inside, estimated - 2);
   const int theta3 = s.parameters.position_of_index(3);
-  ASSERT_TRUE(s.estimated[theta3]);
+  ASSERT_TRUE(s.estimates[theta3].estimated);
   // The drop's contribution: theta3's sd without it over the sd with it.
   const auto drop = std::find_if(s.contributions.begin(), s.contributions.end(),
                                  [](const ident::ExperimentContribution& c) { return c.kind == "drop"; });
   ASSERT_NE(drop, s.contributions.end());
-  std::printf("  theta3 %.1f +- %.2f (truth %.1f); without the drop sd %.2f\n", s.parameters.value(theta3), s.sd[theta3],
+  std::printf("  theta3 %.1f +- %.2f (truth %.1f); without the drop sd %.2f\n", s.parameters.value(theta3), s.estimates[theta3].sd,
               want.value(*want.find("theta3")), drop->sd_without[theta3]);
-  EXPECT_GT(drop->sd_without[theta3], 2.0 * s.sd[theta3]);
+  EXPECT_GT(drop->sd_without[theta3], 2.0 * s.estimates[theta3].sd);
   // In the JSON: the drop with its channels, and every experiment's contribution.
   const nlohmann::json j = report::FitToJson(s);
   ASSERT_EQ(j["transient_experiments"].size(), 1u);
   EXPECT_EQ(j["transient_experiments"][0]["label"], "drop");
   EXPECT_NEAR(j["transient_experiments"][0]["stroke"]["noise_ratio"].get<double>(), 1.0, 0.2);
   EXPECT_EQ(j["contributions"].size(), s.experiments.size() + 1);
-  EXPECT_GT(j["contributions"].back()["sd_without"]["theta3"].get<double>(), 2.0 * s.sd[theta3]);
+  EXPECT_GT(j["contributions"].back()["sd_without"]["theta3"].get<double>(), 2.0 * s.estimates[theta3].sd);
 }
 
 // strut identify end to end: a drawn unit's matrix and drop as two sessions, the drop fitted beside

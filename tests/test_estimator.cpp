@@ -43,9 +43,9 @@ daq::Session WithSensorNoise(const daq::Session& clean, std::mt19937_64& rng) {
 void ExpectRecovered(const FitSummary& fit, const ParameterSet& truth, double within_sd) {
   ASSERT_TRUE(fit.converged) << fit.FullReport();
   for (int i : fit.estimated_positions) {
-    const double z = (fit.parameters.value(i) - truth.value(i)) / fit.sd[i];
+    const double z = (fit.parameters.value(i) - truth.value(i)) / fit.estimates[i].sd;
     EXPECT_LT(std::abs(z), within_sd) << truth.spec(i).key() << " truth " << truth.value(i) << " estimate "
-                                      << fit.parameters.value(i) << " sd " << fit.sd[i];
+                                      << fit.parameters.value(i) << " sd " << fit.estimates[i].sd;
   }
 }
 
@@ -168,7 +168,7 @@ TEST(Estimator, NinetyFivePercentIntervalsHoldTheTruthAtTheirRate) {
     const FitSummary fit = estimator.Fit(data, truth, choices);
     ASSERT_TRUE(fit.converged);
     for (int i : fit.estimated_positions) {
-      inside += std::abs(fit.parameters.value(i) - truth.value(i)) <= 1.96 * fit.sd[i];
+      inside += std::abs(fit.parameters.value(i) - truth.value(i)) <= 1.96 * fit.estimates[i].sd;
       ++total;
     }
   }
@@ -211,11 +211,11 @@ TEST(Estimator, IntervalsCarryTheMeasuredInputsNoise) {
     ASSERT_TRUE(e.converged && a.converged && b.converged);
     for (int i : a.estimated_positions) {
       EXPECT_DOUBLE_EQ(a.parameters.value(i), b.parameters.value(i));  // only the intervals differ
-      z_estimated.push_back((e.parameters.value(i) - truth.value(i)) / e.sd[i]);
-      z_with.push_back((a.parameters.value(i) - truth.value(i)) / a.sd[i]);
-      z_without.push_back((b.parameters.value(i) - truth.value(i)) / b.sd[i]);
-      factor = std::max(factor, a.input_noise_sd_factor[i]);
-      estimated_factor = std::max(estimated_factor, e.input_noise_sd_factor[i]);
+      z_estimated.push_back((e.parameters.value(i) - truth.value(i)) / e.estimates[i].sd);
+      z_with.push_back((a.parameters.value(i) - truth.value(i)) / a.estimates[i].sd);
+      z_without.push_back((b.parameters.value(i) - truth.value(i)) / b.estimates[i].sd);
+      factor = std::max(factor, a.estimates[i].input_noise_sd_factor);
+      estimated_factor = std::max(estimated_factor, e.estimates[i].input_noise_sd_factor);
     }
   }
   const auto rms = [](const std::vector<double>& z) {

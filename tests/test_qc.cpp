@@ -57,16 +57,15 @@ TEST(QcQuantities, SdFollowsTheCovarianceByLinearisation) {
   ident::FitSummary fit;
   fit.parameters = model.defaults();
   const int n = fit.parameters.size();
-  fit.sd.assign(n, NAN);
-  fit.estimated.assign(n, false);
+  fit.estimates.assign(n, ident::ParameterEstimate{});
   const int i6 = fit.parameters.position("theta6"), i8 = fit.parameters.position("theta8"),
             i9 = fit.parameters.position("theta9"), i5 = fit.parameters.position("theta5");
   fit.estimated_positions = {i5, i6, i8, i9};
-  for (int i : fit.estimated_positions) fit.estimated[i] = true;
-  fit.sd[i5] = 5.0;
-  fit.sd[i6] = 0.02;
-  fit.sd[i8] = 3.0;
-  fit.sd[i9] = 1e-6;
+  for (int i : fit.estimated_positions) fit.estimates[i].estimated = true;
+  fit.estimates[i5].sd = 5.0;
+  fit.estimates[i6].sd = 0.02;
+  fit.estimates[i8].sd = 3.0;
+  fit.estimates[i9].sd = 1e-6;
   fit.correlation = Eigen::MatrixXd::Identity(4, 4);
   fit.correlation(2, 3) = fit.correlation(3, 2) = -0.5;
   const auto qs = ComputeQuantities(model, fit);
@@ -126,8 +125,7 @@ TEST(QcReference, AGoldenFitGivesItsQuantitiesWithTheDefaultBands) {
   fit.model = "2dof";
   fit.parameters = model.defaults();
   fit.parameters.set("theta3", 9000.0);
-  fit.sd.assign(fit.parameters.size(), NAN);
-  fit.estimated.assign(fit.parameters.size(), false);
+  fit.estimates.assign(fit.parameters.size(), ident::ParameterEstimate{});
   nlohmann::json j = report::FitToJson(fit);
   j["verdict"] = "at-noise-floor";  // the summary here is made by hand, not fitted
   const Reference r = ReferenceFromFitJson(j.dump(), "golden.json");

@@ -49,7 +49,7 @@ TEST(SessionFit, TheThinnedGridOfTheSlowExperimentsFitsLikeEverySample) {
   ASSERT_EQ(a.summary.Verdict(), FitVerdict::kAtNoiseFloor) << a.summary.FullReport();
   ASSERT_EQ(b.summary.Verdict(), FitVerdict::kAtNoiseFloor) << b.summary.FullReport();
   for (int i : a.summary.estimated_positions)
-    EXPECT_LT(std::abs(a.summary.parameters.value(i) - b.summary.parameters.value(i)), 0.05 * b.summary.sd[i])
+    EXPECT_LT(std::abs(a.summary.parameters.value(i) - b.summary.parameters.value(i)), 0.05 * b.summary.estimates[i].sd)
         << a.summary.parameters.spec(i).key();
 }
 
@@ -100,9 +100,9 @@ TEST(SessionFit, DefaultsIdentifyADrawnUnitToItsNoiseFloor) {
     for (int i : fit.summary.estimated_positions) {
       const ParameterSpec& spec = fit.summary.parameters.spec(i);
       const double t = truth->parameters.get(spec.key());
-      EXPECT_LT(std::abs(fit.summary.parameters.value(i) - t), 3.5 * fit.summary.sd[i])
+      EXPECT_LT(std::abs(fit.summary.parameters.value(i) - t), 3.5 * fit.summary.estimates[i].sd)
           << spec.key() << " truth " << t << " estimate " << fit.summary.parameters.value(i) << " sd "
-          << fit.summary.sd[i];
+          << fit.summary.estimates[i].sd;
       if (spec.index != 12 && spec.index != 2 && spec.index != 17)
         EXPECT_GT(std::abs(t / spec.default_value - 1.0), 1e-3) << spec.key() << " left at its default by the draw";
     }
@@ -186,15 +186,15 @@ TEST(SessionFit, CalibrationPartOfEachSdIsWhatAGainErrorMovesTheEstimateBy) {
     const SessionFit with = FitPrepared(PrepareFitData(session, "drawn", model, options.estimator.n), model, options);
     const SessionFit moved = FitPrepared(PrepareFitData(scaled, "scaled", model, none.estimator.n), model, none);
     ASSERT_TRUE(moved.summary.converged);
-    ASSERT_EQ(with.summary.calibration_sd.size(), base.summary.sd.size()) << "the gain is not covered";
+    ASSERT_FALSE(with.summary.calibration.empty()) << "the gain is not covered";
     int compared = 0;
     for (int i : base.summary.estimated_positions) {
       const double shift = std::abs(moved.summary.parameters.value(i) - base.summary.parameters.value(i));
-      const double predicted = with.summary.calibration_sd[i];
+      const double predicted = with.summary.estimates[i].calibration_sd;
       const std::string key = base.summary.parameters.spec(i).key();
       // The sd with the calibration is the sd without it and the calibration part in quadrature.
-      EXPECT_NEAR(with.summary.sd[i], std::hypot(base.summary.sd[i], predicted), 1e-6 * with.summary.sd[i]) << key;
-      if (shift < 0.05 * base.summary.sd[i]) continue;  // below the fits' own convergence tolerance
+      EXPECT_NEAR(with.summary.estimates[i].sd, std::hypot(base.summary.estimates[i].sd, predicted), 1e-6 * with.summary.estimates[i].sd) << key;
+      if (shift < 0.05 * base.summary.estimates[i].sd) continue;  // below the fits' own convergence tolerance
       EXPECT_NEAR(shift / predicted, 1.0, 0.1) << key << " moved " << shift << ", predicted " << predicted;
       ++compared;
     }

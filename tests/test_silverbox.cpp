@@ -375,7 +375,7 @@ TEST(OscillatorModel, RecoversSimulatedDuffingParametersFromPeriodicData) {
   eo.coarse_points = 0;
   const FitSummary fit = Estimator(m, eo).Fit(data, start, DefaultChoices(m));
   EXPECT_TRUE(fit.converged) << fit.FullReport();
-  for (int i = 0; i < m.parameter_count(); ++i) EXPECT_NEAR(fit.parameters.value(i), truth[i], 3.5 * fit.sd[i]) << i;
+  for (int i = 0; i < m.parameter_count(); ++i) EXPECT_NEAR(fit.parameters.value(i), truth[i], 3.5 * fit.estimates[i].sd) << i;
   EXPECT_NEAR(fit.channels.at(0).rms, 3e-4, 3e-5);
 }
 

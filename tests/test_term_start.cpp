@@ -113,7 +113,7 @@ FitSummary CandidateFit(const std::string& term, const std::string& changes, con
     const ParameterSpec& spec = initial.spec(i);
     if (const auto p = baseline.parameters.find(spec.key())) {
       initial.values()[i] = baseline.parameters.value(*p);
-      choices[i].estimate = baseline.estimated[*p];
+      choices[i].estimate = baseline.estimates[*p].estimated;
     } else {
       choices[i].estimate = spec.estimated_with_term();
       if (start.count(spec.key())) initial.values()[i] = start.at(spec.key());
@@ -127,7 +127,7 @@ FitSummary CandidateFit(const std::string& term, const std::string& changes, con
             << std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() << " s\n";
   for (const auto& [channel, ratio] : PooledNoiseRatio(fit)) std::cout << "  noise ratio " << channel << " " << ratio << "\n";
   for (int i = 0; i < fit.parameters.size(); ++i)
-    if (fit.estimated[i]) std::cout << "  " << fit.parameters.spec(i).key() << " " << fit.parameters.value(i) << " sd " << fit.sd[i] << "\n";
+    if (fit.estimates[i].estimated) std::cout << "  " << fit.parameters.spec(i).key() << " " << fit.parameters.value(i) << " sd " << fit.estimates[i].sd << "\n";
   return fit;
 }
 

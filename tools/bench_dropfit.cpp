@@ -60,14 +60,14 @@ struct BenchDropFit {
     f.verdict = ident::ToString(s.Verdict());
     f.cpu = cpu;
     for (int i = 0; i < s.parameters.size(); ++i) {
-      if (!s.estimated[i]) continue;
+      if (!s.estimates[i].estimated) continue;
       const double t = truth.value(*truth.find(s.parameters.spec(i).key()));
       ++f.estimated;
-      f.z_of[s.parameters.spec(i).key()] = (s.parameters.value(i) - t) / s.sd[i];
-      f.inside += std::abs(s.parameters.value(i) - t) <= 1.96 * s.sd[i];
+      f.z_of[s.parameters.spec(i).key()] = (s.parameters.value(i) - t) / s.estimates[i].sd;
+      f.inside += std::abs(s.parameters.value(i) - t) <= 1.96 * s.estimates[i].sd;
       if (s.parameters.spec(i).index == 3) {
         f.theta3 = s.parameters.value(i);
-        f.theta3_sd = s.sd[i];
+        f.theta3_sd = s.estimates[i].sd;
         f.z = (f.theta3 - t) / f.theta3_sd;
       }
     }

@@ -130,7 +130,7 @@ struct BenchUnits {
         const std::string key = s.parameters.spec(i).key();
         const auto t = truth_values.find(key);
         if (!t) continue;
-        const double z = (s.parameters.value(i) - truth_values.value(*t)) / s.sd[i];
+        const double z = (s.parameters.value(i) - truth_values.value(*t)) / s.estimates[i].sd;
         zs[key].push_back(z);
         inside[key].first += std::abs(z) < 1.959964;
         inside[key].second += 1;
@@ -155,7 +155,7 @@ struct BenchUnits {
         const ident::FitSummary again = ident::FitPlanned(fit.data, model, std::move(far), options).summary;
         double apart = 0.0;
         for (int i : s.estimated_positions)
-          apart = std::max(apart, std::abs(again.parameters.value(i) - s.parameters.value(i)) / s.sd[i]);
+          apart = std::max(apart, std::abs(again.parameters.value(i) - s.parameters.value(i)) / s.estimates[i].sd);
         ++restarts;
         const bool same = again.converged && apart < 0.1;
         same_optimum += same;

@@ -498,9 +498,9 @@ struct BenchIdentify {
     nlohmann::json estimates = nlohmann::json::object();
     for (int i : t.fit.estimated_positions)
       estimates[truth.spec(i).key()] = {{"value", t.fit.parameters.value(i)},
-                                        {"sd", t.fit.sd[i]},
+                                        {"sd", t.fit.estimates[i].sd},
                                         {"truth", truth.value(i)},
-                                        {"z", (t.fit.parameters.value(i) - truth.value(i)) / t.fit.sd[i]}};
+                                        {"z", (t.fit.parameters.value(i) - truth.value(i)) / t.fit.estimates[i].sd}};
     return {{"ms", t.ms},
             {"cpu_ms", t.cpu_ms},
             {"runs", t.runs},
@@ -537,7 +537,7 @@ struct BenchIdentify {
             TimeFit(model, data, initial, choices, PeriodicFactory(ident::Scheme::kBackward2), kN, repeats);
         double worst = 0.0;
         for (int i : t.fit.estimated_positions)
-          worst = std::max(worst, std::abs(t.fit.parameters.value(i) - truth.value(i)) / t.fit.sd[i]);
+          worst = std::max(worst, std::abs(t.fit.parameters.value(i) - truth.value(i)) / t.fit.estimates[i].sd);
         std::cout << fmt::format("   {:<7} {:<9} {:>8.1f} {:>8.1f} {:>7} {:>5} {:>7} {:>5} {:>9.1f} {:>8.1f} {:>8.1f} {:>8.1f}  {:.2f}{}\n",
                                  ident::ToString(causality), from_truth ? "truth" : "20 % off", t.ms, t.cpu_ms,
                                  t.cpu_ms < kTargetMs ? "met" : "MISSED", t.fit.iterations, t.tally.solves,
@@ -600,7 +600,7 @@ struct BenchIdentify {
         not_converged[a] += !fit.converged;
         bool all = true;
         for (std::size_t k = 0; k < np; ++k) {
-          const double zk = (fit.parameters.value(est[k]) - truth.value(est[k])) / fit.sd[est[k]];
+          const double zk = (fit.parameters.value(est[k]) - truth.value(est[k])) / fit.estimates[est[k]].sd;
           z[a][k].push_back(zk);
           all = all && std::abs(zk) <= kZ95;
         }
@@ -719,7 +719,7 @@ struct BenchIdentify {
       std::string diff;
       double worst = 0.0;
       for (int i : t.fit.estimated_positions) {
-        const double d = (t.fit.parameters.value(i) - central.fit.parameters.value(i)) / central.fit.sd[i];
+        const double d = (t.fit.parameters.value(i) - central.fit.parameters.value(i)) / central.fit.estimates[i].sd;
         worst = std::max(worst, std::abs(d));
         diff += fmt::format(" {} {:+.4f}", truth.spec(i).key(), d);
       }
@@ -946,7 +946,7 @@ struct BenchSilverbox {
     std::cout << "  parameters (95 % intervals):\n";
     for (int i = 0; i < best.fit.parameters.size(); ++i) {
       const auto& spec = best.fit.parameters.spec(i);
-      const double v = best.fit.parameters.value(i), sd = best.fit.sd[i];
+      const double v = best.fit.parameters.value(i), sd = best.fit.estimates[i].sd;
       std::cout << fmt::format("    {:<8} {:<20} {:>14.7g} +- {:.3g}  [{:.7g}, {:.7g}] {}\n", spec.key(), spec.name, v,
                                1.96 * sd, v - 1.96 * sd, v + 1.96 * sd, spec.unit);
     }

@@ -55,9 +55,9 @@ std::string TruthTable(const ident::FitSummary& fit, const ident::ParameterSet& 
     const auto& spec = fit.parameters.spec(i);
     const auto t = truth.find(spec.key());
     const bool comparable = t && truth.spec(*t).name == spec.name;
-    const double z = comparable ? (fit.parameters.value(i) - truth.value(*t)) / fit.sd[i] : NAN;
+    const double z = comparable ? (fit.parameters.value(i) - truth.value(*t)) / fit.estimates[i].sd : NAN;
     text += fmt::format("     {:<8} {:<28} {:>12.6g} ± {:<9.2g} {:<9} {:>12} {:>7}\n", spec.key(), spec.name,
-                        fit.parameters.value(i), fit.sd[i], spec.unit,
+                        fit.parameters.value(i), fit.estimates[i].sd, spec.unit,
                         comparable ? fmt::format("{:.6g}", truth.value(*t)) : std::string("-"),
                         std::isfinite(z) ? fmt::format("{:+.1f}", z) : std::string("-"));
   }

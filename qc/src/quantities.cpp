@@ -86,7 +86,7 @@ std::vector<Quantity> ComputeQuantities(const ident::Model& model, const ident::
   for (int a = 0; a < m; ++a)
     for (int b = 0; b < m; ++b) {
       const double c = fit.correlation.rows() == m ? fit.correlation(a, b) : (a == b ? 1.0 : 0.0);
-      cov(a, b) = c * fit.sd[est[a]] * fit.sd[est[b]];
+      cov(a, b) = c * fit.estimates[est[a]].sd * fit.estimates[est[b]].sd;
     }
   for (Quantity& q : out) {
     // Central differences over a step of a hundredth of each parameter's sd: the quantities are
@@ -95,7 +95,7 @@ std::vector<Quantity> ComputeQuantities(const ident::Model& model, const ident::
     bool depends = false;
     for (int a = 0; a < m; ++a) {
       const int i = est[a];
-      const double h = std::isfinite(fit.sd[i]) && fit.sd[i] > 0 ? 1e-2 * fit.sd[i]
+      const double h = std::isfinite(fit.estimates[i].sd) && fit.estimates[i].sd > 0 ? 1e-2 * fit.estimates[i].sd
                                                                   : 1e-6 * std::max(1.0, std::abs(theta[i]));
       std::vector<double> up = theta, down = theta;
       up[i] += h;

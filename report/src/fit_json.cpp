@@ -39,17 +39,11 @@ nlohmann::json FitToJson(const FitSummary& fit) {
                                {"name", s.name},
                                {"unit", s.unit},
                                {"value", Number(fit.parameters.value(i))},
-                               {"sd", Number(fit.sd[i])},
-                               {"sd_input_noise_factor",
-                                Number(static_cast<std::size_t>(i) < fit.input_noise_sd_factor.size()
-                                           ? fit.input_noise_sd_factor[i]
-                                           : NAN)},
-                               {"sd_misfit_factor",
-                                Number(static_cast<std::size_t>(i) < fit.misfit_sd_factor.size() ? fit.misfit_sd_factor[i]
-                                                                                                 : NAN)},
-                               {"sd_calibration",
-                                Number(static_cast<std::size_t>(i) < fit.calibration_sd.size() ? fit.calibration_sd[i] : NAN)},
-                               {"estimated", static_cast<bool>(fit.estimated[i])}});
+                               {"sd", Number(fit.estimates[i].sd)},
+                               {"sd_input_noise_factor", Number(fit.estimates[i].input_noise_sd_factor)},
+                               {"sd_misfit_factor", Number(fit.estimates[i].misfit_sd_factor)},
+                               {"sd_calibration", Number(fit.estimates[i].calibration_sd)},
+                               {"estimated", static_cast<bool>(fit.estimates[i].estimated)}});
   }
   j["calibration"] = nlohmann::json::object();  // the transducer gains' relative sd the intervals hold
   for (const auto& [channel, sd] : fit.calibration) j["calibration"][channel] = sd;

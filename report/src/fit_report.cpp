@@ -65,19 +65,19 @@ std::string AxisLabel(const std::string& quantity, const DisplayUnit& d) {
 void AddVerdict(HtmlReport& report, const FitSummary& fit) { report.AddCallout(fit.VerdictText(), ToneOf(fit.Verdict())); }
 
 void AddParameterTable(HtmlReport& report, const FitSummary& fit) {
-  const bool widened = !fit.misfit_sd_factor.empty();
+  const bool widened = fit.WidenedForMisfit();
   std::vector<std::vector<std::string>> rows;
   for (int i = 0; i < fit.parameters.size(); ++i) {
     const ParameterSpec& s = fit.parameters.spec(i);
     const DisplayUnit d = DisplayUnitOf(s.unit);
-    const double v = d.Value(fit.parameters.value(i)), sd = fit.sd[i] * d.scale;
-    std::vector<std::string> row{s.key(), s.name, fit.estimated[i] ? WithSd(v, sd) : fmt::format("{:.6g}", v), d.unit,
-                                 fit.estimated[i] ? fmt::format("[{:.6g}, {:.6g}]", v - 1.96 * sd, v + 1.96 * sd) : ""};
+    const double v = d.Value(fit.parameters.value(i)), sd = fit.estimates[i].sd * d.scale;
+    std::vector<std::string> row{s.key(), s.name, fit.estimates[i].estimated ? WithSd(v, sd) : fmt::format("{:.6g}", v), d.unit,
+                                 fit.estimates[i].estimated ? fmt::format("[{:.6g}, {:.6g}]", v - 1.96 * sd, v + 1.96 * sd) : ""};
     if (widened) {
-      const double f = fit.misfit_sd_factor[i];
-      row.push_back(fit.estimated[i] && std::isfinite(f) ? fmt::format("× {:.2f}", f) : "");
+      const double f = fit.estimates[i].misfit_sd_factor;
+      row.push_back(fit.estimates[i].estimated && std::isfinite(f) ? fmt::format("× {:.2f}", f) : "");
     }
-    row.push_back(fit.estimated[i] ? "estimated" : "fixed");
+    row.push_back(fit.estimates[i].estimated ? "estimated" : "fixed");
     rows.push_back(std::move(row));
   }
   std::vector<std::string> header{"index", "name", "value ± sd", "unit", "95 % interval"};
@@ -188,7 +188,7 @@ void AddContributionTable(HtmlReport& report, const FitSummary& fit) {
   for (const ExperimentContribution& c : fit.contributions) {
     std::vector<std::string> row{c.label, c.kind};
     for (int i : fit.estimated_positions) {
-      const double ratio = c.sd_without[i] / fit.sd[i];
+      const double ratio = c.sd_without[i] / fit.estimates[i].sd;
       row.push_back(std::isinf(c.sd_without[i]) ? "undetermined"
                                                 : fmt::format("{:.3g} ({:.0f} %)", ratio, 100 * c.information_share[i]));
     }

@@ -81,7 +81,7 @@ void WriteQcReport(const qc::Decision& d, const ident::SessionFit* fit, const st
     for (int i = 0; i < fit->summary.parameters.size(); ++i) {
       const auto& s = fit->summary.parameters.spec(i);
       p.push_back({s.key(), s.name, fmt::format("{:.6g}", fit->summary.parameters.value(i)), s.unit,
-                   fit->summary.estimated[i] ? fmt::format("{:.3g}", fit->summary.sd[i]) : "fixed"});
+                   fit->summary.estimates[i].estimated ? fmt::format("{:.3g}", fit->summary.estimates[i].sd) : "fixed"});
     }
     report.AddTable({"index", "name", "value", "unit", "sd"}, p);
     std::vector<std::vector<std::string>> c;

@@ -197,10 +197,10 @@ nlohmann::json ParametersJson(const FitSummary& fit) {
   nlohmann::json parameters = nlohmann::json::array();
   for (int i = 0; i < fit.parameters.size(); ++i) {
     const ParameterSpec& spec = fit.parameters.spec(i);
-    const double v = fit.parameters.value(i), sd = fit.sd[i];
+    const double v = fit.parameters.value(i), sd = fit.estimates[i].sd;
     nlohmann::json p = {{"index", spec.index}, {"key", spec.key()}, {"name", spec.name}, {"unit", spec.unit},
-                        {"value", v},          {"estimated", static_cast<bool>(fit.estimated[i])}};
-    if (fit.estimated[i]) {
+                        {"value", v},          {"estimated", static_cast<bool>(fit.estimates[i].estimated)}};
+    if (fit.estimates[i].estimated) {
       p["sd"] = sd;
       p["ci95"] = {v - 1.96 * sd, v + 1.96 * sd};
     } else {
@@ -353,9 +353,9 @@ void WriteSilverboxReport(const SilverboxResult& result, const SilverboxOptions&
   rows.clear();
   for (int i = 0; i < best.fit.parameters.size(); ++i) {
     const ParameterSpec& s = best.fit.parameters.spec(i);
-    const double v = best.fit.parameters.value(i), sd = best.fit.sd[i];
-    rows.push_back({s.key(), s.name, fmt::format("{:.7g}", v), s.unit, best.fit.estimated[i] ? fmt::format("{:.3g}", sd) : "",
-                    best.fit.estimated[i] ? fmt::format("[{:.7g}, {:.7g}]", v - 1.96 * sd, v + 1.96 * sd) : "fixed"});
+    const double v = best.fit.parameters.value(i), sd = best.fit.estimates[i].sd;
+    rows.push_back({s.key(), s.name, fmt::format("{:.7g}", v), s.unit, best.fit.estimates[i].estimated ? fmt::format("{:.3g}", sd) : "",
+                    best.fit.estimates[i].estimated ? fmt::format("[{:.7g}, {:.7g}]", v - 1.96 * sd, v + 1.96 * sd) : "fixed"});
   }
   report.AddTable({"parameter", "name", "value", "unit", "sd", "95 % interval"}, rows,
                   "[u] and [y] are volts. Intervals from the information matrix at the optimum (noise of one period "

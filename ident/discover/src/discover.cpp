@@ -182,8 +182,8 @@ std::optional<std::vector<double>> HeldOutRatios(const FitData& data, const Mode
                                                  const EstimatorOptions& estimator, int folds, int k, int& iterations) {
   std::vector<ParameterChoice> choices(fit.parameters.size());
   for (int i = 0; i < fit.parameters.size(); ++i) {
-    choices[i].estimate = fit.estimated[i];
-    if (fit.estimated[i] && fit.parameters.spec(i).prior_sd > 0) choices[i].prior_sd = fit.parameters.spec(i).prior_sd;
+    choices[i].estimate = fit.estimates[i].estimated;
+    if (fit.estimates[i].estimated && fit.parameters.spec(i).prior_sd > 0) choices[i].prior_sd = fit.parameters.spec(i).prior_sd;
   }
   const std::vector<ParameterChoice> fixed(fit.parameters.size());
   // Only the refit's estimate is used: no posterior at its end.
@@ -275,262 +275,335 @@ double CrossValidatedNoiseRatio(const FitData& data, const Model& model, const F
   return CrossValidate(data, {{&model, &fit}}, estimator, folds, threads).front();
 }
 
-DiscoveryResult Discover(const FitData& data, const SessionFitOptions& fit_options, const DiscoverOptions& options,
-                         const std::function<void(const std::string&)>& progress) {
-  std::string error;
-  if (!options.IsValid(&error) || !fit_options.IsValid(&error)) throw std::invalid_argument("discover options: " + error);
-  const Causality causality = fit_options.causality;
-  // Every fit also solves its experiments on `threads` threads, beside the candidates and folds run
-  // side by side: the baseline, and the last candidate of a round, still use every core. A fit sums
-  // its experiments in order, so the answers do not depend on the count.
-  SessionFitOptions session_options = fit_options;
-  session_options.estimator.threads = options.threads;
-  const EstimatorOptions& estimator = session_options.estimator;
-  const Stopwatch total_watch;
-  double baseline_seconds = 0.0, candidate_seconds = 0.0, cv_seconds = 0.0;
-  const auto say = [&](const std::string& text) {
-    spdlog::info("{}", text);
-    if (progress) progress(text);
-  };
-  // A candidate: the current fit's values and estimated set, plus the new term's own parameters
-  // (sizes and shapes estimated, from where the located mismatch puts them: CandidateStartingValues).
-  const auto candidate_fit = [&](const std::string& term, const std::string& composition, const FitSummary& previous) {
-    const Model model = Model::Build(composition, causality);
-    ParameterSet start = model.defaults();
-    std::vector<ParameterChoice> choices = DefaultChoices(model);
-    for (int i = 0; i < start.size(); ++i) {
-      const ParameterSpec& spec = start.spec(i);
-      const auto p = previous.parameters.find(spec.key());
-      if (p && previous.parameters.spec(*p).name == spec.name) {
-        start.values()[i] = previous.parameters.value(*p);
-        if (!previous.estimated[*p]) choices[i] = ParameterChoice{};
-      }
-    }
-    if (causality == Causality::kStrokeInput) {
-      std::vector<std::string> log;
-      for (const auto& [key, value] : CandidateStartingValues(term, previous, &log)) start.set(key, value);
-      for (const std::string& line : log) spdlog::debug("candidate {}: {}", term, line);
-    }
-    const Estimator fitter(model, estimator);
-    FitSummary fit = fitter.Fit(data.experiments, start, choices, data.issues);
-    // Only a stalled candidate that already explains something (its BIC below the current one by the
-    // threshold) is worth the second try: the others would be refused anyway.
-    if (fit.converged || !fit.IsSolutionUsable() || !(fit.bic - previous.bic < -options.bic_threshold)) return fit;
-    // A candidate can stall on its way from the current fit's values when that fit is itself far off
-    // (an unconverged baseline beside a plain end stop): go on from where it stalled (fresh
-    // sensitivities and damping), and else fit from the data's own starting values as `strut
-    // identify` does. The converged fit with the higher likelihood is kept.
-    const Stopwatch retry_watch;
-    std::vector<FitSummary> tries{fitter.Fit(data.experiments, fit.parameters, choices, data.issues)};
-    if (!tries.front().converged) {
-      SessionFitOptions own = session_options;
-      own.composition = composition;
-      tries.push_back(FitPrepared(data, model, own).summary);
-    }
-    for (const FitSummary& t : tries)
-      if (t.converged && (!fit.converged || t.loglik > fit.loglik)) fit = t;
-    spdlog::debug("candidate {}: stalled from the current fit; {} (timing: {} more fits, {:.2f} s)", term,
-                  fit.converged ? "converged on a second try" : "not converged on a second try either", tries.size(),
-                  retry_watch.Seconds());
-    return fit;
-  };
-  const auto worst_ratio = [](const std::map<std::string, double>& ratio) {
-    double worst = 0.0;
-    for (const auto& [c, r] : ratio) worst = std::max(worst, std::isfinite(r) ? r : INFINITY);
-    return worst;
-  };
-  const auto mean_ratio = [](const std::map<std::string, double>& ratio) {
-    double sum = 0.0;
-    for (const auto& [c, r] : ratio) sum += r;
-    return ratio.empty() ? 0.0 : sum / ratio.size();
-  };
+namespace {
 
-  DiscoveryResult result;
-  bool exhausted = false;  // stopped because no candidate qualified (not because of max_terms)
-  const std::string base = fit_options.composition;
-  say(fmt::format("fitting the baseline {} (every parameter the data can determine)", base));
-  const Stopwatch baseline_watch;
-  result.baseline = FitPrepared(data, Model::Build(base, causality), session_options).summary;
-  baseline_seconds = baseline_watch.Seconds();
-  spdlog::debug("timing: baseline {} {:.2f} s ({} iterations)", base, baseline_seconds, result.baseline.iterations);
-  result.mismatch = LocateMismatch(result.baseline);
-  FitSummary current = result.baseline;
-  std::map<std::string, double> ratio = PooledNoiseRatio(current);
-  result.nothing_missing = worst_ratio(ratio) < options.noise_ratio_threshold;
-  if (!result.baseline.converged)
-    say("the baseline fit did not converge: " + result.baseline.VerdictText());
+double WorstRatio(const std::map<std::string, double>& ratio) {
+  double worst = 0.0;
+  for (const auto& [c, r] : ratio) worst = std::max(worst, std::isfinite(r) ? r : INFINITY);
+  return worst;
+}
 
+double MeanRatio(const std::map<std::string, double>& ratio) {
+  double sum = 0.0;
+  for (const auto& [c, r] : ratio) sum += r;
+  return ratio.empty() ? 0.0 : sum / ratio.size();
+}
+
+const TermEntry& CatalogueEntry(const std::string& term) {
   const auto& catalogue = Catalogue();
-  std::optional<double> current_cv;  // held-out noise ratio of `current` (NaN: no solution), once a candidate needs it
-  std::map<std::string, int> last_iterations;  // per term, its refit's in the round before
-  for (int round = 0; round < options.max_terms && worst_ratio(ratio) >= options.noise_ratio_threshold; ++round) {
-    const std::vector<Finding> findings = LocateMismatch(current);
-    const Model model = Model::Build(current.model, causality);
-    std::vector<std::pair<std::string, std::string>> candidates;  // term, composition
-    for (const TermEntry& entry : catalogue) {
-      if (entry.locus.empty() || model.has_term(entry.name)) continue;
-      const std::string composition = current.model + "+" + entry.name;
-      try {
-        Model::Build(composition, causality);
-        candidates.emplace_back(entry.name, composition);
-      } catch (const ModelError& e) {
-        spdlog::debug("candidate {} left out: {}", entry.name, e.what());
-      }
-    }
-    say(fmt::format("round {}: {} candidates refitted, {} at a time", round + 1, candidates.size(), options.threads));
-    std::vector<CandidateFit> results(candidates.size());
-    std::vector<FitSummary> fits(candidates.size());
-    std::vector<double> seconds(candidates.size());
-    const Stopwatch round_watch;
-    // A thread takes the next candidate as it finishes one (refits differ in length several times),
-    // the longest first as far as the last round tells (its iterations), so that a long one does
-    // not start last. Only the order of the work changes: each result has its own slot.
-    std::vector<int> queue(candidates.size());
-    std::iota(queue.begin(), queue.end(), 0);
-    const auto expected = [&](int c) {
-      const auto it = last_iterations.find(candidates[c].first);
-      return it == last_iterations.end() ? INT_MAX : it->second;
-    };
-    std::stable_sort(queue.begin(), queue.end(), [&](int a, int b) { return expected(a) > expected(b); });
-    ParallelFor(static_cast<int>(candidates.size()), options.threads, [&](int k) {
-      const int c = queue[k];
-      const Stopwatch watch;
-      results[c].term = candidates[c].first;
-      try {
-        fits[c] = candidate_fit(candidates[c].first, candidates[c].second, current);
-        results[c].ok = fits[c].IsSolutionUsable() && fits[c].converged;
-        if (!results[c].ok) results[c].error = fits[c].VerdictText();
-        results[c].delta_bic = fits[c].bic - current.bic;
-        results[c].noise_ratio = PooledNoiseRatio(fits[c]);
-      } catch (const std::exception& e) {
-        results[c].error = e.what();
-      }
-      seconds[c] = watch.Seconds();
-    });
-    const double refits_seconds = round_watch.Seconds();
-    for (std::size_t c = 0; c < candidates.size(); ++c) last_iterations[candidates[c].first] = fits[c].iterations;
-    candidate_seconds += refits_seconds;
-    for (std::size_t c = 0; c < candidates.size(); ++c)
-      spdlog::debug("timing: round {} candidate {} {:.2f} s ({} iterations)", round + 1, candidates[c].first,
-                    seconds[c], fits[c].iterations);
-    spdlog::debug("timing: round {} candidates {:.2f} s wall, {:.2f} s summed", round + 1, refits_seconds,
-                  std::accumulate(seconds.begin(), seconds.end(), 0.0));
-    for (CandidateFit& c : results) {
-      const auto entry = std::find_if(catalogue.begin(), catalogue.end(), [&](const TermEntry& e) { return e.name == c.term; });
-      for (const Finding& f : findings)
-        if (f.locus == entry->locus) c.evidence = std::max(c.evidence, f.score);
-    }
-    // Candidates by BIC; the best that also brings the off channels down and predicts experiments
-    // left out of its fit better than the current model is kept.
-    std::vector<std::size_t> order;
-    for (std::size_t c = 0; c < results.size(); ++c) {
-      CandidateFit& r = results[c];
-      if (!r.ok) {
-        r.verdict = "no converged fit";
-      } else if (r.delta_bic > -options.bic_threshold) {
-        r.verdict = fmt::format("BIC does not fall by {}", options.bic_threshold);
-      } else if (mean_ratio(r.noise_ratio) > options.min_improvement * mean_ratio(ratio)) {
-        r.verdict = "noise ratio barely falls";
-      } else {
-        order.push_back(c);
-      }
-    }
-    std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return results[a].delta_bic < results[b].delta_bic; });
-    int best = -1;
-    for (const std::size_t c : order) {
-      if (options.cv_folds == 0) {
-        best = static_cast<int>(c);
-        break;
-      }
-      // The current model's folds beside the first candidate's, when it has none yet.
-      const Stopwatch cv_watch;
-      const Model candidate_model = Model::Build(candidates[c].second, causality);
-      std::vector<CrossValidation> wanted{{&candidate_model, &fits[c]}};
-      if (!current_cv) wanted.push_back({&model, &current});
-      const std::vector<double> cv = CrossValidate(data, wanted, estimator, options.cv_folds, options.threads);
-      results[c].cv_ratio = cv[0];
-      if (!current_cv) current_cv = cv[1];
-      cv_seconds += cv_watch.Seconds();
-      spdlog::debug("timing: round {} cross-validation {:.2f} s", round + 1, cv_watch.Seconds());
-      spdlog::info("  {:<20} cross-validated noise ratio {:.3f} against {:.3f}", results[c].term, results[c].cv_ratio,
-                   *current_cv);
-      if (std::isfinite(results[c].cv_ratio) &&
-          (!std::isfinite(*current_cv) || results[c].cv_ratio <= options.cv_improvement * *current_cv)) {
-        best = static_cast<int>(c);
-        break;
-      }
-      results[c].verdict = "does not predict left-out experiments better";
-    }
-    for (const CandidateFit& c : results)
-      spdlog::info("  {:<20} ΔBIC {:>12.1f}  worst noise ratio {:8.2f}  evidence {:6.1f}  {}", c.term, c.delta_bic,
-                   worst_ratio(c.noise_ratio), c.evidence, c.ok ? c.verdict : c.error);
-    if (best < 0) {
-      say("no candidate improves the fit beyond what its parameters cost and predicts left-out experiments better");
-      exhausted = true;
-      break;
-    }
-    results[best].verdict = "kept";
-    DiscoveryStep step;
-    step.term = results[best].term;
-    step.delta_bic = results[best].delta_bic;
-    step.noise_before = ratio;
-    step.noise_after = results[best].noise_ratio;
-    step.cv_before = current_cv.value_or(NAN);
-    step.cv_after = results[best].cv_ratio;
-    step.candidates = results;
-    const auto entry = std::find_if(catalogue.begin(), catalogue.end(), [&](const TermEntry& e) { return e.name == step.term; });
-    step.evidence = entry->signature;
-    for (const Finding& f : findings)
-      if (f.locus == entry->locus) {
-        step.evidence += "; " + f.detail;
-        break;
-      }
-    const FitSummary& chosen = fits[best];
-    for (int i = 0; i < chosen.parameters.size(); ++i)
-      if (!current.parameters.find(chosen.parameters.spec(i).key()) && chosen.estimated[i])
-        step.parameters.emplace_back(chosen.parameters.spec(i).key(), chosen.parameters.value(i));
-    say(fmt::format("added {}: ΔBIC {:+.1f}; {}", step.term, step.delta_bic, step.evidence));
-    result.missing.push_back(step.term);
-    result.steps.push_back(std::move(step));
-    current = chosen;
-    current_cv = results[best].cv_ratio;
-    ratio = PooledNoiseRatio(current);
+  return *std::find_if(catalogue.begin(), catalogue.end(), [&](const TermEntry& e) { return e.name == term; });
+}
+
+// One round's candidates: each term that composes with the current model, its refit and its verdict.
+struct Round {
+  std::vector<std::pair<std::string, std::string>> candidates;  // term, composition
+  std::vector<CandidateFit> results;
+  std::vector<FitSummary> fits;
+};
+
+// One discovery, stage by stage: the baseline, then per round the candidates, their refits, the
+// selection (BIC, noise ratio, held-out prediction), and at the end the conclusion.
+class DiscoveryRun {
+ public:
+  DiscoveryRun(const FitData& data, const SessionFitOptions& fit_options, const DiscoverOptions& options,
+               const std::function<void(const std::string&)>& progress)
+      : data_(data), options_(options), progress_(progress), causality_(fit_options.causality),
+        base_(fit_options.composition), session_options_(fit_options) {
+    // Every fit also solves its experiments on `threads` threads, beside the candidates and folds run
+    // side by side: the baseline, and the last candidate of a round, still use every core. A fit sums
+    // its experiments in order, so the answers do not depend on the count.
+    session_options_.estimator.threads = options.threads;
   }
 
-  result.final_model = current.model;
-  result.final_fit = current;
-  const double final_worst = worst_ratio(ratio);
-  if (final_worst >= options.noise_ratio_threshold) {
-    for (const Finding& f : LocateMismatch(current))
+  DiscoveryResult Run();
+
+ private:
+  void Say(const std::string& text) const {
+    spdlog::info("{}", text);
+    if (progress_) progress_(text);
+  }
+  FitSummary FitCandidate(const std::string& term, const std::string& composition, const FitSummary& previous) const;
+  Round Candidates(const FitSummary& current) const;
+  void Refit(Round& round, const FitSummary& current, int number);
+  int Select(Round& round, const FitSummary& current, const Model& model, const std::map<std::string, double>& ratio,
+             int number);
+  DiscoveryStep Step(const Round& round, int best, const FitSummary& current, const std::vector<Finding>& findings,
+                     const std::map<std::string, double>& ratio) const;
+  void Conclude(DiscoveryResult& result, bool exhausted, const std::map<std::string, double>& ratio) const;
+
+  const FitData& data_;
+  const DiscoverOptions& options_;
+  const std::function<void(const std::string&)>& progress_;
+  const Causality causality_;
+  const std::string base_;
+  SessionFitOptions session_options_;
+  std::optional<double> current_cv_;           // held-out noise ratio of the current model, once a candidate needs it
+  std::map<std::string, int> last_iterations_;  // per term, its refit's in the round before
+  double candidate_seconds_ = 0.0, cv_seconds_ = 0.0;
+};
+
+// A candidate: the current fit's values and estimated set, plus the new term's own parameters (sizes
+// and shapes estimated, from where the located mismatch puts them: CandidateStartingValues).
+FitSummary DiscoveryRun::FitCandidate(const std::string& term, const std::string& composition,
+                                      const FitSummary& previous) const {
+  const EstimatorOptions& estimator = session_options_.estimator;
+  const Model model = Model::Build(composition, causality_);
+  ParameterSet start = model.defaults();
+  std::vector<ParameterChoice> choices = DefaultChoices(model);
+  for (int i = 0; i < start.size(); ++i) {
+    const ParameterSpec& spec = start.spec(i);
+    const auto p = previous.parameters.find(spec.key());
+    if (p && previous.parameters.spec(*p).name == spec.name) {
+      start.values()[i] = previous.parameters.value(*p);
+      if (!previous.estimates[*p].estimated) choices[i] = ParameterChoice{};
+    }
+  }
+  if (causality_ == Causality::kStrokeInput) {
+    std::vector<std::string> log;
+    for (const auto& [key, value] : CandidateStartingValues(term, previous, &log)) start.set(key, value);
+    for (const std::string& line : log) spdlog::debug("candidate {}: {}", term, line);
+  }
+  const Estimator fitter(model, estimator);
+  FitSummary fit = fitter.Fit(data_.experiments, start, choices, data_.issues);
+  // Only a stalled candidate that already explains something (its BIC below the current one by the
+  // threshold) is worth the second try: the others would be refused anyway.
+  if (fit.converged || !fit.IsSolutionUsable() || !(fit.bic - previous.bic < -options_.bic_threshold)) return fit;
+  // A candidate can stall on its way from the current fit's values when that fit is itself far off
+  // (an unconverged baseline beside a plain end stop): go on from where it stalled (fresh
+  // sensitivities and damping), and else fit from the data's own starting values as `strut
+  // identify` does. The converged fit with the higher likelihood is kept.
+  const Stopwatch retry_watch;
+  std::vector<FitSummary> tries{fitter.Fit(data_.experiments, fit.parameters, choices, data_.issues)};
+  if (!tries.front().converged) {
+    SessionFitOptions own = session_options_;
+    own.composition = composition;
+    tries.push_back(FitPrepared(data_, model, own).summary);
+  }
+  for (const FitSummary& t : tries)
+    if (t.converged && (!fit.converged || t.loglik > fit.loglik)) fit = t;
+  spdlog::debug("candidate {}: stalled from the current fit; {} (timing: {} more fits, {:.2f} s)", term,
+                fit.converged ? "converged on a second try" : "not converged on a second try either", tries.size(),
+                retry_watch.Seconds());
+  return fit;
+}
+
+Round DiscoveryRun::Candidates(const FitSummary& current) const {
+  const Model model = Model::Build(current.model, causality_);
+  Round round;
+  for (const TermEntry& entry : Catalogue()) {
+    if (entry.locus.empty() || model.has_term(entry.name)) continue;
+    const std::string composition = current.model + "+" + entry.name;
+    try {
+      Model::Build(composition, causality_);
+      round.candidates.emplace_back(entry.name, composition);
+    } catch (const ModelError& e) {
+      spdlog::debug("candidate {} left out: {}", entry.name, e.what());
+    }
+  }
+  round.results.resize(round.candidates.size());
+  round.fits.resize(round.candidates.size());
+  return round;
+}
+
+void DiscoveryRun::Refit(Round& round, const FitSummary& current, int number) {
+  const auto& candidates = round.candidates;
+  std::vector<double> seconds(candidates.size());
+  const Stopwatch round_watch;
+  // A thread takes the next candidate as it finishes one (refits differ in length several times),
+  // the longest first as far as the last round tells (its iterations), so that a long one does not
+  // start last. Only the order of the work changes: each result has its own slot.
+  std::vector<int> queue(candidates.size());
+  std::iota(queue.begin(), queue.end(), 0);
+  const auto expected = [&](int c) {
+    const auto it = last_iterations_.find(candidates[c].first);
+    return it == last_iterations_.end() ? INT_MAX : it->second;
+  };
+  std::stable_sort(queue.begin(), queue.end(), [&](int a, int b) { return expected(a) > expected(b); });
+  ParallelFor(static_cast<int>(candidates.size()), options_.threads, [&](int k) {
+    const int c = queue[k];
+    const Stopwatch watch;
+    CandidateFit& r = round.results[c];
+    r.term = candidates[c].first;
+    try {
+      round.fits[c] = FitCandidate(candidates[c].first, candidates[c].second, current);
+      r.ok = round.fits[c].IsSolutionUsable() && round.fits[c].converged;
+      if (!r.ok) r.error = round.fits[c].VerdictText();
+      r.delta_bic = round.fits[c].bic - current.bic;
+      r.noise_ratio = PooledNoiseRatio(round.fits[c]);
+    } catch (const std::exception& e) {
+      r.error = e.what();
+    }
+    seconds[c] = watch.Seconds();
+  });
+  const double refits_seconds = round_watch.Seconds();
+  for (std::size_t c = 0; c < candidates.size(); ++c) last_iterations_[candidates[c].first] = round.fits[c].iterations;
+  candidate_seconds_ += refits_seconds;
+  for (std::size_t c = 0; c < candidates.size(); ++c)
+    spdlog::debug("timing: round {} candidate {} {:.2f} s ({} iterations)", number, candidates[c].first, seconds[c],
+                  round.fits[c].iterations);
+  spdlog::debug("timing: round {} candidates {:.2f} s wall, {:.2f} s summed", number, refits_seconds,
+                std::accumulate(seconds.begin(), seconds.end(), 0.0));
+}
+
+// Candidates by BIC; the best that also brings the off channels down and predicts experiments left
+// out of its fit better than the current model is kept. Returns its index, or -1.
+int DiscoveryRun::Select(Round& round, const FitSummary& current, const Model& model,
+                         const std::map<std::string, double>& ratio, int number) {
+  std::vector<CandidateFit>& results = round.results;
+  std::vector<std::size_t> order;
+  for (std::size_t c = 0; c < results.size(); ++c) {
+    CandidateFit& r = results[c];
+    if (!r.ok) {
+      r.verdict = "no converged fit";
+    } else if (r.delta_bic > -options_.bic_threshold) {
+      r.verdict = fmt::format("BIC does not fall by {}", options_.bic_threshold);
+    } else if (MeanRatio(r.noise_ratio) > options_.min_improvement * MeanRatio(ratio)) {
+      r.verdict = "noise ratio barely falls";
+    } else {
+      order.push_back(c);
+    }
+  }
+  std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return results[a].delta_bic < results[b].delta_bic; });
+  for (const std::size_t c : order) {
+    if (options_.cv_folds == 0) return static_cast<int>(c);
+    // The current model's folds beside the first candidate's, when it has none yet.
+    const Stopwatch cv_watch;
+    const Model candidate_model = Model::Build(round.candidates[c].second, causality_);
+    std::vector<CrossValidation> wanted{{&candidate_model, &round.fits[c]}};
+    if (!current_cv_) wanted.push_back({&model, &current});
+    const std::vector<double> cv =
+        CrossValidate(data_, wanted, session_options_.estimator, options_.cv_folds, options_.threads);
+    results[c].cv_ratio = cv[0];
+    if (!current_cv_) current_cv_ = cv[1];
+    cv_seconds_ += cv_watch.Seconds();
+    spdlog::debug("timing: round {} cross-validation {:.2f} s", number, cv_watch.Seconds());
+    spdlog::info("  {:<20} cross-validated noise ratio {:.3f} against {:.3f}", results[c].term, results[c].cv_ratio,
+                 *current_cv_);
+    if (std::isfinite(results[c].cv_ratio) &&
+        (!std::isfinite(*current_cv_) || results[c].cv_ratio <= options_.cv_improvement * *current_cv_))
+      return static_cast<int>(c);
+    results[c].verdict = "does not predict left-out experiments better";
+  }
+  return -1;
+}
+
+DiscoveryStep DiscoveryRun::Step(const Round& round, int best, const FitSummary& current,
+                                 const std::vector<Finding>& findings, const std::map<std::string, double>& ratio) const {
+  const CandidateFit& kept = round.results[best];
+  DiscoveryStep step;
+  step.term = kept.term;
+  step.delta_bic = kept.delta_bic;
+  step.noise_before = ratio;
+  step.noise_after = kept.noise_ratio;
+  step.cv_before = current_cv_.value_or(NAN);
+  step.cv_after = kept.cv_ratio;
+  step.candidates = round.results;
+  const TermEntry& entry = CatalogueEntry(step.term);
+  step.evidence = entry.signature;
+  for (const Finding& f : findings)
+    if (f.locus == entry.locus) {
+      step.evidence += "; " + f.detail;
+      break;
+    }
+  const FitSummary& chosen = round.fits[best];
+  for (int i = 0; i < chosen.parameters.size(); ++i)
+    if (!current.parameters.find(chosen.parameters.spec(i).key()) && chosen.estimates[i].estimated)
+      step.parameters.emplace_back(chosen.parameters.spec(i).key(), chosen.parameters.value(i));
+  return step;
+}
+
+void DiscoveryRun::Conclude(DiscoveryResult& result, bool exhausted, const std::map<std::string, double>& ratio) const {
+  const double final_worst = WorstRatio(ratio);
+  if (final_worst >= options_.noise_ratio_threshold) {
+    for (const Finding& f : LocateMismatch(result.final_fit))
       if (f.score > 5.0) result.unexplained.push_back(f);
   }
   std::string ratios;
   for (const auto& [c, r] : PooledNoiseRatio(result.baseline)) ratios += fmt::format(" {} {:.2f}", c, r);
   if (result.nothing_missing) {
     result.conclusion = fmt::format("{} explains the data to the noise floor (noise ratios{}): nothing is missing.",
-                                    base, ratios);
-  } else {
-    std::string added;
-    for (const auto& t : result.missing) added += (added.empty() ? "" : ", ") + t;
-    std::string after;
-    for (const auto& [c, r] : ratio) after += fmt::format(" {} {:.2f}", c, r);
-    result.conclusion = fmt::format(
-        "{} left residuals above the noise floor (noise ratios{}). {} Final model {} (noise ratios{}{}).{}", base, ratios,
-        added.empty() ? "No catalogue term explains them." : "Missing: " + added + ".", result.final_model, after,
-        final_worst < options.noise_ratio_threshold ? ", at the noise floor" : ", still above the noise floor",
-        result.unexplained.empty()
-            ? ""
-            : (exhausted ? " What is left matches no catalogue term: "
-                         : fmt::format(" Stopped after {} terms; the strongest feature left: ", options.max_terms)) +
-                  result.unexplained.front().detail + ".");
+                                    base_, ratios);
+    return;
   }
+  std::string added;
+  for (const auto& t : result.missing) added += (added.empty() ? "" : ", ") + t;
+  std::string after;
+  for (const auto& [c, r] : ratio) after += fmt::format(" {} {:.2f}", c, r);
+  result.conclusion = fmt::format(
+      "{} left residuals above the noise floor (noise ratios{}). {} Final model {} (noise ratios{}{}).{}", base_, ratios,
+      added.empty() ? "No catalogue term explains them." : "Missing: " + added + ".", result.final_model, after,
+      final_worst < options_.noise_ratio_threshold ? ", at the noise floor" : ", still above the noise floor",
+      result.unexplained.empty()
+          ? ""
+          : (exhausted ? " What is left matches no catalogue term: "
+                       : fmt::format(" Stopped after {} terms; the strongest feature left: ", options_.max_terms)) +
+                result.unexplained.front().detail + ".");
+}
+
+DiscoveryResult DiscoveryRun::Run() {
+  const Stopwatch total_watch;
+  DiscoveryResult result;
+  bool exhausted = false;  // stopped because no candidate qualified (not because of max_terms)
+  Say(fmt::format("fitting the baseline {} (every parameter the data can determine)", base_));
+  const Stopwatch baseline_watch;
+  result.baseline = FitPrepared(data_, Model::Build(base_, causality_), session_options_).summary;
+  const double baseline_seconds = baseline_watch.Seconds();
+  spdlog::debug("timing: baseline {} {:.2f} s ({} iterations)", base_, baseline_seconds, result.baseline.iterations);
+  result.mismatch = LocateMismatch(result.baseline);
+  FitSummary current = result.baseline;
+  std::map<std::string, double> ratio = PooledNoiseRatio(current);
+  result.nothing_missing = WorstRatio(ratio) < options_.noise_ratio_threshold;
+  if (!result.baseline.converged) Say("the baseline fit did not converge: " + result.baseline.VerdictText());
+
+  for (int number = 1; number <= options_.max_terms && WorstRatio(ratio) >= options_.noise_ratio_threshold; ++number) {
+    const std::vector<Finding> findings = LocateMismatch(current);
+    const Model model = Model::Build(current.model, causality_);
+    Round round = Candidates(current);
+    Say(fmt::format("round {}: {} candidates refitted, {} at a time", number, round.candidates.size(), options_.threads));
+    Refit(round, current, number);
+    for (CandidateFit& c : round.results) {
+      const TermEntry& entry = CatalogueEntry(c.term);
+      for (const Finding& f : findings)
+        if (f.locus == entry.locus) c.evidence = std::max(c.evidence, f.score);
+    }
+    const int best = Select(round, current, model, ratio, number);
+    for (const CandidateFit& c : round.results)
+      spdlog::info("  {:<20} ΔBIC {:>12.1f}  worst noise ratio {:8.2f}  evidence {:6.1f}  {}", c.term, c.delta_bic,
+                   WorstRatio(c.noise_ratio), c.evidence, c.ok ? c.verdict : c.error);
+    if (best < 0) {
+      Say("no candidate improves the fit beyond what its parameters cost and predicts left-out experiments better");
+      exhausted = true;
+      break;
+    }
+    round.results[best].verdict = "kept";
+    DiscoveryStep step = Step(round, best, current, findings, ratio);
+    Say(fmt::format("added {}: ΔBIC {:+.1f}; {}", step.term, step.delta_bic, step.evidence));
+    result.missing.push_back(step.term);
+    result.steps.push_back(std::move(step));
+    current = round.fits[best];
+    current_cv_ = round.results[best].cv_ratio;
+    ratio = PooledNoiseRatio(current);
+  }
+
+  result.final_model = current.model;
+  result.final_fit = current;
+  Conclude(result, exhausted, ratio);
   spdlog::debug("timing: discover {:.2f} s: baseline {:.2f} s, candidates {:.2f} s, cross-validation {:.2f} s",
-                total_watch.Seconds(), baseline_seconds, candidate_seconds, cv_seconds);
+                total_watch.Seconds(), baseline_seconds, candidate_seconds_, cv_seconds_);
   // The conclusion is the result, which the caller prints as data (stdout); logging it as well
-  // showed it twice on a terminal.
+  // would show it twice on a terminal.
   spdlog::debug("{}", result.conclusion);
-  if (progress) progress(result.conclusion);
+  if (progress_) progress_(result.conclusion);
   return result;
+}
+
+}  // namespace
+
+DiscoveryResult Discover(const FitData& data, const SessionFitOptions& fit_options, const DiscoverOptions& options,
+                         const std::function<void(const std::string&)>& progress) {
+  std::string error;
+  if (!options.IsValid(&error) || !fit_options.IsValid(&error)) throw std::invalid_argument("discover options: " + error);
+  return DiscoveryRun(data, fit_options, options, progress).Run();
 }
 
 }  // namespace strut::ident

@@ -33,7 +33,7 @@ class Values {
   //! The baseline estimated theta<index>: its sensitivity belongs among the regressors.
   bool estimated(int index) const {
     const int p = fit_.parameters.position_of_index(index);
-    return p >= 0 && p < static_cast<int>(fit_.estimated.size()) && fit_.estimated[p];
+    return p >= 0 && p < static_cast<int>(fit_.estimates.size()) && fit_.estimates[p].estimated;
   }
 
  private:
@@ -162,7 +162,7 @@ Regression GaussNewtonSize(const FitSummary& baseline, const Model& model, const
   Regression r;
   std::vector<int> positions = {size_position};
   for (int i = 0; i < baseline.parameters.size(); ++i)
-    if (i < static_cast<int>(baseline.estimated.size()) && baseline.estimated[i])
+    if (i < static_cast<int>(baseline.estimates.size()) && baseline.estimates[i].estimated)
       if (const auto p = model.defaults().find(baseline.parameters.spec(i).key())) positions.push_back(*p);
   std::vector<Eigen::MatrixXd> blocks;
   std::vector<Eigen::VectorXd> targets;

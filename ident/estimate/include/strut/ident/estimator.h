@@ -176,23 +176,28 @@ enum class FitVerdict {
 };
 const char* ToString(FitVerdict verdict);  //!< "at-noise-floor", "above-noise-floor", "not-converged"
 
+//! What the fit says of one parameter.
+struct ParameterEstimate {
+  bool estimated = false;
+  double sd = NAN;  //!< posterior sd (NaN when fixed)
+  //! sd over the sd from the output noise alone: what the measured input's noise adds (NaN when
+  //! fixed, or when the input's noise is unknown or not propagated).
+  double input_noise_sd_factor = NAN;
+  //! Above the noise floor: how much the sd was widened for the misfit (ExperimentSandwich); NaN at
+  //! the noise floor and when fixed.
+  double misfit_sd_factor = NAN;
+  //! What the transducers' calibration (EstimatorOptions::gain_sd) alone contributes to the sd (the
+  //! sd includes it: sd^2 = the rest^2 + this^2); NaN without a calibration and when fixed.
+  double calibration_sd = NAN;
+};
+
 //! Everything a fit found; BriefReport()/FullReport() for people, the fields for JSON and reports.
 struct FitSummary {
   std::string model;
   bool converged = false;
   int iterations = 0;
-  ParameterSet parameters;           //!< final values
-  std::vector<bool> estimated;       //!< per parameter
-  std::vector<double> sd;            //!< posterior sd (NaN when fixed)
-  //! sd over the sd from the output noise alone: what the measured input's noise adds (NaN when
-  //! fixed, or when the input's noise is unknown or not propagated)
-  std::vector<double> input_noise_sd_factor;
-  //! Above the noise floor: how much each sd was widened for the misfit (ExperimentSandwich); empty
-  //! at the noise floor, NaN when fixed.
-  std::vector<double> misfit_sd_factor;
-  //! What the transducers' calibration (EstimatorOptions::gain_sd) alone contributes to each sd (the
-  //! sd includes it: sd^2 = the rest^2 + this^2); empty without a calibration, NaN when fixed.
-  std::vector<double> calibration_sd;
+  ParameterSet parameters;                  //!< final values
+  std::vector<ParameterEstimate> estimates;  //!< per parameter, in the order of `parameters`
   //! The transducer gains it holds (channel: relative sd), the fitted outputs' and the input's; empty without.
   std::map<std::string, double> calibration;
   std::vector<int> estimated_positions;
@@ -209,6 +214,8 @@ struct FitSummary {
 
   std::string BriefReport() const;
   std::string FullReport() const;
+  //! Above the noise floor the intervals were widened for the misfit (ParameterEstimate::misfit_sd_factor).
+  bool WidenedForMisfit() const;
   //! Parameter i's sd without the calibration's part (what the data and the model give).
   double NoiseSd(int i) const;
   bool IsSolutionUsable() const;

@@ -30,7 +30,7 @@ RigConnection Connection(std::string controller, std::string acquisition) {
   return c;
 }
 
-//! A kind of rig that takes one controller string and makes no drivers (what it was asked is kept).
+//! A kind of rig that takes one controller string and makes no drivers, only a description.
 class NamedRigFactory final : public RigDeviceFactory {
  public:
   explicit NamedRigFactory(std::string name) : name_(std::move(name)) {}

@@ -150,7 +150,7 @@ TEST(DropFit, ShakerMatrixPlusOneDropRecoversADrawnUnitsTruth) {
   const SimulatedRig rig(truth);
   RigRunOptions run;
   run.seed = seed;
-  daq::Session session = rig.RunMatrix(StandardMatrixPlan(), run);
+  daq::Session session = rig.RunMatrix(rig::StandardMatrixPlan(), run);
   session.experiments.push_back(rig.RunDropSession(DropSpec{"drop", 350.0, 0.5, 10.0}, run).experiments[0]);
   ident::SessionFitOptions options;
   options.estimator.transient_predictor = DropPredictorFactory();

@@ -147,6 +147,70 @@ TEST(DropPrediction, IntervalGradientAgreesWithFinerDifferences) {
   EXPECT_GT(p.gradient(0, 0), 0.0);
 }
 
+TEST(DropWhatIf, AScaledParameterCarriesItsSdAndTheUnscaledFitIsPredictedBeside) {
+  // Theta at positions 0..3, positions 1 and 3 estimated with covariance c; scale 1 by 2 and 2
+  // (not estimated) by 0.5: theta 1 and 2 change, c's row and column of 1 double (its sd doubles,
+  // its correlation with 3 stays).
+  const std::vector<double> theta{1.0, 10.0, 100.0, 1000.0};
+  Eigen::Matrix2d c;
+  c << 4.0, 1.5, 1.5, 9.0;
+  const ScaledParameters s = ScaleParameters(theta, {1, 3}, c, {{1, 2.0}, {2, 0.5}});
+  EXPECT_EQ(s.theta, (std::vector<double>{1.0, 20.0, 50.0, 1000.0}));
+  Eigen::Matrix2d expected;
+  expected << 16.0, 3.0, 3.0, 9.0;
+  EXPECT_EQ(s.covariance, expected);
+  EXPECT_EQ(ScaleParameters(theta, {1, 3}, c, {}).covariance, c);
+  EXPECT_THROW(ScaleParameters(theta, {}, Eigen::MatrixXd(), {{4, 2.0}}), std::invalid_argument);
+
+  // Doubling theta3 of the default truth: the prediction is the scaled model's, the unscaled one
+  // the fit's as it is (no intervals), the same as predicting each alone.
+  const ident::Model model = DefaultTruth().BuildModel(ident::Causality::kForceInput);
+  const SimulatedRig rig(DefaultTruth());
+  const int p3 = model.defaults().position_of_index(3);
+  DropPredictionOptions options;
+  options.duration = 0.5;
+  options.intervals = false;
+  const WhatIfDrop w = PredictDropWhatIf(model, rig.theta(), 350.0, 0.5, {}, Eigen::MatrixXd(), {{p3, 2.0}}, options);
+  ASSERT_TRUE(w.unscaled.has_value());
+  std::vector<double> doubled = rig.theta();
+  doubled[p3] *= 2.0;
+  EXPECT_EQ(FigureValues(w.predicted.figures)[0],
+            FigureValues(PredictDrop(model, doubled, 350.0, 0.5, {}, Eigen::MatrixXd(), options).figures)[0]);
+  EXPECT_EQ(FigureValues(w.unscaled->figures)[0],
+            FigureValues(PredictDrop(model, rig.theta(), 350.0, 0.5, {}, Eigen::MatrixXd(), options).figures)[0]);
+  EXPECT_GT(w.predicted.figures.peak_force, w.unscaled->figures.peak_force);
+  EXPECT_FALSE(PredictDropWhatIf(model, rig.theta(), 350.0, 0.5, {}, Eigen::MatrixXd(), {}, options).unscaled);
+}
+
+TEST(DropWhatIf, TheRecordedDropIsFoundOrRefusedNamingTheSession) {
+  daq::Session session;
+  daq::Experiment a, drop, other;
+  a.label = "a";
+  a.kind = daq::ExperimentKind::kPeriodic;
+  drop.label = "d1";
+  drop.kind = daq::ExperimentKind::kDrop;
+  session.experiments = {a, drop};
+  EXPECT_EQ(FindDropExperiment(session, "", "s.h5").label, "d1");
+  EXPECT_EQ(FindDropExperiment(session, "d1", "s.h5").label, "d1");
+  const auto refusal = [&](const std::string& label) {
+    try {
+      FindDropExperiment(session, label, "s.h5");
+    } catch (const std::invalid_argument& e) {
+      return std::string(e.what());
+    }
+    return std::string("(found)");
+  };
+  EXPECT_EQ(refusal("a"), "--compare s.h5: experiment 'a' is not a drop");
+  EXPECT_EQ(refusal("zz"), "--compare s.h5: no experiment 'zz'");
+  other = drop;
+  other.label = "d2";
+  session.experiments.push_back(other);
+  EXPECT_EQ(refusal(""), "--compare s.h5: several drop experiments ('d1', 'd2'); choose one with --experiment");
+  EXPECT_EQ(FindDropExperiment(session, "d2", "s.h5").label, "d2");
+  session.experiments = {a};
+  EXPECT_EQ(refusal(""), "--compare s.h5: no drop experiment in the session");
+}
+
 TEST(FitJson, ReadsBackParametersAndCovariance) {
   nlohmann::json j = {{"model", "1dof"},
                       {"converged", true},
@@ -191,7 +255,7 @@ TEST(DropPrediction, ShakerFitOfDrawnUnitsPredictsTheTruthsDrop) {
     const SimulatedRig rig(truth);
     RigRunOptions run;
     run.seed = seed;
-    const daq::Session session = rig.RunMatrix(StandardMatrixPlan(), run);
+    const daq::Session session = rig.RunMatrix(rig::StandardMatrixPlan(), run);
     ident::SessionFitOptions options;
     const ident::Model model = ident::Model::Build(options.composition, options.causality);
     const ident::SessionFit fit =

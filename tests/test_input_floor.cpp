@@ -40,7 +40,7 @@ std::map<std::string, double> ForceRatios(bool ideal_actuator) {
   sim::Truth truth = sim::ParseTruth(kTruth, "test truth");
   truth.actuator.ideal = ideal_actuator;
   const sim::SimulatedRig rig(truth);
-  sim::MatrixPlan plan;
+  rig::MatrixPlan plan;
   for (const rig::MatrixEntry& e : rig::StandardMatrix())
     if (e.label == "e" || e.label == "f") plan.experiments.push_back(e);
   sim::RigRunOptions run;

@@ -343,7 +343,7 @@ TEST(QcCli, PlanDecideRecordAndListTheHistory) {
   test::TempDir dir;
   const auto plan = test::RunStrut("qc plan -o " + dir.file("qc.toml") + " --write-reference " + dir.file("ref.toml"));
   ASSERT_EQ(plan.exit_code, 0) << plan.output;
-  const sim::MatrixPlan read = sim::ReadMatrixFile(dir.file("qc.toml"));
+  const rig::MatrixPlan read = rig::ReadMatrixFile(dir.file("qc.toml"));
   ASSERT_EQ(read.experiments.size(), QcMatrix().experiments.size());
   for (std::size_t i = 0; i < read.experiments.size(); ++i) {
     EXPECT_EQ(read.experiments[i].label, QcMatrix().experiments[i].label);

@@ -27,7 +27,7 @@ daq::Session DrawnSession(unsigned long seed) {
   const sim::SimulatedRig rig(sim::DrawUnit(IdealRig(), sim::UnitDraw{}, seed));
   sim::RigRunOptions run;
   run.seed = seed;
-  return rig.RunMatrix(sim::StandardMatrixPlan(), run);
+  return rig.RunMatrix(rig::StandardMatrixPlan(), run);
 }
 
 TEST(SessionFit, TheThinnedGridOfTheSlowExperimentsFitsLikeEverySample) {
@@ -294,7 +294,7 @@ TEST(SessionFit, AnExperimentWithoutWholeSamplesPerPeriodKeepsEightHundredPoints
   // Another tool's record at 0.3003 Hz and 200 Hz, 666.0007 samples a period: it is resampled onto
   // an equidistant grid, 800 points by default (as before the thinned grid), while 0.1 Hz (2000
   // samples) is thinned. (The simulated rig records whole periods only: the copy of b is relabelled.)
-  sim::MatrixPlan plan;
+  rig::MatrixPlan plan;
   plan.experiments = {{"b", "middle", 0.1, 0.133, 0.127}};
   const sim::SimulatedRig rig(sim::DrawUnit(IdealRig(), sim::UnitDraw{}, 26));
   daq::Session session = rig.RunMatrix(plan);

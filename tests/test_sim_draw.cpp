@@ -316,7 +316,7 @@ TEST(SimDraw, TheSessionRecordsTheTruthTheRigSimulated) {
   UnitDraw spec;
   spec.effects = {{"viscous-damping", 200.0}};
   const SimulatedRig rig(DrawUnit(spec, 21));
-  MatrixPlan plan;
+  rig::MatrixPlan plan;
   plan.experiments = {{"j", "middle", 2.0, 0.133, 0.010}};
   plan.periods = 1;
   const daq::Session written = rig.RunMatrix(plan);
@@ -348,7 +348,7 @@ TEST(SimDraw, ASessionWithoutATruthGroupHasNoRecordedTruth) {
   daq::Session session;
   EXPECT_FALSE(ReadRecordedTruth(session));
   // The shipped truth is recorded too, as not drawn.
-  MatrixPlan plan;
+  rig::MatrixPlan plan;
   plan.experiments = {{"j", "middle", 2.0, 0.133, 0.010}};
   plan.periods = 1;
   Truth shipped = DefaultTruth();

@@ -13,8 +13,8 @@
 namespace strut::sim {
 namespace {
 
-MatrixPlan Small() {
-  MatrixPlan plan;
+rig::MatrixPlan Small() {
+  rig::MatrixPlan plan;
   plan.experiments = {{"d", "high", 0.5, 0.219, 0.032}, {"h", "middle", 0.5, 0.133, 0.034}, {"n", "low", 2.0, 0.014, 0.010}};
   return plan;
 }
@@ -60,7 +60,7 @@ TEST(SimRig, SessionHoldsWholeSteadyPeriodsInSIWithGaugePressure) {
 
 TEST(SimRig, SameSeedGivesTheSameSessionAndAnotherSeedAnother) {
   const SimulatedRig rig(DefaultTruth());
-  MatrixPlan plan;
+  rig::MatrixPlan plan;
   plan.experiments = {{"n", "low", 2.0, 0.014, 0.010}};
   RigRunOptions one, two;
   one.seed = 5, two.seed = 6;
@@ -94,7 +94,7 @@ TEST(SimRig, InjectedFaultsShowWhereTheyWereAsked) {
 
 TEST(SimRig, StreamedSamplesArriveInOrderAndTheRecordedOnesAreTheSession) {
   const SimulatedRig rig(DefaultTruth());
-  MatrixPlan plan;
+  rig::MatrixPlan plan;
   plan.experiments = {{"j", "middle", 2.0, 0.133, 0.010}};
   std::vector<SampleBlock> blocks;
   RigRunOptions o;
@@ -115,7 +115,7 @@ TEST(SimRig, StreamedSamplesArriveInOrderAndTheRecordedOnesAreTheSession) {
 
 TEST(SimRig, RealTimeClockPacesTheRun) {
   const SimulatedRig rig(DefaultTruth());
-  MatrixPlan plan;
+  rig::MatrixPlan plan;
   plan.experiments = {{"j", "middle", 2.0, 0.133, 0.010}};
   std::vector<PeriodicRunReport> reports;
   RigRunOptions o;
@@ -129,7 +129,7 @@ TEST(SimRig, RealTimeClockPacesTheRun) {
 
 TEST(SimRig, LimitsAreFlaggedAndBadMatricesRefused) {
   const SimulatedRig rig(DefaultTruth());
-  MatrixPlan plan;
+  rig::MatrixPlan plan;
   plan.experiments = {{"fast", "middle", 2.0, 0.133, 0.050}};  // needs 0.63 m/s, the valve gives 0.4
   std::vector<PeriodicRunReport> reports;
   const daq::Session s = rig.RunMatrix(plan, {}, &reports);
@@ -141,7 +141,7 @@ TEST(SimRig, LimitsAreFlaggedAndBadMatricesRefused) {
   // The force-limit interlock stops a test that loads the actuator too hard: aborted, no periods.
   Truth weak = DefaultTruth();
   weak.actuator.stall_force = 22e3, weak.actuator.force_limit = 20e3;
-  MatrixPlan deep;
+  rig::MatrixPlan deep;
   deep.experiments = {{"f", "high", 2.0, 0.249, 0.010}, {"n", "low", 2.0, 0.014, 0.010}};
   const daq::Session stopped = SimulatedRig(weak).RunMatrix(deep);
   EXPECT_TRUE(daq::Validate(stopped).empty());
@@ -151,7 +151,7 @@ TEST(SimRig, LimitsAreFlaggedAndBadMatricesRefused) {
   EXPECT_LT(stopped.experiment("f").sample_count(), 100u);
   EXPECT_EQ(stopped.experiment("n").status, "complete");  // 4 kN: the next test runs
 
-  MatrixPlan odd;
+  rig::MatrixPlan odd;
   odd.experiments = {{"odd", "", 0.3, 0.133, 0.01}};  // 200 / 0.3 samples per period
   try {
     rig.RunMatrix(odd);

@@ -24,6 +24,7 @@
 #include "strut/daq/can_acquisition.h"
 #include "strut/daq/modbus_controller.h"
 #include "strut/daq/recorder.h"
+#include "strut/daq/rig_devices.h"
 #include "strut/daq/session.h"
 #include "strut/sim/rig_server.h"
 #include "strut/sim/simulated_rig.h"
@@ -381,6 +382,41 @@ TEST(ServedRig, ForceLimitTripMidSineLatchesTheFaultAndTheRigHolds) {
   } catch (const DeviceError& e) {
     EXPECT_NE(std::string(e.what()).find("fault is latched"), std::string::npos) << e.what();
   }
+}
+
+// The simulated rig as a kind of rig (daq/rig_devices.h): "sim" and only "sim" (with its own
+// acquisition) is taken, and the drivers it makes read the served rig's stream and status.
+TEST(ServedRig, TheSimulatedRigFactoryServesTheRigBehindTheDriversItMakes) {
+  const SimulatedRigFactory served(DefaultTruth(), 10.0);
+  const daq::NetworkRigFactory network;
+  daq::RigConnection c;
+  c.controller = "sim";
+  EXPECT_TRUE(served.Accepts(c));
+  c.acquisition = "sim";
+  EXPECT_TRUE(served.Accepts(c));
+  c.acquisition = "udp:127.0.0.1:5000";
+  EXPECT_FALSE(served.Accepts(c));
+  EXPECT_THROW(served.Connect(c), std::invalid_argument);
+  c.controller = "127.0.0.1:1502";
+  EXPECT_FALSE(served.Accepts(c));
+  c = {};
+  c.controller = "sim";
+  c.response_timeout = 300ms;
+  const daq::RigDevices devices = daq::ConnectRig(c, std::vector<const daq::RigDeviceFactory*>{&network, &served});
+  const RigServer* server = ServedRig(devices);
+  ASSERT_NE(server, nullptr);
+  EXPECT_EQ(devices.description.find(DefaultTruth().rig + " [simulated in-process at 10x real time: "), 0u)
+      << devices.description;
+  EXPECT_EQ(devices.controller->ReadStatus().state, ControllerState::kDisarmed);
+  devices.acquisition->Start();
+  std::size_t sets = 0;
+  for (const auto t0 = Clock::now(); sets < 100 && Clock::now() - t0 < 10s;)
+    sets += devices.acquisition->Read(100ms).size();
+  EXPECT_GE(sets, 100u);
+  EXPECT_DOUBLE_EQ(devices.acquisition->description().sample_rate, 10.0 * server->simulated_sample_rate());
+  EXPECT_GT(server->stats().sets_sent, 0u);
+  // A rig on the network has no server behind its devices.
+  EXPECT_EQ(ServedRig(daq::RigDevices{}), nullptr);
 }
 
 TEST(ServeSimCommand, ServesTheControllerAndStreamsUntilSigterm) {

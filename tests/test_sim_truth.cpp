@@ -146,44 +146,5 @@ amplitude = 0.05
   EXPECT_FALSE(t.faults[0].Applies("c", "stroke"));
 }
 
-TEST(SimTruth, MatrixFilesAreReadAndCheckedWithLines) {
-  const MatrixPlan plan = ParseMatrix(R"(sample_rate = 100.0
-periods = 2
-[[experiment]]
-label = "slow"
-frequency = 0.05
-static_position = 0.133
-amplitude = 0.05
-[[experiment]]
-label = "fast"
-group = "middle"
-frequency = 2.0
-static_position = 0.133
-amplitude = 0.005
-)",
-                                      "m.toml");
-  ASSERT_EQ(plan.experiments.size(), 2u);
-  EXPECT_EQ(plan.experiments[1].label, "fast");
-  EXPECT_EQ(plan.experiments[1].group, "middle");
-  EXPECT_DOUBLE_EQ(*plan.sample_rate, 100.0);
-  EXPECT_EQ(*plan.periods, 2);
-  const auto error = [](const std::string& text) {
-    try {
-      ParseMatrix(text, "m.toml");
-    } catch (const TruthError& e) {
-      return std::string(e.what());
-    }
-    return std::string("(no error)");
-  };
-  EXPECT_NE(error("[[experiment]]\nlabel = \"a\"\nfrequency = 1\n").find("m.toml:1"), std::string::npos);
-  EXPECT_NE(error("[[experiment]]\nlabel = \"a\"\nfrequency = -1\nstatic_position = 0.1\namplitude = 0.01\n")
-                .find("frequency must be positive"),
-            std::string::npos);
-  EXPECT_NE(error("[[experiment]]\nlabel = \"a\"\nfreq = 1\n").find("m.toml:3: [[experiment]] unknown key 'freq'"),
-            std::string::npos);
-  EXPECT_NE(error("sample_rate = 100\n").find("no [[experiment]]"), std::string::npos);
-  EXPECT_EQ(StandardMatrixPlan().experiments.size(), 14u);
-}
-
 }  // namespace
 }  // namespace strut::sim

@@ -128,11 +128,11 @@ struct BenchConfusion {
         const sim::Truth truth = sim::DrawUnit(around, draw, seed);
         // How plainly the effect shows in this unit's data, before any fit absorbs part of it.
         std::optional<sim::EffectSignal> signal;
-        if (effect != "none") signal = sim::MeasureEffectSignal(truth, effect, sim::StandardMatrixPlan().experiments);
+        if (effect != "none") signal = sim::MeasureEffectSignal(truth, effect, rig::StandardMatrixPlan().experiments);
         const sim::SimulatedRig rig(truth);
         sim::RigRunOptions run;
         run.seed = seed;
-        const daq::Session session = rig.RunMatrix(sim::StandardMatrixPlan(), run);
+        const daq::Session session = rig.RunMatrix(rig::StandardMatrixPlan(), run);
         if (!sessions_dir.empty()) {
           // Kept so that a unit can be looked at again: strut -v discover DIR/EFFECT-SEED.h5 --model BASE.
           const std::string path = fmt::format("{}/{}-{}.h5", sessions_dir, effect, seed);

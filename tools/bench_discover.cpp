@@ -43,7 +43,7 @@ struct BenchDiscover {
   void Run() const {
     // The simulated rig with every effect on: the hardest case, every round refits all candidates.
     const sim::SimulatedRig rig(sim::DefaultTruth());
-    const daq::Session session = rig.RunMatrix(sim::StandardMatrixPlan());
+    const daq::Session session = rig.RunMatrix(rig::StandardMatrixPlan());
     ident::SessionFitOptions fit;
     fit.composition = "1dof";
     const ident::FitData data =

@@ -58,7 +58,7 @@ struct BenchDrop {
       const sim::SimulatedRig rig(truth);
       sim::RigRunOptions run;
       run.seed = seed;
-      const daq::Session session = rig.RunMatrix(sim::StandardMatrixPlan(), run);
+      const daq::Session session = rig.RunMatrix(rig::StandardMatrixPlan(), run);
       const ident::SessionFit fit = ident::FitPrepared(
           ident::PrepareFitData(session, fmt::format("unit {}", seed), model, options.estimator.n), model, options);
       ++fits;

@@ -113,7 +113,7 @@ struct BenchDropFit {
       const sim::SimulatedRig rig(truth);
       sim::RigRunOptions run;
       run.seed = seed;
-      const daq::Session matrix = rig.RunMatrix(sim::StandardMatrixPlan(), run);
+      const daq::Session matrix = rig.RunMatrix(rig::StandardMatrixPlan(), run);
       daq::Session both = matrix;
       sim::DropRunReport truth_drop;
       both.experiments.push_back(rig.RunDropSession(sim::DropSpec{"drop", mass, velocity, duration}, run, &truth_drop)

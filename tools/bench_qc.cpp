@@ -78,7 +78,7 @@ struct BenchQc {
     CheckOutputPath("--json", json_path, {});
     if (truth_ranges > 0) return Ranges();
     const qc::Reference reference = qc::LotReference();
-    const sim::MatrixPlan plan = qc::QcMatrix();
+    const rig::MatrixPlan plan = qc::QcMatrix();
     std::vector<std::string> kinds = {"good"};
     for (qc::Defect d : qc::Defects()) kinds.push_back(qc::ToString(d));
     std::map<std::string, std::map<std::string, long>> confusion;

@@ -17,9 +17,12 @@
 #include "commands.h"
 #include "option_checks.h"
 #include "output_files.h"
-#include "rig_devices.h"
+#include "strut/daq/rig_devices.h"
 #include "strut/daq/session.h"
+#include "strut/rig/campaign.h"
 #include "strut/rig/matrix_runner.h"
+#include "strut/sim/recorded_truth.h"
+#include "strut/sim/rig_server.h"
 #include "strut/sim/simulated_rig.h"
 #include "truth_options.h"
 
@@ -82,7 +85,7 @@ struct BenchRig {
     return truth;
   }
 
-  RigFigures RunRig(const sim::Truth& truth, const sim::MatrixPlan& plan, double speed, const std::string& path) const {
+  RigFigures RunRig(const sim::Truth& truth, const rig::MatrixPlan& plan, double speed, const std::string& path) const {
     rig::RunnerOptions options;
     options.periods = plan.periods.value_or(3);
     options.stream_speed = speed;
@@ -93,18 +96,22 @@ struct BenchRig {
     const double cpu0 = ProcessSeconds();
     const auto t0 = Clock::now();
     {
-      RigDevices devices = ServeSimulatedRig(truth, speed, std::chrono::milliseconds(500));
+      daq::RigConnection connection;
+      connection.controller = "sim";
+      const sim::SimulatedRigFactory served(truth, speed);
+      const daq::RigDevices devices = served.Connect(connection);
       daq::RecorderOptions ro;
       ro.force = true;
-      daq::Recorder recorder = daq::Recorder::Open(
-          path, RunMetadata(truth.damper_serial, "strut bench rig", "", "standard", safety, truth), ro);
+      daq::RecordingMetadata metadata = rig::RunMetadata(truth.damper_serial, "strut bench rig", "", "standard", safety);
+      metadata.groups = sim::TruthMetadata(truth);
+      daq::Recorder recorder = daq::Recorder::Open(path, metadata, ro);
       rig::MatrixRunner runner(*devices.controller, *devices.acquisition, recorder, safety, options);
       const rig::RunReport report = runner.Run(items);
       recorder.Close();
-      const sim::RigServerStats served = devices.server->stats();
-      f.simulated = served.simulated_seconds;
-      f.plant_cpu = served.compute_seconds;
-      f.max_lateness = served.max_lateness;
+      const sim::RigServerStats stats = sim::ServedRig(devices)->stats();
+      f.simulated = stats.simulated_seconds;
+      f.plant_cpu = stats.compute_seconds;
+      f.max_lateness = stats.max_lateness;
       const daq::AcquisitionStats& a = devices.acquisition->stats();
       f.lost_sets = a.lost_sample_sets;
       f.gaps = a.gaps;
@@ -128,7 +135,7 @@ struct BenchRig {
     const fs::path folder = dir.empty() ? fs::temp_directory_path() : fs::path(dir);
     if (!fs::is_directory(folder)) throw std::invalid_argument(fmt::format("--dir {}: not a directory", folder.string()));
     const sim::Truth truth = Truth();
-    const sim::MatrixPlan plan = sim::StandardMatrixPlan();
+    const rig::MatrixPlan plan = rig::StandardMatrixPlan();
     const std::size_t n = plan.experiments.size();
     const std::string path = (folder / fmt::format("strut-bench-rig-{}.h5", ::getpid())).string();
 

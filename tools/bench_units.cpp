@@ -92,7 +92,7 @@ struct BenchUnits {
       const sim::SimulatedRig rig(truth);
       sim::RigRunOptions run;
       run.seed = seed;
-      const daq::Session session = rig.RunMatrix(sim::StandardMatrixPlan(), run);
+      const daq::Session session = rig.RunMatrix(rig::StandardMatrixPlan(), run);
       const ident::ParameterSet truth_values = truth.Parameters(rig.model());
       const auto start = std::chrono::steady_clock::now();
       const double cpu = ThreadSeconds();

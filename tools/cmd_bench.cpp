@@ -824,7 +824,7 @@ struct BenchSim {
                              "wall ms", "sim s/wall s", "IDA steps");
     std::vector<sim::PeriodicRunReport> reports;
     const auto start = Clock::now();
-    rig.RunMatrix(sim::StandardMatrixPlan(), {}, &reports);
+    rig.RunMatrix(rig::StandardMatrixPlan(), {}, &reports);
     const double wall = std::chrono::duration<double>(Clock::now() - start).count();
     double simulated = 0.0;
     nlohmann::json rows = nlohmann::json::array();

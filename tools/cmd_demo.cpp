@@ -132,7 +132,7 @@ struct DemoCommand {
     sim::RigRunOptions run;
     run.seed = seed;
     auto start = Clock::now();
-    daq::WriteSession(session_path, rig.RunMatrix(sim::StandardMatrixPlan(), run));
+    daq::WriteSession(session_path, rig.RunMatrix(rig::StandardMatrixPlan(), run));
     std::cout << fmt::format(
         "\n2. simulated rig: the 14 experiments of the standard matrix recorded to {} ({:.1f} s)\n", session_path,
         Seconds(start));

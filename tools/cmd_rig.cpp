@@ -17,7 +17,7 @@
 
 #include "commands.h"
 #include "option_checks.h"
-#include "rig_devices.h"
+#include "stop_signals.h"
 #include "strut/daq/modbus_controller.h"
 #include "strut/sim/rig_server.h"
 #include "truth_options.h"

@@ -9,9 +9,10 @@
 
 #include <CLI/CLI.hpp>
 #include <atomic>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <filesystem>
+#include <functional>
 #include <iostream>
 #include <memory>
 #include <optional>
@@ -20,14 +21,18 @@
 #include "commands.h"
 #include "option_checks.h"
 #include "output_files.h"
-#include "rig_devices.h"
+#include "stop_signals.h"
 #include "strut/daq/recorder.h"
-#include "strut/report/fit_report.h"
+#include "strut/daq/rig_devices.h"
+#include "strut/ident/fit_record.h"
+#include "strut/rig/campaign.h"
 #include "strut/rig/channel_file.h"
 #include "strut/rig/matrix_runner.h"
 #include "strut/rig/safety.h"
+#include "strut/rig/test_matrix.h"
 #include "strut/sim/can_module.h"
-#include "strut/sim/simulated_rig.h"
+#include "strut/sim/recorded_truth.h"
+#include "strut/sim/rig_server.h"
 #include "truth_options.h"
 
 namespace strut::tools {
@@ -53,6 +58,30 @@ std::string Percent(double margin) {
   return fmt::format("{:.0f}%", 100.0 * margin);
 }
 
+//! The progress of a run: a live line on a terminal, else a line per phase change.
+std::function<void(const rig::Progress&)> ProgressDisplay(bool tty) {
+  return [tty, last_line = std::string()](const rig::Progress& p) mutable {
+    if (p.experiment.empty()) return;  // starting: nothing to show yet
+    const std::string where = fmt::format("{} ({}/{})", p.experiment, p.index + 1, p.total);
+    const std::string measure = std::isfinite(p.steady_measure) ? fmt::format("{:.2f}", p.steady_measure) : "-";
+    const std::string margins =
+        fmt::format("margins stroke {} force {} pressure {} following {}", Percent(p.margins.stroke),
+                    Percent(p.margins.force), Percent(p.margins.pressure), Percent(p.margins.following));
+    if (tty) {
+      std::fprintf(stderr, "\r\033[K%s  %-16s cycle %3ld  steady %5s  periods %ld/%ld  stroke %.4f m  force %.3f kN  %s",
+                   where.c_str(), std::string(rig::ToString(p.phase)).c_str(), p.cycles, measure.c_str(),
+                   p.periods_recorded, p.periods_requested, p.stroke, p.force * 1e-3, margins.c_str());
+      std::fflush(stderr);
+      return;
+    }
+    // Plain lines: one per phase change.
+    const std::string line = fmt::format("{}: {}", where, rig::ToString(p.phase));
+    if (line == last_line) return;
+    last_line = line;
+    spdlog::info("{} (cycle {}, steady-state measure {}, {})", line, p.cycles, measure, margins);
+  };
+}
+
 //! How fast --rig sim runs unless told: well inside what the served rig keeps up with.
 constexpr double kDefaultSimSpeed = 50.0;
 
@@ -68,9 +97,10 @@ struct RigRunCommand {
   double drift_window = rig::SteadyStateTolerances{}.drift_window;
   TruthOptions truth_options;   // a simulated rig's truth: in-process, or served with the same options
 
-  void Run() {
-    // --rig sim: the simulated rig in this process, behind the same protocols as a real one.
-    const bool simulated = rig_spec == "sim";
+  //! The truth of a simulated rig: run here (--rig sim), or served by `strut rig serve-sim` with
+  //! the same options, which the runner cannot ask; either way the session records it. Takes the
+  //! sample rate and the serial number from it; refuses options that do not go with --rig sim.
+  std::optional<sim::Truth> SimulatedTruth(bool simulated) {
     const bool truth_given = !truth_options.truth_path.empty() || truth_options.draw_seed ||
                              truth_options.ideal_actuator || truth_options.base_option->count() > 0 ||
                              truth_options.effect_option->count() > 0;
@@ -85,17 +115,51 @@ struct RigRunCommand {
       if (daq_spec.empty()) throw std::invalid_argument("--daq: the acquisition module is needed (can:IFACE or udp:HOST:PORT)");
       if (daq_spec == "sim") throw std::invalid_argument("--daq sim: the simulated acquisition comes with --rig sim only");
     }
-    // The truth of a simulated rig: run here (--rig sim), or served by `strut rig serve-sim` with the
-    // same options, which the runner cannot ask; either way the session records it.
-    std::optional<sim::Truth> truth;
-    if (simulated || truth_given) {
-      truth = truth_options.Load();
-      if (daq_rate && std::abs(*daq_rate - truth->acquisition.sample_rate) > 1e-9 * *daq_rate)
-        throw std::invalid_argument(fmt::format("--daq-rate {} Hz: the simulated rig samples at its truth's {} Hz",
-                                                *daq_rate, truth->acquisition.sample_rate));
-      daq_rate = truth->acquisition.sample_rate;
-      if (serial.empty() && !resume) serial = truth->damper_serial;
+    if (!simulated && !truth_given) return std::nullopt;
+    sim::Truth truth = truth_options.Load();
+    if (daq_rate && std::abs(*daq_rate - truth.acquisition.sample_rate) > 1e-9 * *daq_rate)
+      throw std::invalid_argument(fmt::format("--daq-rate {} Hz: the simulated rig samples at its truth's {} Hz",
+                                              *daq_rate, truth.acquisition.sample_rate));
+    daq_rate = truth.acquisition.sample_rate;
+    if (serial.empty() && !resume) serial = truth.damper_serial;
+    return truth;
+  }
+
+  //! Where the devices are: the controller, the acquisition module and its frames.
+  daq::RigConnection Connection(const std::optional<rig::ChannelMap>& channel_map,
+                                const std::optional<sim::Truth>& truth, double rate, double stream_speed) const {
+    daq::RigConnection connection;
+    connection.controller = rig_spec;
+    connection.acquisition = daq_spec;
+    connection.response_timeout = std::chrono::milliseconds(timeout_ms);
+    if (channel_map) {
+      connection.can.layout = channel_map->layout;
+      connection.can.channels = channel_map->channels;
+    } else {  // the simulated rig's module: what serve-sim (of this truth) and the tests' plants stream
+      connection.can.layout.channels = 3;
+      connection.can.layout.module = 1;
+      connection.can.channels = sim::CanChannels(truth ? truth->sensors : sim::SensorSet{});
     }
+    connection.can.sample_rate = rate * stream_speed;
+    return connection;
+  }
+
+  //! How the run ended, on stdout; a run that did not complete ends with its exit code.
+  void PrintOutcome(const rig::RunReport& report) const {
+    std::cout << fmt::format("{}: run {}\n", output, rig::ToString(report.outcome));
+    for (const auto& l : report.complete) std::cout << fmt::format("  {:<10} complete\n", l);
+    for (const auto& l : report.not_steady) std::cout << fmt::format("  {:<10} not steady (recorded)\n", l);
+    for (const auto& l : report.aborted) std::cout << fmt::format("  {:<10} aborted\n", l);
+    if (report.outcome == rig::RunOutcome::kComplete) return;
+    std::cout << fmt::format("  cause: {}\n  remaining: {}\n  resume with: strut rig run ... -o {} --resume\n",
+                             report.cause, fmt::join(report.remaining, " "), output);
+    throw ExitCode(report.outcome == rig::RunOutcome::kPaused ? kExitRunPaused : kExitRunAborted);
+  }
+
+  void Run() {
+    // --rig sim: the simulated rig in this process, behind the same protocols as a real one.
+    const bool simulated = rig_spec == "sim";
+    const std::optional<sim::Truth> truth = SimulatedTruth(simulated);
     const double stream_speed = speed.value_or(simulated ? kDefaultSimSpeed : 1.0);
     if (!simulated && stream_speed != 1.0)
       spdlog::warn("--speed {}: the stream is taken to arrive {} times faster than it is recorded, as from `strut rig "
@@ -105,28 +169,12 @@ struct RigRunCommand {
     std::vector<std::string> inputs;
     for (const std::string* p : {&matrix_path, &limits_path, &fit_path, &channels_path})
       if (!p->empty()) inputs.push_back(*p);
-    const std::string journal = daq::JournalPath(output);
-    if (resume) {
-      if (force) throw std::invalid_argument("--resume and --force: a resume keeps what was recorded; give one");
-      if (!std::filesystem::exists(journal)) {
-        throw std::invalid_argument(fmt::format(
-            "--resume: {} has no journal {} to go on from{}", output, journal,
-            std::filesystem::exists(output) ? " (the session was completed, or recorded without keeping it)" : ""));
-      }
-    } else {
-      CheckOutputPath("-o", output, inputs, force);
-      if (std::filesystem::exists(journal) && !force)
-        throw std::invalid_argument(fmt::format("-o {}: the journal {} of an interrupted run is there: --resume it, "
-                                                "`strut recover` it, or give --force to start over",
-                                                output, journal));
-      if (serial.empty()) throw std::invalid_argument("--serial: the damper's serial number is needed for a new session");
-    }
-    const std::string matrix_text = matrix_path.empty() ? "standard" : sim::ReadMatrixText(matrix_path);
-    sim::MatrixPlan plan = matrix_path.empty() ? sim::StandardMatrixPlan() : sim::ParseMatrix(matrix_text, matrix_path);
-    const double rate = daq_rate.value_or(plan.sample_rate.value_or(200.0));
-    if (plan.sample_rate && std::abs(*plan.sample_rate - rate) > 1e-9 * rate)
-      throw std::invalid_argument(fmt::format("--daq-rate {} Hz: the matrix {} wants sample_rate {} Hz", rate,
-                                              matrix_path, *plan.sample_rate));
+    const rig::RunStart start{output, resume, force, serial};
+    if (!resume) CheckOutputPath("-o", output, inputs, force);
+    rig::CheckStart(start, rig::OutputState::Of(output));
+    const std::string matrix_text = matrix_path.empty() ? "standard" : rig::ReadMatrixText(matrix_path);
+    const rig::MatrixPlan plan = matrix_path.empty() ? rig::StandardMatrixPlan() : rig::ParseMatrix(matrix_text, matrix_path);
+    const double rate = rig::RunSampleRate(daq_rate, plan);
     const rig::SafetyConfig safety = limits_path.empty() ? rig::SafetyConfig{} : rig::ReadSafetyConfig(limits_path);
     std::optional<rig::ChannelMap> channel_map;
     if (!channels_path.empty()) channel_map = rig::ReadChannelFile(channels_path);
@@ -149,92 +197,40 @@ struct RigRunCommand {
     }
 
     // What to run: the whole matrix, or what a resumed session lacks.
-    std::optional<daq::Recorder> recorder;
-    std::vector<rig::RunItem> items;
-    if (resume) {
-      const daq::Session so_far = daq::ReadJournal(journal);
-      if (!serial.empty() && serial != so_far.damper_serial)
-        throw std::invalid_argument(fmt::format("--serial {}: the session {} is of damper {}", serial, output,
-                                                so_far.damper_serial));
-      items = rig::RemainingExperiments(plan.experiments, so_far);
-    } else {
-      for (const rig::MatrixEntry& e : plan.experiments) items.push_back({e});
-    }
+    std::optional<daq::Session> so_far;
+    if (resume) so_far = daq::ReadJournal(daq::JournalPath(output));
+    const std::vector<rig::RunItem> items = rig::ExperimentsToRun(start, plan.experiments, so_far ? &*so_far : nullptr);
     if (resume && items.empty()) {
-      // Cut off after the last record ended: nothing to run, the session only needs closing.
-      daq::Recorder::Resume(output, {}, "strut rig run --resume: nothing left to run").Close();
+      rig::CloseCompletedResume(output);
       std::cout << fmt::format("{}: run complete (every experiment of the matrix was recorded already)\n", output);
       return;
     }
-    std::vector<rig::MatrixEntry> entries;
-    for (const rig::RunItem& i : items) entries.push_back(i.entry);
-    const std::vector<std::string> refusals = rig::CheckMatrix(entries, safety, rate, predictor);
-    if (!refusals.empty()) {
-      throw std::invalid_argument(fmt::format("the matrix {} is refused before the rig moves (limits: {}):\n  {}",
-                                              matrix_path.empty() ? "standard" : matrix_path,
-                                              limits_path.empty() ? "defaults" : limits_path,
-                                              fmt::join(refusals, "\n  ")));
-    }
+    rig::RefuseUnsafeMatrix(items, safety, rate, predictor, matrix_path.empty() ? "standard" : matrix_path,
+                            limits_path.empty() ? "defaults" : limits_path);
 
-    // The devices.
-    const auto timeout = std::chrono::milliseconds(timeout_ms);
-    RigDevices devices;
-    if (simulated) {
-      devices = ServeSimulatedRig(*truth, stream_speed, timeout);
-    } else {
-      daq::CanAcquisitionOptions can;
-      if (channel_map) {
-        can.layout = channel_map->layout;
-        can.channels = channel_map->channels;
-      } else {  // the simulated rig's module: what serve-sim (of this truth) and the tests' plants stream
-        can.layout.channels = 3;
-        can.layout.module = 1;
-        can.channels = sim::CanChannels(truth ? truth->sensors : sim::SensorSet{});
-      }
-      can.sample_rate = rate * stream_speed;
-      devices = ConnectRig(daq::ParseModbusEndpoint(rig_spec), timeout, daq_spec, std::move(can));
-    }
+    // The devices: the simulated rig in this process, or a rig on the network.
+    const daq::NetworkRigFactory network;
+    std::optional<sim::SimulatedRigFactory> served;
+    if (simulated) served.emplace(*truth, stream_speed);
+    std::vector<const daq::RigDeviceFactory*> factories{&network};
+    if (served) factories.push_back(&*served);
+    const daq::RigDevices devices =
+        daq::ConnectRig(Connection(channel_map, truth, rate, stream_speed), factories);
 
-    if (resume) {
-      daq::Session so_far;
-      recorder.emplace(daq::Recorder::Resume(output, {}, "strut rig run --resume", &so_far));
-      spdlog::info("resuming {}: {} experiments recorded, {} to go", output, so_far.experiments.size(), items.size());
-    } else {
-      std::string rig_text = devices.controller->Describe() + " + " + devices.daq_spec;
-      if (simulated)
-        rig_text = fmt::format("{} [simulated in-process at {}x real time: {}]", truth->rig, stream_speed, truth->source);
-      else if (truth)
+    daq::RecordingMetadata metadata;
+    if (!resume) {
+      std::string rig_text = devices.description;
+      if (truth && !simulated)
         rig_text += fmt::format(" [{} served at {}x real time: {}]", truth->rig, stream_speed, truth->source);
-      daq::RecorderOptions ro;
-      ro.force = force;
-      recorder.emplace(daq::Recorder::Open(
-          output, RunMetadata(serial, rig_text, operator_name, matrix_text, safety, truth), ro));
+      metadata = rig::RunMetadata(serial, rig_text, operator_name, matrix_text, safety);
+      if (truth) metadata.groups = sim::TruthMetadata(*truth);
     }
-    if (fit) recorder->Event(daq::MonotonicNs(), "note", fmt::format("matrix checked against the fit {}", fit_path));
+    daq::Recorder recorder = rig::OpenRunRecorder(start, metadata, items.size());
+    if (fit) recorder.Event(daq::MonotonicNs(), "note", fmt::format("matrix checked against the fit {}", fit_path));
 
-    rig::MatrixRunner runner(*devices.controller, *devices.acquisition, *recorder, safety, options);
+    rig::MatrixRunner runner(*devices.controller, *devices.acquisition, recorder, safety, options);
     const bool tty = !no_progress && isatty(fileno(stderr));
-    std::string last_line;
-    runner.on_progress = [&](const rig::Progress& p) {
-      if (p.experiment.empty()) return;  // starting: nothing to show yet
-      const std::string where = fmt::format("{} ({}/{})", p.experiment, p.index + 1, p.total);
-      const std::string measure = std::isfinite(p.steady_measure) ? fmt::format("{:.2f}", p.steady_measure) : "-";
-      const std::string margins =
-          fmt::format("margins stroke {} force {} pressure {} following {}", Percent(p.margins.stroke),
-                      Percent(p.margins.force), Percent(p.margins.pressure), Percent(p.margins.following));
-      if (tty) {
-        std::fprintf(stderr, "\r\033[K%s  %-16s cycle %3ld  steady %5s  periods %ld/%ld  stroke %.4f m  force %.3f kN  %s",
-                     where.c_str(), std::string(rig::ToString(p.phase)).c_str(), p.cycles, measure.c_str(),
-                     p.periods_recorded, p.periods_requested, p.stroke, p.force * 1e-3, margins.c_str());
-        std::fflush(stderr);
-        return;
-      }
-      // Plain lines: one per phase change.
-      const std::string line = fmt::format("{}: {}", where, rig::ToString(p.phase));
-      if (line == last_line) return;
-      last_line = line;
-      spdlog::info("{} (cycle {}, steady-state measure {}, {})", line, p.cycles, measure, margins);
-    };
+    runner.on_progress = ProgressDisplay(tty);
 
     g_interrupts = 0;
     g_runner = &runner;
@@ -246,17 +242,8 @@ struct RigRunCommand {
     g_runner = nullptr;
     if (tty) std::fprintf(stderr, "\r\033[K");
 
-    const bool complete = report.outcome == rig::RunOutcome::kComplete;
-    recorder->Close(/*keep_journal=*/!complete);
-    std::cout << fmt::format("{}: run {}\n", output, rig::ToString(report.outcome));
-    for (const auto& l : report.complete) std::cout << fmt::format("  {:<10} complete\n", l);
-    for (const auto& l : report.not_steady) std::cout << fmt::format("  {:<10} not steady (recorded)\n", l);
-    for (const auto& l : report.aborted) std::cout << fmt::format("  {:<10} aborted\n", l);
-    if (!complete) {
-      std::cout << fmt::format("  cause: {}\n  remaining: {}\n  resume with: strut rig run ... -o {} --resume\n",
-                               report.cause, fmt::join(report.remaining, " "), output);
-      throw ExitCode(report.outcome == rig::RunOutcome::kPaused ? kExitRunPaused : kExitRunAborted);
-    }
+    recorder.Close(/*keep_journal=*/report.outcome != rig::RunOutcome::kComplete);
+    PrintOutcome(report);
   }
 };
 

@@ -64,7 +64,7 @@ struct SimMatrixCommand {
     CheckOutputPath("--output", output, {truth.truth_path, matrix_path}, force);
     const auto start = std::chrono::steady_clock::now();
     const sim::SimulatedRig rig(truth.Load());
-    const sim::MatrixPlan plan = matrix_path.empty() ? sim::StandardMatrixPlan() : sim::ReadMatrixFile(matrix_path);
+    const rig::MatrixPlan plan = matrix_path.empty() ? rig::StandardMatrixPlan() : rig::ReadMatrixFile(matrix_path);
     spdlog::info("simulated rig: {} ({}), {} experiments from {}", rig.model().composition(), rig.truth().source,
                  plan.experiments.size(), plan.source);
     std::vector<sim::PeriodicRunReport> reports;

@@ -70,8 +70,8 @@ const Band& Needs(const Reference& reference, const char* name, Defect defect) {
 
 }  // namespace
 
-sim::MatrixPlan QcMatrix() {
-  sim::MatrixPlan plan;
+rig::MatrixPlan QcMatrix() {
+  rig::MatrixPlan plan;
   plan.source = "<QC matrix>";
   plan.sample_rate = 200.0;
   plan.periods = 3;
@@ -85,7 +85,7 @@ sim::MatrixPlan QcMatrix() {
   return plan;
 }
 
-std::string MatrixFileText(const sim::MatrixPlan& plan, const std::string& comment) {
+std::string MatrixFileText(const rig::MatrixPlan& plan, const std::string& comment) {
   std::string s;
   std::size_t start = 0;
   while (start <= comment.size() && !comment.empty()) {

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <map>
 #include <cmath>
 #include <stdexcept>
 
@@ -255,6 +256,69 @@ DropPrediction PredictDrop(const ident::Model& model, std::span<const double> th
   }
   prediction.seconds = std::chrono::duration<double>(Clock::now() - start).count();
   return prediction;
+}
+
+ScaledParameters ScaleParameters(std::span<const double> theta, const std::vector<int>& estimated,
+                                 const Eigen::MatrixXd& covariance, const std::map<int, double>& factors) {
+  ScaledParameters s{std::vector<double>(theta.begin(), theta.end()), covariance};
+  for (const auto& [position, factor] : factors) {
+    if (position < 0 || position >= static_cast<int>(s.theta.size()))
+      throw std::invalid_argument(fmt::format("what-if: no parameter at position {}", position));
+    s.theta[position] *= factor;
+    const auto it = std::find(estimated.begin(), estimated.end(), position);
+    if (it != estimated.end()) {
+      const Eigen::Index a = it - estimated.begin();
+      s.covariance.row(a) *= factor;
+      s.covariance.col(a) *= factor;
+    }
+  }
+  return s;
+}
+
+WhatIfDrop PredictDropWhatIf(const ident::Model& model, std::span<const double> theta, double mass,
+                             double impact_velocity, const std::vector<int>& estimated,
+                             const Eigen::MatrixXd& covariance, const std::map<int, double>& factors,
+                             const DropPredictionOptions& options) {
+  const ScaledParameters scaled = ScaleParameters(theta, estimated, covariance, factors);
+  WhatIfDrop w{PredictDrop(model, scaled.theta, mass, impact_velocity, estimated, scaled.covariance, options), {}};
+  if (!factors.empty()) {
+    DropPredictionOptions plain = options;
+    plain.intervals = false;
+    w.unscaled = PredictDrop(model, theta, mass, impact_velocity, {}, Eigen::MatrixXd(), plain);
+  }
+  return w;
+}
+
+// The messages name --compare and --experiment: `strut predict drop` is where a recorded drop is
+// chosen, and the user fixes the choice there.
+const daq::Experiment& FindDropExperiment(const daq::Session& session, const std::string& label,
+                                          const std::string& path) {
+  const daq::Experiment* recorded = nullptr;
+  for (const daq::Experiment& e : session.experiments) {
+    if (!label.empty() ? e.label == label : e.kind == daq::ExperimentKind::kDrop) {
+      if (recorded && label.empty())
+        throw std::invalid_argument(fmt::format("--compare {}: several drop experiments ('{}', '{}'); choose one "
+                                                "with --experiment",
+                                                path, recorded->label, e.label));
+      recorded = &e;
+    }
+  }
+  if (!recorded)
+    throw std::invalid_argument(label.empty() ? fmt::format("--compare {}: no drop experiment in the session", path)
+                                              : fmt::format("--compare {}: no experiment '{}'", path, label));
+  if (recorded->kind != daq::ExperimentKind::kDrop)
+    throw std::invalid_argument(fmt::format("--compare {}: experiment '{}' is not a drop", path, recorded->label));
+  return *recorded;
+}
+
+MeasuredDrop MeasureRecordedDrop(const daq::Experiment& drop, const ident::ParameterSet& fitted, double static_stroke,
+                                 double settle_band) {
+  const int offset = fitted.position_of_index(12);
+  MeasuredDrop m;
+  m.trace = DropTraceFromRecord(drop, offset >= 0 ? fitted.value(offset) : 0.0);
+  m.figures = MeasureDrop(m.trace, static_stroke, settle_band);
+  m.figures.static_stroke = NAN;
+  return m;
 }
 
 namespace {

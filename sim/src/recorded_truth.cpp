@@ -21,6 +21,12 @@ void RecordTruth(const Truth& truth, daq::Session& session) {
   RecordTruth(truth, truth.Parameters(model), model.composition(), session);
 }
 
+std::vector<daq::MetadataGroup> TruthMetadata(const Truth& truth) {
+  daq::Session holder;
+  RecordTruth(truth, holder);
+  return holder.metadata;
+}
+
 void RecordTruth(const Truth& truth, const ident::ParameterSet& parameters, const std::string& composition,
                  daq::Session& session) {
   daq::MetadataGroup root = Group(std::string(kTruthGroup));

@@ -151,4 +151,43 @@ std::optional<std::string> RigServer::error() const {
   return error_;
 }
 
+// ---------------------------------------------------------------------------------------------
+// The simulated rig as a kind of rig
+
+std::string SimulatedRigFactory::Accepted() const { return "sim (the simulated rig in this process)"; }
+
+bool SimulatedRigFactory::Accepts(const daq::RigConnection& connection) const {
+  return connection.controller == "sim" && (connection.acquisition.empty() || connection.acquisition == "sim");
+}
+
+daq::RigDevices SimulatedRigFactory::Connect(const daq::RigConnection& connection) const {
+  if (!Accepts(connection))
+    throw std::invalid_argument(fmt::format("rig '{}' with acquisition '{}': the simulated rig is 'sim' with its own "
+                                            "acquisition", connection.controller, connection.acquisition));
+  daq::RigDevices d;
+  // The receiver first, on an ephemeral port, so the served module knows where to send.
+  std::unique_ptr<daq::CanTransport> transport = daq::OpenCanTransport("udp:127.0.0.1:0", /*listen=*/true);
+  const std::string frames_to = transport->name();
+  RigServerOptions served;
+  served.speed = speed_;
+  served.can = frames_to;
+  auto owned = std::make_unique<RigServer>(truth_, served);
+  RigServer& server = *owned;
+  d.host = std::move(owned);
+  d.acquisition = std::make_unique<daq::CanAcquisition>(std::move(transport), server.ReceiverOptions());
+  daq::ModbusControllerOptions modbus;
+  modbus.endpoint = server.modbus_endpoint();
+  modbus.response_timeout = connection.response_timeout;
+  d.controller = std::make_unique<daq::ModbusController>(modbus);
+  d.description = fmt::format("{} [simulated in-process at {}x real time: {}]", truth_.rig, speed_, truth_.source);
+  server.Start();
+  spdlog::info("simulated rig: controller at {}, sensors to {}, {}x real time", modbus.endpoint.ToString(), frames_to,
+               speed_);
+  return d;
+}
+
+const RigServer* ServedRig(const daq::RigDevices& devices) {
+  return dynamic_cast<const RigServer*>(devices.host.get());
+}
+
 }  // namespace strut::sim

@@ -6,10 +6,13 @@
 #include <chrono>
 #include <cmath>
 #include <fmt/format.h>
-#include <fstream>
+#include <functional>
+#include <memory>
 #include <numbers>
-#include <sstream>
-#include <toml++/toml.h>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
 
 #include "strut/ident/periodic.h"
 #include "rig_acquisition.h"
@@ -64,100 +67,262 @@ void Emit(const SampleSink& sink, SimulationClock* clock, SampleBlock block, dou
   }
 }
 
-}  // namespace
-
-// ---------------------------------------------------------------------------------------------
-// Matrix files
-
-MatrixPlan StandardMatrixPlan() {
-  MatrixPlan plan;
-  plan.experiments = rig::StandardMatrix();
-  return plan;
+//! The stroke over one period as the periodic solver's input on its start grid.
+ident::PeriodicInput StartGridInput(double frequency, const LvdtInverse& model_input,
+                                    const std::function<InputSample(double)>& stroke) {
+  const double period = 1.0 / frequency;
+  ident::PeriodicInput in{frequency, std::vector<double>(kStartGrid)};
+  for (int mu = 0; mu < kStartGrid; ++mu) in.values[mu] = model_input(stroke(mu * period / kStartGrid)).value;
+  return in;
 }
 
-MatrixPlan ParseMatrix(std::string_view text, const std::string& source_name) {
-  toml::table root;
+//! Where a periodic experiment starts: the actuator settled against the damper's load, its
+//! first period of actual stroke, and the damper's state at the start of that period.
+struct PeriodicStart {
+  PeriodicLoad load = PeriodicLoad::Constant(0.0);
+  std::optional<ident::PeriodicSolution> at_set_point;  //!< the periodic solution at the set-point
+  ServoActuator::State actuator;
+  StrokeTrajectory trajectory;
+  InitialState initial;
+};
+
+//! 1. The periodic steady state at the set-point gives the load for settling the actuator; 2. the
+//! periodic steady state for the actual stroke of the settled actuator is the damper's start.
+//! Both are shortcuts: a real rig would run the sine for minutes until the gas temperature
+//! settles. Without a periodic solution the damper settles from its static state.
+PeriodicStart StartFromPeriodicSolutions(const std::string& label, const SineSetPoint& set_point,
+                                         const LvdtInverse& model_input, const ServoActuator& actuator,
+                                         ident::PeriodicSolver& solver, std::span<const double> theta,
+                                         PeriodicRunReport& report) {
+  const double f = set_point.frequency, period = 1.0 / f;
+  PeriodicStart s;
   try {
-    root = toml::parse(text, source_name);
-  } catch (const toml::parse_error& e) {
-    throw TruthError(fmt::format("{}:{}:{}: TOML syntax: {}", source_name, e.source().begin.line,
-                                 e.source().begin.column, e.description()));
+    s.at_set_point = solver.Solve(StartGridInput(f, model_input, [&](double t) { return set_point.At(t); }), theta);
+    const Eigen::VectorXd force = s.at_set_point->channel("force");
+    s.load = PeriodicLoad::FromGrid(std::span<const double>(force.data(), force.size()), period);
+  } catch (const ident::PeriodicSolverError& e) {
+    spdlog::warn("experiment '{}': no periodic solution at the set-point ({}); settling from the static state", label,
+                 e.what());
   }
-  const auto where = [&](const toml::node& n) { return fmt::format("{}:{}", source_name, n.source().begin.line); };
-  const auto number = [&](const toml::node& n, std::string_view key) {
-    if (!n.is_number()) throw TruthError(fmt::format("{}: '{}' must be a number", where(n), key));
-    const double v = *n.value<double>();
-    if (!std::isfinite(v)) throw TruthError(fmt::format("{}: '{}' must be finite", where(n), key));
-    return v;
-  };
-  MatrixPlan plan;
-  plan.source = source_name;
-  for (auto&& [k, node] : root) {
-    const std::string key(k.str());
-    if (key == "sample_rate") {
-      plan.sample_rate = number(node, key);
-      if (!(*plan.sample_rate > 0)) throw TruthError(fmt::format("{}: sample_rate must be positive", where(node)));
-    } else if (key == "periods") {
-      if (!node.is_integer()) throw TruthError(fmt::format("{}: 'periods' must be an integer", where(node)));
-      plan.periods = static_cast<long>(*node.value<int64_t>());
-      if (*plan.periods < 1) throw TruthError(fmt::format("{}: periods must be at least 1", where(node)));
-    } else if (key == "experiment") {
-      const toml::array* list = node.as_array();
-      if (!list) throw TruthError(fmt::format("{}: 'experiment' must be an array of tables ([[experiment]])", where(node)));
-      for (const toml::node& item : *list) {
-        const toml::table* t = item.as_table();
-        if (!t) throw TruthError(fmt::format("{}: each experiment must be a table ([[experiment]])", where(item)));
-        rig::MatrixEntry e;
-        bool has_label = false, has_f = false, has_s = false, has_a = false;
-        for (auto&& [ek, v] : *t) {
-          const std::string name(ek.str());
-          if (name == "label") {
-            if (!v.is_string()) throw TruthError(fmt::format("{}: 'label' must be a string", where(v)));
-            e.label = *v.value<std::string>();
-            has_label = true;
-          } else if (name == "group") {
-            if (!v.is_string()) throw TruthError(fmt::format("{}: 'group' must be a string", where(v)));
-            e.group = *v.value<std::string>();
-          } else if (name == "frequency") {
-            e.frequency = number(v, name), has_f = true;
-          } else if (name == "static_position") {
-            e.static_position = number(v, name), has_s = true;
-          } else if (name == "amplitude") {
-            e.amplitude = number(v, name), has_a = true;
-          } else {
-            throw TruthError(fmt::format("{}: [[experiment]] unknown key '{}' (known: label, group, frequency, "
-                                         "static_position, amplitude)",
-                                         where(v), name));
-          }
-        }
-        if (!has_label || !has_f || !has_s || !has_a)
-          throw TruthError(fmt::format("{}: [[experiment]] needs label, frequency, static_position and amplitude",
-                                       where(item)));
-        if (e.label.empty() || e.label.find('/') != std::string::npos)
-          throw TruthError(fmt::format("{}: label '{}' must be non-empty and without '/'", where(item), e.label));
-        if (!(e.frequency > 0)) throw TruthError(fmt::format("{}: frequency must be positive (Hz)", where(item)));
-        if (e.amplitude < 0) throw TruthError(fmt::format("{}: amplitude must not be negative (m)", where(item)));
-        for (const auto& other : plan.experiments)
-          if (other.label == e.label) throw TruthError(fmt::format("{}: label '{}' appears twice", where(item), e.label));
-        plan.experiments.push_back(e);
-      }
-    } else {
-      throw TruthError(fmt::format("{}: unknown key '{}' (known: sample_rate, periods, [[experiment]])", where(node), key));
+  s.actuator = actuator.SettledState(set_point, s.load, 0.0, std::max(period, 0.5));
+  s.trajectory = actuator.Run(set_point, s.load, 0.0, period, s.actuator, &report.actuator);
+  if (s.at_set_point) {
+    try {
+      const ident::PeriodicSolution actual = solver.Solve(
+          StartGridInput(f, model_input, [&](double t) { return s.trajectory.At(t); }), theta, &*s.at_set_point);
+      s.initial.unknowns.assign(actual.unknowns.col(0).data(), actual.unknowns.col(0).data() + actual.unknowns.rows());
+      report.started_from_periodic_solution = true;
+    } catch (const ident::PeriodicSolverError& e) {
+      spdlog::warn("experiment '{}': no periodic solution for the actual stroke ({}); settling from the static state",
+                   label, e.what());
     }
   }
-  if (plan.experiments.empty()) throw TruthError(fmt::format("{}: the matrix has no [[experiment]]", source_name));
-  return plan;
+  return s;
 }
 
-std::string ReadMatrixText(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw TruthError(fmt::format("{}: cannot open the matrix file", path));
-  std::ostringstream text;
-  text << in.rdbuf();
-  return text.str();
+//! The damper's state at the start of the period from `t0` from the periodic solution for that
+//! period's actual stroke (warm-started from the last one, or `first`): its slow thermal mode (a
+//! minute deep in the stroke) then starts settled instead of decaying from the first guess. Keeps
+//! `initial` where the last period ended when the solver fails.
+void RestartFromPeriodicSolution(ident::PeriodicSolver& solver, std::span<const double> theta,
+                                 const LvdtInverse& model_input, const SineSetPoint& set_point,
+                                 const StrokeTrajectory& trajectory, double t0, const ident::PeriodicSolution& first,
+                                 std::optional<ident::PeriodicSolution>& restart, InitialState& initial) {
+  try {
+    restart = solver.Solve(
+        StartGridInput(set_point.frequency, model_input, [&](double t) { return trajectory.At(t0 + t); }), theta,
+        restart ? &*restart : &first);
+    initial.unknowns.assign(restart->unknowns.col(0).data(), restart->unknowns.col(0).data() + restart->unknowns.rows());
+  } catch (const ident::PeriodicSolverError&) {
+    // keep integrating from where the last period ended
+  }
 }
 
-MatrixPlan ReadMatrixFile(const std::string& path) { return ParseMatrix(ReadMatrixText(path), path); }
+//! What the damper sees over the period from `t0`: the actual stroke as a smooth periodic series
+//! through the loop's knots (the ideal actuator: the set-point itself), through the LVDT's
+//! calibration.
+InputSignal DamperInput(bool ideal_actuator, const SineSetPoint& set_point, const LvdtInverse& model_input,
+                        const StrokeTrajectory& trajectory, double t0, const std::string& label, int k) {
+  if (ideal_actuator)
+    return InputSignal([&set_point, &model_input, t0](double t) { return model_input(set_point.At(t0 + t)); });
+  const double period = 1.0 / set_point.frequency;
+  std::vector<double> knots(trajectory.knots() - 1);
+  const double step = period / static_cast<double>(knots.size());
+  for (std::size_t j = 0; j < knots.size(); ++j) knots[j] = trajectory.At(t0 + j * step).value;
+  const InputSample first = trajectory.At(t0), last = trajectory.At(t0 + period);
+  const InputSample mismatch{last.value - first.value, last.rate - first.rate, last.accel - first.accel};
+  auto series = std::make_shared<FourierSignal>(
+      FourierSignal::Fit(knots, period, 0.0, kStrokeHarmonicFloor, kMaxStrokeHarmonics, mismatch));
+  spdlog::debug("experiment {} period {}: {} stroke harmonics", label, k, series->harmonics());
+  return InputSignal([series, &model_input](double t) { return model_input(series->At(t)); });
+}
+
+//! The samples of one period without sensors (the one at t = period belongs to the next): rows
+//! stroke, force, pressure, temperature when the model has it, set-point; one column a sample.
+Eigen::MatrixXd CleanSamples(const TransientResult& result, const SineSetPoint& set_point, double t0,
+                             const std::vector<double>& times, long n, long oversample, bool has_temperature) {
+  const int rows = has_temperature ? 5 : 4;
+  Eigen::MatrixXd clean(rows, n);
+  const Eigen::VectorXd stroke_out = result.channel("stroke"), force_out = result.channel("force"),
+                        pressure_out = result.channel("pressure");
+  const Eigen::VectorXd temperature_out = has_temperature ? result.channel("temperature") : Eigen::VectorXd();
+  for (long i = 0; i < n; ++i) {
+    const long j = i * oversample;
+    clean(0, i) = stroke_out[j];
+    clean(1, i) = force_out[j];
+    clean(2, i) = pressure_out[j];
+    if (has_temperature) clean(3, i) = temperature_out[j];
+    clean(rows - 1, i) = set_point.At(t0 + times[j]).value;
+  }
+  return clean;
+}
+
+//! How far a periodic run still is from its steady state, period after period.
+class SettlingMeasure {
+ public:
+  //! The change of this period's force and pressure from the last period's, relative to their
+  //! ranges (infinite for the first period), and what remains of it: the slowest mode decays
+  //! geometrically, d_k = rho d_(k-1), so what remains after this period is d_k rho / (1 - rho),
+  //! rho from the last few changes (as TransientSimulator::PeriodicSteadyState).
+  void Update(const Eigen::VectorXd& force, const Eigen::VectorXd& pressure) {
+    change_ = INFINITY;
+    if (previous_force_.size() == force.size())
+      change_ = std::max(RelativeChange(force, previous_force_), RelativeChange(pressure, previous_pressure_));
+    previous_force_ = force;
+    previous_pressure_ = pressure;
+    remaining_ = INFINITY;
+    if (!std::isfinite(change_)) return;
+    changes_.push_back(change_);
+    const int window = std::min<int>(3, static_cast<int>(changes_.size()) - 1);
+    if (window > 0) {
+      const double before = changes_[changes_.size() - 1 - window];
+      const double rho = before > 0 ? std::pow(change_ / before, 1.0 / window) : 0.0;
+      remaining_ = rho < 1.0 ? change_ * rho / (1.0 - rho) : change_;
+    }
+  }
+  double change() const { return change_; }
+  double remaining() const { return remaining_; }
+
+ private:
+  Eigen::VectorXd previous_force_, previous_pressure_;
+  std::vector<double> changes_;
+  double change_ = INFINITY, remaining_ = INFINITY;
+};
+
+//! The sample at which the controller's force-limit interlock stops the test: the first whose
+//! damper output beyond `limit` falls in it; -1 when none does or there is no limit (0).
+long ForceLimitTrip(const Eigen::VectorXd& force_out, double limit, long fine, long oversample) {
+  if (!(limit > 0)) return -1;
+  for (long j = 0; j <= fine; ++j)
+    if (std::abs(force_out[j]) > limit) return j / oversample;
+  return -1;
+}
+
+//! A period's readings before the sensors (stroke as an ideal LVDT reads it, force, absolute
+//! pressure).
+struct PeriodReadings {
+  std::vector<double> stroke, force, pressure;
+  bool tripped = false;  //!< cut at the force-limit interlock
+};
+
+//! The readings of `clean` up to where the controller's force-limit interlock stops the test:
+//! the first sample beyond `limit` (0: none) ends them, and `report` says why.
+PeriodReadings UpToForceLimit(const Eigen::MatrixXd& clean, const TransientResult& result, double limit, long fine,
+                              long oversample, double t0, double sample_rate, PeriodicRunReport& report) {
+  PeriodReadings r;
+  r.stroke.assign(clean.row(0).begin(), clean.row(0).end());
+  r.force.assign(clean.row(1).begin(), clean.row(1).end());
+  r.pressure.assign(clean.row(2).begin(), clean.row(2).end());
+  const long trip = ForceLimitTrip(result.channel("force"), limit, fine, oversample);
+  if (trip < 0) return r;
+  r.tripped = true;
+  r.stroke.resize(trip + 1), r.force.resize(trip + 1), r.pressure.resize(trip + 1);
+  report.interlock =
+      fmt::format("force limit {:.1f} kN exceeded at t = {:.3f} s", limit * 1e-3, t0 + trip / sample_rate);
+  return r;
+}
+
+//! What a periodic run acquired: the recorded periods, and every sample (an aborted test keeps
+//! everything up to the trip).
+struct PeriodicRecord {
+  std::vector<std::vector<double>> stroke, force, pressure;
+  std::vector<Eigen::MatrixXd> clean;
+  std::vector<double> all_stroke, all_force, all_pressure;
+  void KeepAcquired(const SampleBlock& block) {
+    all_stroke.insert(all_stroke.end(), block.stroke.begin(), block.stroke.end());
+    all_force.insert(all_force.end(), block.force.begin(), block.force.end());
+    all_pressure.insert(all_pressure.end(), block.pressure.begin(), block.pressure.end());
+  }
+};
+
+std::vector<double> Joined(const std::vector<std::vector<double>>& blocks, std::size_t reserve) {
+  std::vector<double> all;
+  all.reserve(reserve);
+  for (const auto& b : blocks) all.insert(all.end(), b.begin(), b.end());
+  return all;
+}
+
+//! The experiment of a periodic run: its channels (everything acquired when the interlock
+//! stopped it), and the report's clean record and figures as attributes.
+daq::Experiment PeriodicExperiment(const rig::MatrixEntry& entry, double sample_rate, long periods, long n,
+                                   PeriodicRecord& record, const Acquisition& acquisition, bool gauge_pressure,
+                                   bool has_temperature, const std::string& composition, PeriodicRunReport& report) {
+  daq::Experiment e;
+  e.label = entry.label;
+  e.kind = daq::ExperimentKind::kPeriodic;
+  e.sample_rate = sample_rate;
+  e.frequency = entry.frequency;
+  e.amplitude = entry.amplitude;
+  e.static_position = entry.static_position;
+  e.periods = periods;
+  e.group = entry.group;
+  if (!report.interlock.empty()) {
+    // Stopped by the interlock: no steady state; everything acquired up to the trip is kept.
+    e.status = "aborted";
+    e.periods = 0;
+    record.stroke = {std::move(record.all_stroke)};
+    record.force = {std::move(record.all_force)};
+    record.pressure = {std::move(record.all_pressure)};
+    record.clean.clear();
+    e.extra_attributes["sim_interlock"] = report.interlock;
+    spdlog::warn("experiment '{}' aborted: {}", entry.label, report.interlock);
+  }
+  const std::size_t reserve = static_cast<std::size_t>(n * periods);
+  e.channels.push_back({"stroke", "m", "", Joined(record.stroke, reserve)});
+  e.channels.push_back({"force", "N", "", Joined(record.force, reserve)});
+  e.channels.push_back(acquisition.PressureChannel(Joined(record.pressure, reserve), gauge_pressure));
+  const long count = static_cast<long>(e.channels.front().samples.size());
+  e.time.resize(count);
+  for (long i = 0; i < count; ++i) e.time[i] = static_cast<double>(i) / sample_rate;
+
+  report.clean.resize(has_temperature ? 5 : 4, static_cast<Eigen::Index>(record.clean.size()) * n);
+  for (std::size_t b = 0; b < record.clean.size(); ++b)
+    report.clean.middleCols(static_cast<Eigen::Index>(b) * n, n) = record.clean[b];
+  report.clean_rows = {"stroke", "force", "pressure"};
+  if (has_temperature) report.clean_rows.push_back("temperature");
+  report.clean_rows.push_back("set_point");
+  report.simulated_seconds = report.periods_simulated * (1.0 / entry.frequency);
+
+  e.extra_attributes["sim_model"] = composition;
+  e.extra_attributes["sim_start_phase"] = Format(report.start_phase);
+  e.extra_attributes["sim_settle_periods"] = std::to_string(report.settle_periods);
+  e.extra_attributes["sim_settled"] = report.settled ? "true" : "false";
+  e.extra_attributes["sim_settle_change"] = Format(report.settle_change);
+  e.extra_attributes["sim_settle_remaining"] = Format(report.settle_remaining);
+  e.extra_attributes["sim_record_change"] = Format(report.record_change);
+  e.extra_attributes["sim_max_tracking_error"] = Format(report.actuator.max_tracking_error);
+  e.extra_attributes["sim_max_valve_opening"] = Format(report.actuator.max_valve_opening);
+  e.extra_attributes["sim_max_load_fraction"] = Format(report.actuator.max_load_fraction);
+  if (report.actuator.max_load_fraction > 0.9)
+    spdlog::warn("experiment '{}': the load reached {:.0f} % of the actuator's stall force (force limit)", entry.label,
+                 100 * report.actuator.max_load_fraction);
+  if (report.actuator.saturated_fraction > 0.0)
+    spdlog::warn("experiment '{}': the servo valve saturated (flow limit) for {:.1f} % of a period", entry.label,
+                 100 * report.actuator.saturated_fraction);
+  return e;
+}
+
+}  // namespace
 
 // ---------------------------------------------------------------------------------------------
 // The rig
@@ -178,7 +343,7 @@ daq::Session SimulatedRig::NewSession() const {
   return session;
 }
 
-daq::Session SimulatedRig::RunMatrix(const MatrixPlan& plan, const RigRunOptions& options,
+daq::Session SimulatedRig::RunMatrix(const rig::MatrixPlan& plan, const RigRunOptions& options,
                                      std::vector<PeriodicRunReport>* reports) const {
   const double rate = plan.sample_rate.value_or(truth_.acquisition.sample_rate);
   const long periods = plan.periods.value_or(truth_.acquisition.periods);
@@ -238,130 +403,45 @@ daq::Experiment SimulatedRig::RunPeriodic(const rig::MatrixEntry& entry, double 
   solver_options.scheme = ident::Scheme::kCentral4;
   solver_options.tolerance = 0.1;  // the damper's start: below what the settling then leaves
   ident::PeriodicSolver solver(model_, solver_options);
+  PeriodicStart start =
+      StartFromPeriodicSolutions(entry.label, set_point, model_input, actuator, solver, theta_, report);
 
-  // 1. The periodic steady state at the set-point gives the load for settling the actuator; 2. the
-  // periodic steady state for the actual stroke of the settled actuator is the damper's start.
-  // Both are shortcuts: a real rig would run the sine for minutes until the gas temperature settles.
-  const auto grid_input = [&](const std::function<InputSample(double)>& stroke) {
-    ident::PeriodicInput in{f, std::vector<double>(kStartGrid)};
-    for (int mu = 0; mu < kStartGrid; ++mu) in.values[mu] = model_input(stroke(mu * period / kStartGrid)).value;
-    return in;
-  };
-  PeriodicLoad load = PeriodicLoad::Constant(0.0);
-  std::optional<ident::PeriodicSolution> start;
-  try {
-    start = solver.Solve(grid_input([&](double t) { return set_point.At(t); }), theta_);
-    const Eigen::VectorXd force = start->channel("force");
-    load = PeriodicLoad::FromGrid(std::span<const double>(force.data(), force.size()), period);
-  } catch (const ident::PeriodicSolverError& e) {
-    spdlog::warn("experiment '{}': no periodic solution at the set-point ({}); settling from the static state",
-                 entry.label, e.what());
-  }
-  ServoActuator::State state = actuator.SettledState(set_point, load, 0.0, std::max(period, 0.5));
-  StrokeTrajectory trajectory = actuator.Run(set_point, load, 0.0, period, state, &report.actuator);
-  InitialState initial;
-  if (start) {
-    try {
-      const ident::PeriodicSolution actual =
-          solver.Solve(grid_input([&](double t) { return trajectory.At(t); }), theta_, &*start);
-      initial.unknowns.assign(actual.unknowns.col(0).data(), actual.unknowns.col(0).data() + actual.unknowns.rows());
-      report.started_from_periodic_solution = true;
-    } catch (const ident::PeriodicSolverError& e) {
-      spdlog::warn("experiment '{}': no periodic solution for the actual stroke ({}); settling from the static state",
-                   entry.label, e.what());
-    }
-  }
-
-  // 3. Period after period: actuator (against the load of the previous period), damper, sensors.
+  // Period after period: actuator (against the load of the previous period), damper, sensors.
   std::vector<double> times(fine + 1);
   for (long i = 0; i <= fine; ++i) times[i] = static_cast<double>(i) * period / fine;
   const bool has_temperature = model_.has_term("heat-exchange");
   Acquisition acquisition(truth_, entry.label);
-  std::vector<std::vector<double>> record_stroke, record_force, record_pressure;
-  std::vector<Eigen::MatrixXd> record_clean;
-  Eigen::VectorXd previous_force, previous_pressure;
+  PeriodicRecord record;
+  SettlingMeasure settling;
   bool recording = false;
   int record_start = -1;
   double settle_change = INFINITY;
-  std::vector<double> changes;
-  std::vector<double> all_stroke, all_force, all_pressure;  // every acquired sample, for an aborted test
   std::optional<ident::PeriodicSolution> restart;
   for (int k = 0;; ++k) {
     const double t0 = k * period;
-    if (k > 0) trajectory = actuator.Run(set_point, load, t0, period, state, &report.actuator);
+    if (k > 0) start.trajectory = actuator.Run(set_point, start.load, t0, period, start.actuator, &report.actuator);
     // While the loop still adapts to the damper's load (the first periods), the damper restarts
-    // from the periodic solution for this period's stroke: its slow thermal mode (a minute deep in
-    // the stroke) then starts settled instead of decaying from the first guess.
-    if (k > 0 && k <= kRestartPeriods && !recording && start && !truth_.actuator.ideal) {
-      try {
-        restart = solver.Solve(grid_input([&](double t) { return trajectory.At(t0 + t); }), theta_,
-                               restart ? &*restart : &*start);
-        initial.unknowns.assign(restart->unknowns.col(0).data(),
-                                restart->unknowns.col(0).data() + restart->unknowns.rows());
-      } catch (const ident::PeriodicSolverError&) {
-        // keep integrating from where the last period ended
-      }
-    }
-    // The damper sees the actual stroke as a smooth periodic series through the loop's knots (the
-    // ideal actuator: the set-point itself).
-    InputSignal signal;
-    if (truth_.actuator.ideal) {
-      signal = InputSignal([&set_point, &model_input, t0](double t) { return model_input(set_point.At(t0 + t)); });
-    } else {
-      std::vector<double> knots(trajectory.knots() - 1);
-      const double step = period / static_cast<double>(knots.size());
-      for (std::size_t j = 0; j < knots.size(); ++j) knots[j] = trajectory.At(t0 + j * step).value;
-      const InputSample first = trajectory.At(t0), last = trajectory.At(t0 + period);
-      const InputSample mismatch{last.value - first.value, last.rate - first.rate, last.accel - first.accel};
-      auto series = std::make_shared<FourierSignal>(
-          FourierSignal::Fit(knots, period, 0.0, kStrokeHarmonicFloor, kMaxStrokeHarmonics, mismatch));
-      spdlog::debug("experiment {} period {}: {} stroke harmonics", entry.label, k, series->harmonics());
-      signal = InputSignal([series, &model_input](double t) { return model_input(series->At(t)); });
-    }
-    const TransientResult result = simulator.Simulate(theta_, signal, times, initial);
+    // from the periodic solution for this period's stroke.
+    if (k > 0 && k <= kRestartPeriods && !recording && start.at_set_point && !truth_.actuator.ideal)
+      RestartFromPeriodicSolution(solver, theta_, model_input, set_point, start.trajectory, t0, *start.at_set_point,
+                                  restart, start.initial);
+    const InputSignal signal =
+        DamperInput(truth_.actuator.ideal, set_point, model_input, start.trajectory, t0, entry.label, k);
+    const TransientResult result = simulator.Simulate(theta_, signal, times, start.initial);
     report.ida_steps += result.steps;
-    initial.unknowns.assign(result.unknowns.col(fine).data(), result.unknowns.col(fine).data() + result.unknowns.rows());
+    start.initial.unknowns.assign(result.unknowns.col(fine).data(),
+                                  result.unknowns.col(fine).data() + result.unknowns.rows());
     // The load cell force of this period is the actuator's load in the next one.
     // (IDA's rate of the algebraic force is not reliable right after a restart: the load takes its
     // rate from differences of the samples.)
     {
       const Eigen::VectorXd force = result.unknowns.row(0).transpose();
-      load = PeriodicLoad::FromGrid(std::span<const double>(force.data(), fine), period);
+      start.load = PeriodicLoad::FromGrid(std::span<const double>(force.data(), fine), period);
     }
-    // The samples of this period (the one at t = period belongs to the next).
-    const int rows = has_temperature ? 5 : 4;
-    Eigen::MatrixXd clean(rows, n);
-    const Eigen::VectorXd stroke_out = result.channel("stroke"), force_out = result.channel("force"),
-                          pressure_out = result.channel("pressure");
-    const Eigen::VectorXd temperature_out = has_temperature ? result.channel("temperature") : Eigen::VectorXd();
-    for (long i = 0; i < n; ++i) {
-      const long j = i * oversample;
-      clean(0, i) = stroke_out[j];
-      clean(1, i) = force_out[j];
-      clean(2, i) = pressure_out[j];
-      if (has_temperature) clean(3, i) = temperature_out[j];
-      clean(rows - 1, i) = set_point.At(t0 + times[j]).value;
-    }
-    const Eigen::VectorXd force_now = clean.row(1).transpose(), pressure_now = clean.row(2).transpose();
-    double change = INFINITY;
-    if (previous_force.size() == n)
-      change = std::max(RelativeChange(force_now, previous_force), RelativeChange(pressure_now, previous_pressure));
-    previous_force = force_now;
-    previous_pressure = pressure_now;
+    Eigen::MatrixXd clean = CleanSamples(result, set_point, t0, times, n, oversample, has_temperature);
+    settling.Update(clean.row(1).transpose(), clean.row(2).transpose());
+    const double change = settling.change(), remaining = settling.remaining();
     spdlog::debug("experiment {} period {}: change {:.3e}, {} IDA steps", entry.label, k, change, result.steps);
-
-    // The slowest mode decays geometrically, d_k = rho d_(k-1), so what remains after this period is
-    // d_k rho / (1 - rho), rho from the last few changes (as TransientSimulator::PeriodicSteadyState).
-    double remaining = INFINITY;
-    if (std::isfinite(change)) {
-      changes.push_back(change);
-      const int window = std::min<int>(3, static_cast<int>(changes.size()) - 1);
-      if (window > 0) {
-        const double before = changes[changes.size() - 1 - window];
-        const double rho = before > 0 ? std::pow(change / before, 1.0 / window) : 0.0;
-        remaining = rho < 1.0 ? change * rho / (1.0 - rho) : change;
-      }
-    }
     const bool steady = change <= acq.settle_tolerance && remaining <= acq.settle_tolerance;
     if (recording) {
       report.record_change = std::max(report.record_change, change);
@@ -376,40 +456,23 @@ daq::Experiment SimulatedRig::RunPeriodic(const rig::MatrixEntry& entry, double 
     }
     // Faults are timed from the first recorded sample; settling samples never see them.
     const double record_time = recording ? (k - record_start) * period : -INFINITY;
-    std::vector<double> stroke_values(n), force_values(n), pressure_values(n);
-    for (long i = 0; i < n; ++i) {
-      stroke_values[i] = clean(0, i);
-      force_values[i] = clean(1, i);
-      pressure_values[i] = clean(2, i);
-    }
-    // Force-limit interlock: the controller stops the test at the first sample beyond the limit.
     const double limit = truth_.actuator.ideal ? 0.0 : truth_.actuator.force_limit;
-    long trip = -1;
-    if (limit > 0)
-      for (long j = 0; j <= fine && trip < 0; ++j)
-        if (std::abs(force_out[j]) > limit) trip = j / oversample;
-    if (trip >= 0) {
-      stroke_values.resize(trip + 1), force_values.resize(trip + 1), pressure_values.resize(trip + 1);
-      report.interlock = fmt::format("force limit {:.1f} kN exceeded at t = {:.3f} s", limit * 1e-3,
-                                     t0 + trip / sample_rate);
-    }
-    SampleBlock block = acquisition.Acquire(entry.label, stroke_values, force_values, pressure_values, sample_rate,
-                                            record_time, recording, rng);
+    const PeriodReadings readings = UpToForceLimit(clean, result, limit, fine, oversample, t0, sample_rate, report);
+    SampleBlock block = acquisition.Acquire(entry.label, readings.stroke, readings.force, readings.pressure,
+                                            sample_rate, record_time, recording, rng);
     block.start_time = t0;
     Emit(sink, clock, block, t0);
-    all_stroke.insert(all_stroke.end(), block.stroke.begin(), block.stroke.end());
-    all_force.insert(all_force.end(), block.force.begin(), block.force.end());
-    all_pressure.insert(all_pressure.end(), block.pressure.begin(), block.pressure.end());
-    if (trip >= 0) {
+    record.KeepAcquired(block);
+    if (readings.tripped) {
       report.periods_simulated = k + 1;
       break;
     }
     if (recording) {
-      record_stroke.push_back(std::move(block.stroke));
-      record_force.push_back(std::move(block.force));
-      record_pressure.push_back(std::move(block.pressure));
-      record_clean.push_back(std::move(clean));
-      if (static_cast<long>(record_stroke.size()) == periods) {
+      record.stroke.push_back(std::move(block.stroke));
+      record.force.push_back(std::move(block.force));
+      record.pressure.push_back(std::move(block.pressure));
+      record.clean.push_back(std::move(clean));
+      if (static_cast<long>(record.stroke.size()) == periods) {
         report.periods_simulated = k + 1;
         break;
       }
@@ -421,64 +484,9 @@ daq::Experiment SimulatedRig::RunPeriodic(const rig::MatrixEntry& entry, double 
     }
   }
 
-  daq::Experiment e;
-  e.label = entry.label;
-  e.kind = daq::ExperimentKind::kPeriodic;
-  e.sample_rate = sample_rate;
-  e.frequency = f;
-  e.amplitude = entry.amplitude;
-  e.static_position = entry.static_position;
-  e.periods = periods;
-  e.group = entry.group;
-  const auto join = [&](const std::vector<std::vector<double>>& blocks) {
-    std::vector<double> all;
-    all.reserve(n * periods);
-    for (const auto& b : blocks) all.insert(all.end(), b.begin(), b.end());
-    return all;
-  };
-  if (!report.interlock.empty()) {
-    // Stopped by the interlock: no steady state; everything acquired up to the trip is kept.
-    e.status = "aborted";
-    e.periods = 0;
-    record_stroke = {std::move(all_stroke)};
-    record_force = {std::move(all_force)};
-    record_pressure = {std::move(all_pressure)};
-    record_clean.clear();
-    e.extra_attributes["sim_interlock"] = report.interlock;
-    spdlog::warn("experiment '{}' aborted: {}", entry.label, report.interlock);
-  }
-  e.channels.push_back({"stroke", "m", "", join(record_stroke)});
-  e.channels.push_back({"force", "N", "", join(record_force)});
-  e.channels.push_back(acquisition.PressureChannel(join(record_pressure), acq.gauge_pressure));
-  const long count = static_cast<long>(e.channels.front().samples.size());
-  e.time.resize(count);
-  for (long i = 0; i < count; ++i) e.time[i] = static_cast<double>(i) / sample_rate;
-
-  report.clean.resize(has_temperature ? 5 : 4, static_cast<Eigen::Index>(record_clean.size()) * n);
-  for (std::size_t b = 0; b < record_clean.size(); ++b)
-    report.clean.middleCols(static_cast<Eigen::Index>(b) * n, n) = record_clean[b];
-  report.clean_rows = {"stroke", "force", "pressure"};
-  if (has_temperature) report.clean_rows.push_back("temperature");
-  report.clean_rows.push_back("set_point");
-  report.simulated_seconds = report.periods_simulated * period;
+  daq::Experiment e = PeriodicExperiment(entry, sample_rate, periods, n, record, acquisition, acq.gauge_pressure,
+                                         has_temperature, model_.composition(), report);
   report.wall_seconds = std::chrono::duration<double>(Clock::now() - wall_start).count();
-
-  e.extra_attributes["sim_model"] = model_.composition();
-  e.extra_attributes["sim_start_phase"] = Format(report.start_phase);
-  e.extra_attributes["sim_settle_periods"] = std::to_string(report.settle_periods);
-  e.extra_attributes["sim_settled"] = report.settled ? "true" : "false";
-  e.extra_attributes["sim_settle_change"] = Format(report.settle_change);
-  e.extra_attributes["sim_settle_remaining"] = Format(report.settle_remaining);
-  e.extra_attributes["sim_record_change"] = Format(report.record_change);
-  e.extra_attributes["sim_max_tracking_error"] = Format(report.actuator.max_tracking_error);
-  e.extra_attributes["sim_max_valve_opening"] = Format(report.actuator.max_valve_opening);
-  e.extra_attributes["sim_max_load_fraction"] = Format(report.actuator.max_load_fraction);
-  if (report.actuator.max_load_fraction > 0.9)
-    spdlog::warn("experiment '{}': the load reached {:.0f} % of the actuator's stall force (force limit)", entry.label,
-                 100 * report.actuator.max_load_fraction);
-  if (report.actuator.saturated_fraction > 0.0)
-    spdlog::warn("experiment '{}': the servo valve saturated (flow limit) for {:.1f} % of a period", entry.label,
-                 100 * report.actuator.saturated_fraction);
   if (report_out) *report_out = std::move(report);
   return e;
 }

@@ -14,11 +14,11 @@
 namespace strut::qc {
 
 //! The QC matrix: four experiments, 2.5 minutes on the rig (docs/qc.md gives the reasoning).
-sim::MatrixPlan QcMatrix();
+rig::MatrixPlan QcMatrix();
 
 //! A matrix plan as a matrix file (TOML, docs/simulated-rig.md "Matrix files"), each line of
 //! `comment` as a leading comment.
-std::string MatrixFileText(const sim::MatrixPlan& plan, const std::string& comment);
+std::string MatrixFileText(const rig::MatrixPlan& plan, const std::string& comment);
 
 //! What can be wrong with a unit of the lot (each a change of the drawn truth, docs/qc.md).
 enum class Defect { kNone, kUnderCharge, kExcessFriction, kOilOverfill, kLowOil, kHighOrifice, kLeakingSeal };

@@ -1,6 +1,8 @@
-// The discovery report for people: one self-contained HTML file (docs/reports.md).
+// The discovery report for people (one self-contained HTML file) and its JSON record for
+// programs (docs/reports.md).
 #pragma once
 
+#include <nlohmann/json.hpp>
 #include <string>
 
 #include "strut/ident/discover.h"
@@ -12,6 +14,11 @@ namespace strut::report {
 //! after, and the final model's parameter table, channels and overlays, in the identification
 //! report's units (mm, kN, MPa, °C). Throws std::runtime_error naming the path when it cannot write.
 void WriteDiscoveryReport(const ident::DiscoveryResult& result, const std::string& path);
+
+//! The discovery as `strut discover --json` writes it: the baseline (model, log-likelihood, BIC,
+//! noise ratios, verdict), the mismatch found, every step with its candidates, what stays
+//! unexplained, the conclusion and the final fit (FitToJson). Non-finite numbers are null.
+nlohmann::json DiscoveryJson(const ident::DiscoveryResult& result);
 
 //! When the chain baseline + added terms names the same model as a shorter composition (terms are
 //! evaluated in catalogue order, docs/models.md), the sentence that says so, e.g.

@@ -1,7 +1,11 @@
-// The shaker test matrix: sinusoidal stroke set-points around static positions.
+// The shaker test matrix: sinusoidal stroke set-points around static positions, and the matrix
+// files that give one (TOML, docs/simulated-rig.md "Matrix files").
 #pragma once
 
+#include <optional>
+#include <stdexcept>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace strut::rig {
@@ -17,5 +21,28 @@ struct MatrixEntry {
 
 //! The 14-experiment standard matrix of method.md (paper Tables 1 and 2).
 std::vector<MatrixEntry> StandardMatrix();
+
+//! A test matrix with optional overrides of the acquisition (from a matrix file).
+struct MatrixPlan {
+  std::string source = "<standard matrix>";
+  std::vector<MatrixEntry> experiments;
+  std::optional<double> sample_rate;  //!< Hz, overrides the rig's (a simulated rig's truth's) sample rate
+  std::optional<long> periods;        //!< overrides the periods recorded per experiment
+};
+
+//! A matrix file that cannot be read or is malformed; what() names the file and line.
+class MatrixFileError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+//! StandardMatrix() (the 14 experiments of method.md).
+MatrixPlan StandardMatrixPlan();
+//! Reads a matrix file. Throws MatrixFileError naming the file and line.
+MatrixPlan ReadMatrixFile(const std::string& path);
+//! The matrix file's text as it is (a session keeps it); MatrixFileError when it cannot be opened.
+std::string ReadMatrixText(const std::string& path);
+//! A matrix file's text; `source_name` names it in errors and becomes the plan's source.
+MatrixPlan ParseMatrix(std::string_view text, const std::string& source_name);
 
 }  // namespace strut::rig

@@ -6,6 +6,8 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <map>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
@@ -109,6 +111,46 @@ struct DropPrediction {
 DropPrediction PredictDrop(const ident::Model& model, std::span<const double> theta, double mass,
                            double impact_velocity, const std::vector<int>& estimated, const Eigen::MatrixXd& covariance,
                            const DropPredictionOptions& options = {});
+
+//! What-if: the parameters `theta` with those at the positions of `factors` multiplied, and the
+//! posterior covariance of the `estimated` positions with each scaled parameter's row and column
+//! multiplied as well, so that its sd scales with its value.
+struct ScaledParameters {
+  std::vector<double> theta;
+  Eigen::MatrixXd covariance;
+};
+ScaledParameters ScaleParameters(std::span<const double> theta, const std::vector<int>& estimated,
+                                 const Eigen::MatrixXd& covariance, const std::map<int, double>& factors);
+
+//! A drop predicted from a fit with what-if factors (positions in theta -> factors, may be
+//! empty), and when any is given the fit as it is, without intervals, to compare with.
+struct WhatIfDrop {
+  DropPrediction predicted;
+  std::optional<DropPrediction> unscaled;
+};
+//! PredictDrop of the scaled parameters (ScaleParameters) and, with factors, of `theta` as it is.
+WhatIfDrop PredictDropWhatIf(const ident::Model& model, std::span<const double> theta, double mass,
+                             double impact_velocity, const std::vector<int>& estimated,
+                             const Eigen::MatrixXd& covariance, const std::map<int, double>& factors,
+                             const DropPredictionOptions& options);
+
+//! The drop experiment of `session` (read from `path`) to compare with: the one labelled `label`,
+//! or without a label the session's only drop. Throws std::invalid_argument naming the path and
+//! the experiment when there is none, several, or the labelled one is not a drop.
+const daq::Experiment& FindDropExperiment(const daq::Session& session, const std::string& label,
+                                          const std::string& path);
+
+//! A recorded drop measured as a prediction is: its trace with the stroke less the fitted stroke
+//! sensor zero (theta12 of `fitted`, 0 when the model has none), and its figures, settling
+//! measured against `static_stroke` (the prediction's: a record has no model; its own
+//! static_stroke is NaN).
+struct MeasuredDrop {
+  DropTrace trace;
+  DropFigures figures;
+};
+//! Throws daq::SessionError as DropTraceFromRecord does.
+MeasuredDrop MeasureRecordedDrop(const daq::Experiment& drop, const ident::ParameterSet& fitted, double static_stroke,
+                                 double settle_band);
 
 //! What a term the fitted model lacks does to a drop: the truth simulated with and without it.
 struct MissingPhysics {

@@ -5,6 +5,7 @@
 
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "strut/daq/session.h"
 #include "strut/ident/parameters.h"
@@ -32,6 +33,9 @@ void RecordTruth(const Truth& truth, const ident::ParameterSet& parameters, cons
 //! The same with the truth's own model (stroke input) and parameter values, as a simulated rig
 //! records them.
 void RecordTruth(const Truth& truth, daq::Session& session);
+//! The `/truth` group RecordTruth adds, as a recording's metadata groups
+//! (daq::RecordingMetadata::groups) for a session recorded from the rig that runs `truth`.
+std::vector<daq::MetadataGroup> TruthMetadata(const Truth& truth);
 
 //! The truth recorded in a session; nullopt when it has no `/truth` group (a measured session, or
 //! one written before strut recorded truths). Throws TruthError naming the session file and the

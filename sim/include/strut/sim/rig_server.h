@@ -1,7 +1,8 @@
 // The simulated rig behind the real protocols: a SimulatedController served over Modbus TCP
 // (daq::ModbusControllerServer) and its sensors streamed as CAN frames (sim::CanModule) over a
 // CAN transport, paced by the simulation clock. What `strut rig serve-sim` runs, and what a
-// runner or a test starts in-process. docs/simulated-rig.md, "The served rig".
+// runner or a test starts in-process (SimulatedRigFactory: the rig "sim" among the kinds of rig
+// of daq/rig_devices.h). docs/simulated-rig.md, "The served rig".
 #pragma once
 
 #include <atomic>
@@ -16,6 +17,7 @@
 #include "strut/daq/can_acquisition.h"
 #include "strut/daq/modbus_controller.h"
 #include "strut/daq/recorder.h"
+#include "strut/daq/rig_devices.h"
 #include "strut/sim/can_module.h"
 #include "strut/sim/clock.h"
 #include "strut/sim/simulated_controller.h"
@@ -54,13 +56,13 @@ struct RigServerStats {
 //! not, as a real acquisition does. Stop() (or the destructor) ends everything; a failure of the
 //! plant or the transport ends the stream (error() says why) while the controller keeps answering
 //! with a device fault.
-class RigServer {
+class RigServer final : public daq::DeviceHost {
  public:
   //! Listens at once (DeviceError kConnection when the port is taken). `can` replaces the
   //! transport named by options.can (tests). Throws TruthError or std::invalid_argument for an
   //! invalid truth or options, DeviceError when the transport cannot be opened.
   RigServer(Truth truth, RigServerOptions options, std::unique_ptr<daq::CanTransport> can = nullptr);
-  ~RigServer();
+  ~RigServer() override;
   RigServer(const RigServer&) = delete;
   RigServer& operator=(const RigServer&) = delete;
 
@@ -108,5 +110,25 @@ class RigServer {
   std::optional<std::chrono::steady_clock::time_point> started_at_;
   std::thread thread_;
 };
+
+//! The simulated rig of a truth as a kind of rig (daq::RigDeviceFactory): the controller string
+//! "sim" (with the acquisition "sim" or empty) serves the truth in this process (a RigServer on
+//! an ephemeral loopback port, its frames over UDP loopback) at `speed` simulated seconds per
+//! wall second, already streaming, with the drivers connected to it, as `strut rig serve-sim`
+//! serves it.
+class SimulatedRigFactory final : public daq::RigDeviceFactory {
+ public:
+  SimulatedRigFactory(Truth truth, double speed) : truth_(std::move(truth)), speed_(speed) {}
+  std::string Accepted() const override;
+  bool Accepts(const daq::RigConnection& connection) const override;
+  daq::RigDevices Connect(const daq::RigConnection& connection) const override;
+
+ private:
+  Truth truth_;
+  double speed_;
+};
+
+//! The server behind devices that SimulatedRigFactory connected; null for any other rig's.
+const RigServer* ServedRig(const daq::RigDevices& devices);
 
 }  // namespace strut::sim

@@ -24,22 +24,6 @@
 
 namespace strut::sim {
 
-//! A test matrix with optional overrides of the acquisition (from a matrix file).
-struct MatrixPlan {
-  std::string source = "<standard matrix>";
-  std::vector<rig::MatrixEntry> experiments;
-  std::optional<double> sample_rate;  //!< Hz, overrides the truth's acquisition.sample_rate
-  std::optional<long> periods;        //!< overrides the truth's acquisition.periods
-};
-
-//! rig::StandardMatrix() (the 14 experiments of method.md).
-MatrixPlan StandardMatrixPlan();
-//! Reads a matrix file (TOML, docs/simulated-rig.md). Throws TruthError naming the file and line.
-MatrixPlan ReadMatrixFile(const std::string& path);
-//! The matrix file's text as it is (a session keeps it); TruthError when it cannot be opened.
-std::string ReadMatrixText(const std::string& path);
-MatrixPlan ParseMatrix(std::string_view text, const std::string& source_name);
-
 //! Samples as they leave the acquisition, for a consumer that wants them as a rig streams them.
 struct SampleBlock {
   std::string experiment;      //!< label
@@ -113,7 +97,7 @@ class SimulatedRig {
   const std::vector<double>& theta() const { return theta_; }
 
   //! A whole matrix as a session; `reports` (optional) gets one entry per experiment.
-  daq::Session RunMatrix(const MatrixPlan& plan, const RigRunOptions& options = {},
+  daq::Session RunMatrix(const rig::MatrixPlan& plan, const RigRunOptions& options = {},
                          std::vector<PeriodicRunReport>* reports = nullptr) const;
   //! One periodic experiment, from the settled periodic-solver state through settling to the
   //! record. `clock` and `sink` may be null/empty. `start_phase` (rad, of the set-point at the

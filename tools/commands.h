@@ -1,5 +1,5 @@
 // Subcommands of the strut CLI. Each Register* adds one subcommand to the app; tools/ only wires
-// the libraries together, all real work lives in daq/, rig/, ident/ and sim/.
+// the libraries together, all real work lives in daq/, ident/, rig/, sim/, qc/, report/ and study/.
 #pragma once
 
 #include <CLI/CLI.hpp>

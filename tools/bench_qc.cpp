@@ -69,19 +69,15 @@ struct BenchQc {
                              "PASS", "FAIL", "UNDECIDED", "total", "FAIL naming the defect's quantity");
     nlohmann::json cj = nlohmann::json::object();
     for (const auto& k : s.kinds) {
-      const auto count = [&](const char* verdict) {
-        const auto row = s.confusion.find(k);
-        if (row == s.confusion.end()) return 0L;
-        const auto c = row->second.find(verdict);
-        return c == row->second.end() ? 0L : c->second;
-      };
+      const std::map<std::string, long>& row = s.confusion.at(k);
+      const long pass = row.at("PASS"), fail = row.at("FAIL"), undecided = row.at("UNDECIDED");
       const auto named = s.named_right.find(k);
-      std::cout << fmt::format("  {:<16} {:>5} {:>5} {:>9} {:>6}  {}\n", k, count("PASS"), count("FAIL"),
-                               count("UNDECIDED"), count("PASS") + count("FAIL") + count("UNDECIDED"),
+      std::cout << fmt::format("  {:<16} {:>5} {:>5} {:>9} {:>6}  {}\n", k, pass, fail, undecided,
+                               pass + fail + undecided,
                                k == "good" ? ""
-                                           : std::to_string(named == s.named_right.end() ? 0 : named->second) + "/" +
-                                                 std::to_string(count("FAIL")));
-      cj[k] = {{"PASS", count("PASS")}, {"FAIL", count("FAIL")}, {"UNDECIDED", count("UNDECIDED")}};
+                                           : fmt::format("{}/{}", named == s.named_right.end() ? 0 : named->second,
+                                                         fail));
+      cj[k] = {{"PASS", pass}, {"FAIL", fail}, {"UNDECIDED", undecided}};
     }
     std::cout << fmt::format(
         "defective units passed: {}/{} (target 0); good units failed: {}/{} = {:.1f} % (target < 3 %); guard-band "

@@ -276,7 +276,7 @@ LotStudy RunLotStudy(const LotOptions& options, const std::function<void(const L
     study.units.push_back(std::move(unit));
   }
   for (const auto& k : study.kinds) {
-    auto& row = study.confusion[k];
+    auto& row = study.confusion[k];  // every kind and verdict gets its entry, 0 when none was decided so
     const long total = row["PASS"] + row["FAIL"] + row["UNDECIDED"];
     if (k == "good") {
       study.good += total;

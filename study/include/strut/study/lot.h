@@ -80,7 +80,8 @@ struct LotStudy {
   std::string reference;  //!< its source
   std::size_t experiments = 0;  //!< of the QC matrix
   std::vector<std::string> kinds;  //!< "good" and every defect, in table order
-  std::map<std::string, std::map<std::string, long>> confusion;  //!< kind: verdict: units
+  //! kind: verdict: units, for every kind and the three verdicts (PASS, FAIL, UNDECIDED)
+  std::map<std::string, std::map<std::string, long>> confusion;
   std::map<std::string, long> named_right;  //!< kind: FAILs naming the defect's quantity
   std::map<std::string, std::pair<long, long>> coverage;  //!< quantity: inside, total
   long guard_band = 0;  //!< guard-band decisions

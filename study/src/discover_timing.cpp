@@ -18,7 +18,8 @@ DiscoverTimingStudy RunDiscoverTiming(int repeats) {
   const ident::FitData data =
       ident::PrepareFitData(session, "simulated session", ident::Model::Build("1dof", fit.causality), fit.estimator.n);
   DiscoverTimingStudy study;
-  study.settings = {DiscoverTiming{1}, DiscoverTiming{2}};
+  study.settings.resize(2);  // 1 and 2 threads
+  study.settings[1].threads = 2;
   study.load_before = LoadAverages()[0];
   for (int r = 0; r < repeats; ++r)
     for (DiscoverTiming& s : study.settings) {

@@ -28,15 +28,11 @@ ParameterSet Truth(const std::string& composition) {
   return truth;
 }
 
-//! A noise realisation of the rig's sensors (stroke 0.03 mm, force 20 N, pressure 2 kPa) on a clean session.
+//! A noise realisation of the rig's sensors (sim::SensorNoise: stroke 0.03 mm, force 20 N, pressure
+//! 2 kPa) on a clean session.
 daq::Session WithSensorNoise(const daq::Session& clean, std::mt19937_64& rng) {
-  std::normal_distribution<double> unit(0.0, 1.0);
   daq::Session noisy = clean;
-  for (auto& e : noisy.experiments)
-    for (auto& c : e.channels) {
-      const double sd = c.name == "stroke" ? 3e-5 : c.name == "force" ? 20.0 : 2e3;
-      for (double& v : c.samples) v += sd * unit(rng);
-    }
+  sim::AddSensorNoise(noisy, sim::SensorNoise{}, rng);
   return noisy;
 }
 

@@ -13,12 +13,21 @@
 #include "strut/report/qc_report.h"
 #include "strut/qc/decision.h"
 #include "strut/qc/history.h"
-#include "strut/qc/lot.h"
+#include "strut/qc/matrix.h"
 #include "strut/sim/simulated_rig.h"
+#include "strut/study/lot.h"
 #include "test_support.h"
 
 namespace strut::qc {
 namespace {
+
+// The lot study's units and defects (study/) are what these tests decide.
+using study::Defect;
+using study::Defects;
+using study::LotReference;
+using study::LotUnit;
+using study::MakeDefective;
+using study::QcMatrix;
 
 constexpr double kPatm = 101325.0;
 
@@ -317,7 +326,7 @@ INSTANTIATE_TEST_SUITE_P(EveryKind, QcSmallLot,
                                            Defect::kOilOverfill, Defect::kLowOil, Defect::kHighOrifice,
                                            Defect::kLeakingSeal),
                          [](const auto& info) {
-                           std::string n = ToString(info.param);
+                           std::string n = study::ToString(info.param);
                            for (char& c : n)
                              if (c == '-') c = '_';
                            return n;
@@ -344,6 +353,8 @@ TEST(QcCli, PlanDecideRecordAndListTheHistory) {
   const auto plan = test::RunStrut("qc plan -o " + dir.file("qc.toml") + " --write-reference " + dir.file("ref.toml"));
   ASSERT_EQ(plan.exit_code, 0) << plan.output;
   const rig::MatrixPlan read = rig::ReadMatrixFile(dir.file("qc.toml"));
+  EXPECT_EQ(read.sample_rate, kQcSampleRate);
+  EXPECT_EQ(read.periods, kQcPeriods);
   ASSERT_EQ(read.experiments.size(), QcMatrix().experiments.size());
   for (std::size_t i = 0; i < read.experiments.size(); ++i) {
     EXPECT_EQ(read.experiments[i].label, QcMatrix().experiments[i].label);

@@ -1,10 +1,12 @@
 // Sensors of the simulated rig: calibration errors, noise, the 16-bit converter with saturation,
-// and the faults that can be injected (dropout, stuck value, spikes, disconnected channel).
+// the faults that can be injected (dropout, stuck value, spikes, disconnected channel), and the
+// white sensor noise added to a clean session.
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <numeric>
 
+#include "strut/sim/periodic_session.h"
 #include "strut/sim/sensors.h"
 
 namespace strut::sim {
@@ -115,6 +117,32 @@ TEST(SimSensors, InvalidSettingsAreRejectedWithTheReason) {
   EXPECT_FALSE(f.IsValid(&error));
   EXPECT_THROW(ParseFaultKind("gremlins"), std::invalid_argument);
   EXPECT_EQ(ParseFaultKind("stuck"), FaultKind::kStuck);
+}
+
+TEST(SimSensorNoise, AddsEachChannelsNoiseAndLeavesTheOthers) {
+  daq::Experiment e;
+  for (const char* name : {"stroke", "force", "pressure", "temperature"})
+    e.channels.push_back({name, "", "", std::vector<double>(20000, 1.0)});
+  daq::Session session;
+  session.experiments = {e, e};
+  SensorNoise noise;
+  noise.force = 0.0;  // a channel without noise keeps its samples
+  std::mt19937_64 rng(7);
+  AddSensorNoise(session, noise, rng);
+  for (const daq::Experiment& x : session.experiments) {
+    const auto sd = [&](const char* name) {
+      const std::vector<double>& v = x.channel(name).samples;
+      double ss = 0.0;
+      for (double s : v) ss += (s - 1.0) * (s - 1.0);
+      return std::sqrt(ss / v.size());
+    };
+    EXPECT_NEAR(sd("stroke") / noise.stroke, 1.0, 0.03);  // 20000 samples: the estimate within 0.5 % (1 sd)
+    EXPECT_NEAR(sd("pressure") / noise.pressure, 1.0, 0.03);
+    EXPECT_EQ(sd("force"), 0.0);
+    EXPECT_EQ(sd("temperature"), 0.0);
+  }
+  // Every sample its own draw: the two experiments' noise differs.
+  EXPECT_NE(session.experiments[0].channel("stroke").samples[0], session.experiments[1].channel("stroke").samples[0]);
 }
 
 }  // namespace

@@ -1,92 +1,49 @@
-// strut bench discover: a full discovery run on the 14-experiment standard matrix.
-#include <spdlog/spdlog.h>
+// strut bench discover: a full discovery run on the 14-experiment standard matrix
+// (study::RunDiscoverTiming), with one and two threads side by side.
+#include <fmt/format.h>
 
-#include <sys/resource.h>
-
-#include <algorithm>
-#include <chrono>
-#include <cstdlib>
-#include <fstream>
 #include <iostream>
 #include <nlohmann/json.hpp>
 
 #include "commands.h"
 #include "option_checks.h"
-#include "strut/ident/discover.h"
-#include "strut/sim/simulated_rig.h"
-#include "strut/sim/truth.h"
+#include "output_files.h"
+#include "strut/study/discover_timing.h"
 
 namespace strut::tools {
 namespace {
-
-//! CPU time of the process so far (every thread), user and system.
-double ProcessCpuSeconds() {
-  rusage usage{};
-  getrusage(RUSAGE_SELF, &usage);
-  return usage.ru_utime.tv_sec + usage.ru_stime.tv_sec + 1e-6 * (usage.ru_utime.tv_usec + usage.ru_stime.tv_usec);
-}
-
-double LoadAverage() {
-  double load[1] = {NAN};
-  return getloadavg(load, 1) == 1 ? load[0] : NAN;
-}
-
-double Median(std::vector<double> values) {
-  std::sort(values.begin(), values.end());
-  return values[values.size() / 2];
-}
 
 struct BenchDiscover {
   std::string json_path;
   int repeats = 3;
 
   void Run() const {
-    // The simulated rig with every effect on: the hardest case, every round refits all candidates.
-    const sim::SimulatedRig rig(sim::DefaultTruth());
-    const daq::Session session = rig.RunMatrix(rig::StandardMatrixPlan());
-    ident::SessionFitOptions fit;
-    fit.composition = "1dof";
-    const ident::FitData data =
-        ident::PrepareFitData(session, "simulated session", ident::Model::Build("1dof", fit.causality), fit.estimator.n);
-    nlohmann::json rows = nlohmann::json::array();
+    CheckOutputPath("--json", json_path, {});
     std::cout << "discover on the 14-experiment standard matrix from the simulated rig (every effect on), "
                  "stroke input, the default grid:\n";
-    // The thread counts alternate within each repeat, so a change in the machine's load falls on both.
-    const std::vector<int> counts{1, 2};
-    std::vector<std::vector<double>> wall(counts.size()), cpu(counts.size());
-    std::vector<ident::DiscoveryResult> results(counts.size());
-    const double load_before = LoadAverage();
-    for (int r = 0; r < repeats; ++r)
-      for (std::size_t k = 0; k < counts.size(); ++k) {
-        ident::DiscoverOptions options;
-        options.threads = counts[k];
-        const double cpu_start = ProcessCpuSeconds();
-        const auto start = std::chrono::steady_clock::now();
-        results[k] = ident::Discover(data, fit, options);
-        wall[k].push_back(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
-        cpu[k].push_back(ProcessCpuSeconds() - cpu_start);
-      }
-    const double load_after = LoadAverage();
-    for (std::size_t k = 0; k < counts.size(); ++k) {
+    const study::DiscoverTimingStudy s = study::RunDiscoverTiming(repeats);
+    nlohmann::json rows = nlohmann::json::array();
+    for (const study::DiscoverTiming& t : s.settings) {
       std::string missing;
-      for (const auto& t : results[k].missing) missing += " " + t;
-      const double w = Median(wall[k]), c = Median(cpu[k]);
+      for (const auto& term : t.missing) missing += " " + term;
       std::cout << fmt::format("  {} thread{}: median wall {:.2f} s, CPU {:.2f} s ({:.2f} cores busy) of {} runs; found{}\n",
-                               counts[k], counts[k] > 1 ? "s" : "", w, c, c / w, repeats, missing);
-      rows.push_back({{"threads", counts[k]}, {"median_seconds", w}, {"median_cpu_seconds", c}, {"wall_seconds", wall[k]},
-                      {"cpu_seconds", cpu[k]}, {"missing", results[k].missing}});
+                               t.threads, t.threads > 1 ? "s" : "", t.median_wall, t.median_cpu,
+                               t.median_cpu / t.median_wall, repeats, missing);
+      rows.push_back({{"threads", t.threads}, {"median_seconds", t.median_wall}, {"median_cpu_seconds", t.median_cpu},
+                      {"wall_seconds", t.wall}, {"cpu_seconds", t.cpu}, {"missing", t.missing}});
     }
-    const double speedup = Median(wall[0]) / Median(wall[1]);
+    const study::DiscoverTiming &one = s.settings[0], &two = s.settings[1];
+    const double speedup = one.median_wall / two.median_wall;
     std::cout << fmt::format("  two threads against one: {:.2f}x faster (wall); CPU {:.2f}x; target < 20 s wall on two "
                              "cores: {}\n",
-                             speedup, Median(cpu[1]) / Median(cpu[0]), Median(wall[1]) < 20.0 ? "met" : "missed");
+                             speedup, two.median_cpu / one.median_cpu, two.median_wall < 20.0 ? "met" : "missed");
     std::cout << fmt::format("  load average (1 min) {:.2f} before, {:.2f} after: figures on a shared machine are only "
                              "comparable side by side\n",
-                             load_before, load_after);
+                             s.load_before, s.load_after);
     if (!json_path.empty())
-      std::ofstream(json_path) << nlohmann::json{{"discover", rows}, {"speedup", speedup}, {"load", {load_before, load_after}}}
-                                      .dump(1)
-                               << "\n";
+      WriteTextOutput(json_path,
+                      nlohmann::json{{"discover", rows}, {"speedup", speedup}, {"load", {s.load_before, s.load_after}}}
+                              .dump(1) + "\n");
   }
 };
 

@@ -13,7 +13,6 @@
 #include <nlohmann/json.hpp>
 #include <optional>
 
-#include "bench_support.h"
 #include "commands.h"
 #include "option_checks.h"
 #include "output_files.h"
@@ -24,6 +23,8 @@
 #include "strut/sim/recorded_truth.h"
 #include "strut/sim/rig_server.h"
 #include "strut/sim/simulated_rig.h"
+#include "strut/study/cpu_time.h"
+#include "strut/study/rig_speed.h"
 #include "truth_options.h"
 
 namespace strut::tools {
@@ -32,32 +33,6 @@ namespace {
 using Clock = std::chrono::steady_clock;
 
 double Since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
-
-//! Seconds the session's experiments hold (samples / rate).
-double RecordedSeconds(const daq::Session& s) {
-  double seconds = 0.0;
-  for (const daq::Experiment& e : s.experiments) seconds += static_cast<double>(e.sample_count()) / e.sample_rate;
-  return seconds;
-}
-
-//! One run of the matrix through the drivers.
-struct RigFigures {
-  double wall = 0.0, cpu = 0.0, plant_cpu = 0.0;  //!< s; cpu: the whole process (plant, servers, runner, recorder)
-  double simulated = 0.0;                         //!< the served rig's clock, s (moves, settling, records)
-  double recorded = 0.0;                          //!< s of samples in the session
-  std::size_t complete = 0, not_steady = 0, aborted = 0;
-  bool finished = false;  //!< the run ended complete
-  std::uint64_t lost_sets = 0, gaps = 0;
-  //! Frames the receiver refused: ahead of its clock, late (behind the stream) or corrupt.
-  std::uint64_t refused_frames = 0;
-  double max_lateness = 0.0;  //!< s the stream was ever behind its schedule
-  //! Every experiment complete and steady, nothing lost, and the stream never half a second behind
-  //! its schedule (a run that completes slower than asked did not keep up).
-  bool kept_up(std::size_t experiments) const {
-    return finished && complete == experiments && not_steady == 0 && aborted == 0 && lost_sets == 0 && gaps == 0 &&
-           max_lateness <= 0.5;
-  }
-};
 
 struct BenchRig {
   TruthOptions truth_options;
@@ -85,15 +60,15 @@ struct BenchRig {
     return truth;
   }
 
-  RigFigures RunRig(const sim::Truth& truth, const rig::MatrixPlan& plan, double speed, const std::string& path) const {
+  study::RigRunFigures RunRig(const sim::Truth& truth, const rig::MatrixPlan& plan, double speed, const std::string& path) const {
     rig::RunnerOptions options;
     options.periods = plan.periods.value_or(3);
     options.stream_speed = speed;
     const rig::SafetyConfig safety;
     std::vector<rig::RunItem> items;
     for (const rig::MatrixEntry& e : plan.experiments) items.push_back({e});
-    RigFigures f;
-    const double cpu0 = ProcessSeconds();
+    study::RigRunFigures f;
+    const double cpu0 = study::ProcessSeconds();
     const auto t0 = Clock::now();
     {
       daq::RigConnection connection;
@@ -123,8 +98,8 @@ struct BenchRig {
       if (!f.finished) spdlog::warn("{}x: the run ended {}: {}", speed, rig::ToString(report.outcome), report.cause);
     }  // the drivers and the served rig stop here: their threads count to the run
     f.wall = Since(t0);
-    f.cpu = ProcessSeconds() - cpu0;
-    f.recorded = RecordedSeconds(daq::ReadSession(path));  // also the contract check
+    f.cpu = study::ProcessSeconds() - cpu0;
+    f.recorded = study::RecordedSeconds(daq::ReadSession(path));  // also the contract check
     std::filesystem::remove(path);
     std::filesystem::remove(daq::JournalPath(path));
     return f;
@@ -139,48 +114,22 @@ struct BenchRig {
     const std::size_t n = plan.experiments.size();
     const std::string path = (folder / fmt::format("strut-bench-rig-{}.h5", ::getpid())).string();
 
-    // (b) strut sim matrix on the same truth: the library call the command makes, and its write;
-    // as often as each speed runs (medians).
-    std::vector<double> matrix_walls, matrix_cpus;
-    double matrix_simulated = 0.0, matrix_recorded = 0.0;  // the same every time: one seed
-    for (int k = 0; k < repeats; ++k) {
-      const double cpu0 = ProcessSeconds();
-      const auto t0 = Clock::now();
-      const sim::SimulatedRig simulated(truth);
-      sim::RigRunOptions run;
-      run.seed = seed;
-      std::vector<sim::PeriodicRunReport> reports;
-      const daq::Session session = simulated.RunMatrix(plan, run, &reports);
-      daq::WriteSession(path, session);
-      matrix_walls.push_back(Since(t0));
-      matrix_cpus.push_back(ProcessSeconds() - cpu0);
-      matrix_simulated = 0.0;
-      for (const sim::PeriodicRunReport& r : reports) matrix_simulated += r.simulated_seconds;
-      matrix_recorded = RecordedSeconds(session);
-      fs::remove(path);
-    }
-    const double matrix_wall = Median(matrix_walls), matrix_cpu = Median(matrix_cpus);
+    // (b) strut sim matrix on the same truth, as often as each speed runs (medians).
+    const study::SimMatrixTiming matrix = study::TimeSimMatrix(truth, plan, seed, repeats, path);
+    const double matrix_wall = matrix.wall, matrix_cpu = matrix.cpu;
+    const double matrix_simulated = matrix.simulated, matrix_recorded = matrix.recorded;
 
     // (a) the matrix through the drivers, at each speed.
-    struct Row {
-      double speed;
-      std::vector<RigFigures> runs;
-    };
-    std::vector<Row> rows;
+    std::vector<study::RigSpeedRow> rows;
     for (double speed : speeds) {
-      Row row{speed, {}};
+      std::vector<study::RigRunFigures> runs;
       for (int k = 0; k < repeats; ++k) {
         spdlog::info("bench rig: {}x, run {} of {}", speed, k + 1, repeats);
-        row.runs.push_back(RunRig(truth, plan, speed, path));
+        runs.push_back(RunRig(truth, plan, speed, path));
       }
-      rows.push_back(std::move(row));
+      rows.push_back(study::SummariseSpeed(speed, std::move(runs), n));
     }
 
-    const auto median = [](const std::vector<RigFigures>& runs, auto field) {
-      std::vector<double> v;
-      for (const RigFigures& f : runs) v.push_back(field(f));
-      return Median(v);
-    };
     const double matrix_cpu_per_sim = matrix_cpu / matrix_simulated;
     std::cout << fmt::format(
         "rig bench: the standard matrix ({} experiments) of {} ({}), {} run{} per speed (medians), one process on "
@@ -206,39 +155,20 @@ struct BenchRig {
                           {"simulated_s", matrix_simulated},
                           {"recorded_s", matrix_recorded},
                           {"simulated_per_cpu_s", 1.0 / matrix_cpu_per_sim}};
-    std::optional<double> fastest;
-    for (const Row& row : rows) {
-      const auto m = [&](auto field) { return median(row.runs, field); };
-      const double wall = m([](const RigFigures& f) { return f.wall; });
-      const double cpu = m([](const RigFigures& f) { return f.cpu; });
-      const double plant = m([](const RigFigures& f) { return f.plant_cpu; });
-      const double simulated = m([](const RigFigures& f) { return f.simulated; });
-      const double recorded = m([](const RigFigures& f) { return f.recorded; });
-      const double behind = m([](const RigFigures& f) { return f.max_lateness; });
-      const double per_wall = m([](const RigFigures& f) { return f.simulated / f.wall; });
-      const double per_cpu = m([](const RigFigures& f) { return f.simulated / f.cpu; });
-      std::size_t complete = n, kept = 0;
-      std::uint64_t lost = 0, gaps = 0, refused = 0;
-      for (const RigFigures& f : row.runs) {
-        complete = std::min(complete, f.complete);
-        lost = std::max(lost, f.lost_sets);
-        gaps = std::max(gaps, f.gaps);
-        refused = std::max(refused, f.refused_frames);
-        kept += f.kept_up(n) ? 1 : 0;
-      }
-      const bool kept_up = kept == row.runs.size();
-      if (kept_up && (!fastest || row.speed > *fastest)) fastest = row.speed;
+    const std::optional<double> fastest = study::FastestKeptUp(rows);
+    for (const study::RigSpeedRow& row : rows) {
+      const double wall = row.wall, cpu = row.cpu, simulated = row.simulated;
       // CPU per simulated second against sim matrix's; wall time for a session against its wall time.
       const double cpu_ratio = (cpu / simulated) / matrix_cpu_per_sim;
       const double session_cpu_ratio = cpu / matrix_cpu;
       const double wall_ratio = wall / matrix_wall;
       std::cout << fmt::format("{:>5g}x {:>7.1f} {:>7.1f} {:>7.1f} {:>8.0f} {:>7.0f} {:>9.1f} {:>9.1f} {:>8.2f} {:>5}/{:<2} "
                                "{:>6} {:>5} {:>8} {:>3}/{:<3} {:>8.2f} {:>8.1f} {:>7.1f} {:>7.1f}\n",
-                               row.speed, wall, cpu, plant, simulated, recorded, per_wall, per_cpu, behind, complete, n,
-                               lost, gaps, refused, kept, row.runs.size(), 1e3 * cpu / simulated, cpu_ratio, session_cpu_ratio,
-                               wall_ratio);
+                               row.speed, wall, cpu, row.plant, simulated, row.recorded, row.per_wall, row.per_cpu,
+                               row.behind, row.complete, n, row.lost, row.gaps, row.refused, row.kept, row.runs.size(),
+                               1e3 * cpu / simulated, cpu_ratio, session_cpu_ratio, wall_ratio);
       nlohmann::json runs = nlohmann::json::array();
-      for (const RigFigures& f : row.runs) {
+      for (const study::RigRunFigures& f : row.runs) {
         runs.push_back({{"wall_s", f.wall},          {"cpu_s", f.cpu},           {"plant_cpu_s", f.plant_cpu},
                         {"simulated_s", f.simulated}, {"recorded_s", f.recorded}, {"complete", f.complete},
                         {"not_steady", f.not_steady}, {"aborted", f.aborted},     {"finished", f.finished},
@@ -248,13 +178,13 @@ struct BenchRig {
       json["speeds"].push_back({{"speed", row.speed},
                                 {"wall_s", wall},
                                 {"cpu_s", cpu},
-                                {"plant_cpu_s", plant},
+                                {"plant_cpu_s", row.plant},
                                 {"simulated_s", simulated},
-                                {"recorded_s", recorded},
-                                {"simulated_per_wall_s", per_wall},
-                                {"simulated_per_cpu_s", per_cpu},
-                                {"max_lateness_s", behind},
-                                {"kept_up", kept_up},
+                                {"recorded_s", row.recorded},
+                                {"simulated_per_wall_s", row.per_wall},
+                                {"simulated_per_cpu_s", row.per_cpu},
+                                {"max_lateness_s", row.behind},
+                                {"kept_up", row.kept_up()},
                                 {"cpu_per_simulated_s_vs_sim_matrix", cpu_ratio},
                                 {"cpu_vs_sim_matrix", session_cpu_ratio},
                                 {"wall_vs_sim_matrix", wall_ratio},

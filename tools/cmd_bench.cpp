@@ -1,31 +1,28 @@
 // strut bench: speed and accuracy figures, measured side by side in one run (medians and ratios).
+// `bench periodic` measures here; the other benchmarks print and write what the studies
+// (strut::study) return.
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <optional>
-#include <fstream>
 #include <functional>
 #include <iostream>
 #include <nlohmann/json.hpp>
-#include <random>
 #include <time.h>
 
 #include "commands.h"
 #include "option_checks.h"
 #include "output_files.h"
-#include "strut/ident/estimator.h"
-#include "strut/ident/experiment_data.h"
-#include "strut/study/oscillator.h"
 #include "strut/ident/periodic.h"
-#include "strut/study/silverbox.h"
 #include "strut/rig/test_matrix.h"
 #include "strut/sim/periodic_session.h"
 #include "strut/sim/simulated_rig.h"
 #include "strut/sim/transient.h"
-#include "strut/sim/transient_predictor.h"
-#include "bench_support.h"
+#include "strut/study/cpu_time.h"
+#include "strut/study/identify.h"
+#include "strut/study/silverbox.h"
+#include "strut/study/sim_speed.h"
 
 namespace strut::tools {
 namespace {
@@ -322,479 +319,226 @@ struct BenchPeriodic {
 
 // ---------------------------------------------------------------------------------------------
 // strut bench identify: the identification issue's figures (fit time, interval coverage, and the
-// same fit with transient integration to steady state instead of the periodic solver).
+// same fit with transient integration to steady state instead of the periodic solver), measured by
+// the study (study::MeasureFitTimes, MeasureCoverage, CompareWithTransient) and printed here.
 
-//! Calls and time of one fit's predictors (and the work of TransientPredictors).
-struct PredictorTally {
-  long solves = 0, cold_solves = 0, sensitivity_calls = 0, failures = 0;
-  double solve_ms = 0.0, cold_ms = 0.0, sensitivity_ms = 0.0;
-  sim::TransientPredictorStats transient;
-};
+nlohmann::json FitJson(const study::TimedFit& t, const ident::ParameterSet& truth) {
+  nlohmann::json estimates = nlohmann::json::object();
+  for (int i : t.fit.estimated_positions)
+    estimates[truth.spec(i).key()] = {{"value", t.fit.parameters.value(i)},
+                                      {"sd", t.fit.estimates[i].sd},
+                                      {"truth", truth.value(i)},
+                                      {"z", (t.fit.parameters.value(i) - truth.value(i)) / t.fit.estimates[i].sd}};
+  return {{"ms", t.ms},
+          {"cpu_ms", t.cpu_ms},
+          {"runs", t.runs},
+          {"converged", t.fit.converged},
+          {"iterations", t.fit.iterations},
+          {"solves", t.tally.solves},
+          {"cold_solves", t.tally.cold_solves},
+          {"cold_ms", t.tally.cold_ms},
+          {"failed_solves", t.tally.failures},
+          {"sensitivity_calls", t.tally.sensitivity_calls},
+          {"solve_ms", t.tally.solve_ms},
+          {"sensitivity_ms", t.tally.sensitivity_ms},
+          {"estimates", estimates}};
+}
 
-//! Wraps a predictor to count and time its calls; two clock reads per call (microseconds
-//! against milliseconds per solve).
-class TallyingPredictor : public ident::PeriodicPredictor {
- public:
-  TallyingPredictor(std::unique_ptr<ident::PeriodicPredictor> inner, PredictorTally* tally)
-      : inner_(std::move(inner)), tally_(tally) {}
-  ~TallyingPredictor() override {
-    if (const auto* t = dynamic_cast<const sim::TransientPredictor*>(inner_.get())) tally_->transient += t->stats();
+// 1. Full fit of the standard matrix: time against the 50 ms target.
+nlohmann::json PrintFitTimes(const std::vector<study::FitTimeRow>& fits, std::size_t experiments, int repeats,
+                             const ident::ParameterSet& truth) {
+  std::cout << fmt::format(
+      "1. full fit: 2dof, {} experiments of the standard matrix, estimating {} (the rest fixed at the truth),\n"
+      "   n = {}, backward2, one thread, median of {} fits; target < {:.0f} ms (judged on the CPU time)\n",
+      experiments, study::kIdentifyEstimate, study::kIdentifyN, repeats, study::kFitTargetMs);
+  std::cout << fmt::format("   {:<7} {:<9} {:>8} {:>8} {:>7} {:>5} {:>7} {:>5} {:>9} {:>8} {:>8} {:>8}  {}\n", "input",
+                           "start", "fit ms", "cpu ms", "target", "iter", "solves", "sens", "solve ms", "cold ms",
+                           "sens ms", "other ms", "max |estimate - truth| / sd");
+  nlohmann::json rows = nlohmann::json::array();
+  for (const study::FitTimeRow& f : fits) {
+    const study::TimedFit& t = f.timed;
+    std::cout << fmt::format("   {:<7} {:<9} {:>8.1f} {:>8.1f} {:>7} {:>5} {:>7} {:>5} {:>9.1f} {:>8.1f} {:>8.1f} {:>8.1f}  {:.2f}{}\n",
+                             ident::ToString(f.causality), f.from_truth ? "truth" : "20 % off", t.ms, t.cpu_ms,
+                             t.cpu_ms < study::kFitTargetMs ? "met" : "MISSED", t.fit.iterations, t.tally.solves,
+                             t.tally.sensitivity_calls, t.tally.solve_ms, t.tally.cold_ms, t.tally.sensitivity_ms,
+                             t.ms - t.tally.solve_ms - t.tally.sensitivity_ms, f.worst_z,
+                             t.fit.converged ? "" : "  NOT CONVERGED");
+    if (t.tally.failures > 0) std::cout << fmt::format("      ({} solves failed)\n", t.tally.failures);
+    nlohmann::json row = FitJson(t, truth);
+    row["input"] = ident::ToString(f.causality);
+    row["start"] = f.from_truth ? "truth" : "20% off";
+    row["target_ms"] = study::kFitTargetMs;
+    rows.push_back(row);
   }
-  ident::PeriodicSolution Solve(const ident::PeriodicInput& input, std::span<const double> theta,
-                                const ident::PeriodicSolution* warm_start) override {
-    const auto start = Clock::now();
-    try {
-      ident::PeriodicSolution s = inner_->Solve(input, theta, warm_start);
-      const double ms = std::chrono::duration<double, std::milli>(Clock::now() - start).count();
-      tally_->solve_ms += ms;
-      ++tally_->solves;
-      if (!warm_start) {
-        tally_->cold_ms += ms;
-        ++tally_->cold_solves;
-      }
-      return s;
-    } catch (const ident::PeriodicSolverError&) {
-      tally_->solve_ms += std::chrono::duration<double, std::milli>(Clock::now() - start).count();
-      ++tally_->failures;
-      throw;
+  std::cout << "   (solve ms: time inside the periodic solves of the last fit, cold ms the part in the first solve of\n"
+               "    each experiment (no warm start); sens ms: sensitivity calls; other: the estimator itself)\n";
+  return rows;
+}
+
+// 2. Calibration of the reported uncertainty.
+nlohmann::json PrintCoverage(const study::CoverageStudy& c) {
+  const int count = c.realisations;
+  std::cout << fmt::format(
+      "2. 95 % intervals (estimate +- 1.96 sd) holding the truth: {} noise realisations of the standard matrix\n"
+      "   (stroke input, 14 experiments, sensor noise {:.0e} m / {:.0f} N / {:.0f} Pa, 3 periods at 200 Hz, n = {},\n"
+      "   estimating {}, started at the truth; {:.0f} s for both schemes)\n",
+      count, c.noise.stroke, c.noise.force, c.noise.pressure, study::kIdentifyN, study::kIdentifyEstimate, c.seconds);
+  std::cout << fmt::format("   {:<10} {:<16} {:>9} {:>9} {:>18} {:>8} {:>7}\n", "scheme", "parameter", "inside",
+                           "fraction", "Wilson 95 % range", "mean z", "sd z");
+  nlohmann::json out = {{"realisations", count},
+                        {"seconds", c.seconds},
+                        {"nominal_range95", {c.nominal_range95.first, c.nominal_range95.second}}};
+  for (const study::SchemeCoverage& s : c.schemes) {
+    const std::string scheme(ident::ToString(s.scheme));
+    nlohmann::json js = {{"not_converged", s.not_converged}};
+    bool first = true;
+    for (const auto& [key, z] : s.parameters) {
+      std::cout << fmt::format("   {:<10} {:<16} {:>4}/{:<4} {:>9.3f}     [{:.3f}, {:.3f}] {:>8.2f} {:>7.2f}\n",
+                               first ? scheme : "", key, z.inside, count, z.fraction(), z.wilson95.first,
+                               z.wilson95.second, z.mean_z, z.sd_z);
+      first = false;
+      js["parameters"][key] = {{"inside", z.inside},
+                               {"fraction", z.fraction()},
+                               {"wilson95", {z.wilson95.first, z.wilson95.second}},
+                               {"mean_z", z.mean_z},
+                               {"sd_z", z.sd_z}};
     }
+    const auto w = study::Wilson(s.pooled_inside, s.pooled_total);
+    const double pooled = static_cast<double>(s.pooled_inside) / s.pooled_total;
+    std::cout << fmt::format("   {:<10} {:<16} {:>4}/{:<4} {:>9.3f}     [{:.3f}, {:.3f}]   (pooled; intervals of one fit "
+                             "are correlated)\n",
+                             "", "all three", s.pooled_inside, s.pooled_total, pooled, w.first, w.second);
+    const auto wj = study::Wilson(s.jointly_inside, count);
+    const double jointly = static_cast<double>(s.jointly_inside) / count;
+    std::cout << fmt::format("   {:<10} {:<16} {:>4}/{:<4} {:>9.3f}     [{:.3f}, {:.3f}]   (all three at once){}\n", "",
+                             "jointly", s.jointly_inside, count, jointly, wj.first, wj.second,
+                             s.not_converged > 0 ? fmt::format("; {} fits not converged", s.not_converged) : "");
+    js["overall"] = {{"inside", s.pooled_inside}, {"total", s.pooled_total}, {"fraction", pooled},
+                     {"wilson95", {w.first, w.second}}};
+    js["jointly"] = {{"inside", s.jointly_inside}, {"fraction", jointly}, {"wilson95", {wj.first, wj.second}}};
+    out[scheme] = js;
   }
-  std::vector<Eigen::MatrixXd> OutputSensitivities(const ident::PeriodicSolution& solution,
-                                                   std::span<const double> theta,
-                                                   std::span<const int> parameters, bool exact) override {
-    const auto start = Clock::now();
-    auto s = inner_->OutputSensitivities(solution, theta, parameters, exact);
-    tally_->sensitivity_ms += std::chrono::duration<double, std::milli>(Clock::now() - start).count();
-    ++tally_->sensitivity_calls;
-    return s;
-  }
-  Eigen::MatrixXd InputGradients(const ident::PeriodicSolution& solution, std::span<const double> theta,
-                                 const std::vector<Eigen::MatrixXd>& output_weights) override {
-    const auto start = Clock::now();
-    auto s = inner_->InputGradients(solution, theta, output_weights);
-    tally_->sensitivity_ms += std::chrono::duration<double, std::milli>(Clock::now() - start).count();
-    return s;
-  }
-  std::vector<Eigen::MatrixXd> InputSensitivities(const ident::PeriodicSolution& solution,
-                                                  std::span<const double> theta, const Eigen::MatrixXd& directions,
-                                                  bool exact) override {
-    const auto start = Clock::now();
-    auto s = inner_->InputSensitivities(solution, theta, directions, exact);
-    tally_->sensitivity_ms += std::chrono::duration<double, std::milli>(Clock::now() - start).count();
-    return s;
-  }
+  std::cout << fmt::format("   a calibrated 95 % interval puts the fraction in [{:.3f}, {:.3f}] with 95 % probability "
+                           "(binomial, {} realisations);\n   z = (estimate - truth) / sd should have mean 0 and sd 1\n",
+                           c.nominal_range95.first, c.nominal_range95.second, count);
+  return out;
+}
 
- private:
-  std::unique_ptr<ident::PeriodicPredictor> inner_;
-  PredictorTally* tally_;
-};
-
-using PredictorFactory = std::function<std::unique_ptr<ident::PeriodicPredictor>(const ident::Model&)>;
-
-PredictorFactory PeriodicFactory(ident::Scheme scheme) {
-  return [scheme](const ident::Model& m) {
-    ident::PeriodicSolverOptions o;
-    o.scheme = scheme;
-    return std::make_unique<ident::PeriodicSolver>(m, o);
+// 3. The same fit with transient integration to steady state.
+nlohmann::json PrintTransient(const study::TransientComparison& c, const ident::ParameterSet& truth) {
+  const sim::TransientPredictorOptions& o = c.options;
+  const std::string start = c.off == 0.0 ? "truth" : fmt::format("{:.0f} % off", 100 * c.off);
+  std::cout << fmt::format(
+      "3. the same fit with predictions from transient integration to steady state ({} input, experiments {},\n"
+      "   n = {}, start: {}): IDA to periodic steady state (warm-started from the previous one; rtol {:.0e},\n"
+      "   atol {:.0e} x unknown scale, steady when the change between periods and its extrapolation are below\n"
+      "   {:.0e} of each unknown's peak) and IDAS forward sensitivities (exact dF/dtheta from the model's Jets, steps\n"
+      "   by the state's error test) integrated until they are periodic too (relative {:.0e}), for the {} estimated\n"
+      "   parameters only. Periodic: median of {}; transient: one fit.\n",
+      ident::ToString(c.causality), c.experiments, study::kIdentifyN, start, o.integrator.rtol,
+      o.integrator.atol_factor, o.steady.relative_floor * o.steady.tol, o.sensitivity_relative_tol, c.estimated,
+      c.repeats);
+  nlohmann::json out = {{"input", ident::ToString(c.causality)},
+                        {"experiments", c.experiments},
+                        {"start", start},
+                        {"transient_rtol", o.integrator.rtol},
+                        {"transient_atol_factor", o.integrator.atol_factor},
+                        {"transient_steady_relative", o.steady.relative_floor * o.steady.tol},
+                        {"transient_sensitivity_relative", o.sensitivity_relative_tol}};
+  if (!c.transient_error.empty()) {
+    std::cout << fmt::format("   the transient fit failed: {}\n", c.transient_error);
+    out["transient_error"] = c.transient_error;
+    return out;
+  }
+  // The reference is the most accurate of the three: the periodic solver with central4 (its
+  // discretisation error at n = 800 is about 1e-10 of the range, docs/periodic-solver.md).
+  std::cout << fmt::format("   {:<20} {:>10} {:>10} {:>5} {:>7} {:>5} {:>10} {:>10}  {}\n", "predictor", "fit ms",
+                           "cpu ms", "iter", "solves", "sens", "solve ms", "sens ms",
+                           "(estimate - central4's) / posterior sd");
+  const study::TimedFit& central = c.central4;
+  const auto row = [&](const char* name, const study::TimedFit& t) {
+    std::string diff;
+    double worst = 0.0;
+    for (int i : t.fit.estimated_positions) {
+      const double d = (t.fit.parameters.value(i) - central.fit.parameters.value(i)) / central.fit.estimates[i].sd;
+      worst = std::max(worst, std::abs(d));
+      diff += fmt::format(" {} {:+.4f}", truth.spec(i).key(), d);
+    }
+    std::cout << fmt::format("   {:<20} {:>10.1f} {:>10.1f} {:>5} {:>7} {:>5} {:>10.1f} {:>10.1f} {}{}\n", name, t.ms,
+                             t.cpu_ms, t.fit.iterations, t.tally.solves, t.tally.sensitivity_calls, t.tally.solve_ms,
+                             t.tally.sensitivity_ms, diff, t.fit.converged ? "" : "  NOT CONVERGED");
+    if (t.tally.failures > 0) std::cout << fmt::format("      ({} solves failed)\n", t.tally.failures);
+    nlohmann::json j = FitJson(t, truth);
+    j["max_sd_from_central4"] = worst;
+    return j;
   };
-}
-
-struct TimedFit {
-  ident::FitSummary fit;  //!< of the last run
-  double ms = 0.0;        //!< median wall time of Estimator::Fit
-  double cpu_ms = 0.0;    //!< median CPU time of the fitting thread
-  PredictorTally tally;   //!< of the last run
-  int runs = 0;
-};
-
-TimedFit TimeFit(const ident::Model& model, const std::vector<ident::ExperimentData>& data,
-                 const ident::ParameterSet& initial, const std::vector<ident::ParameterChoice>& choices,
-                 const PredictorFactory& factory, int n, int repeats, std::optional<bool> estimate_input = std::nullopt) {
-  TimedFit out;
-  std::vector<double> times, cpu;
-  for (int r = 0; r < repeats; ++r) {
-    PredictorTally tally;
-    ident::EstimatorOptions options;
-    options.n = n;
-    options.estimate_input = estimate_input;
-    options.predictor = [&](const ident::Model& m) { return std::make_unique<TallyingPredictor>(factory(m), &tally); };
-    const ident::Estimator estimator(model, options);
-    const auto start = Clock::now();
-    const double cpu_start = ThreadCpuMs();
-    ident::FitSummary fit = estimator.Fit(data, initial, choices);
-    cpu.push_back(ThreadCpuMs() - cpu_start);
-    times.push_back(std::chrono::duration<double, std::milli>(Clock::now() - start).count());
-    out.fit = std::move(fit);
-    out.tally = tally;
-  }
-  out.ms = Quantile(times, 0.5);
-  out.cpu_ms = Quantile(cpu, 0.5);
-  out.runs = repeats;
+  const study::TimedFit &backward = c.backward2, &transient = c.transient;
+  out["periodic_backward2"] = row("periodic backward2", backward);
+  out["periodic_central4"] = row("periodic central4", central);
+  out["transient"] = row("transient (IDA/IDAS)", transient);
+  const auto& ts = transient.tally.transient;
+  out["transient"]["periods"] = ts.solve_periods;
+  out["transient"]["ida_steps"] = ts.solve_steps;
+  out["transient"]["sensitivity_periods"] = ts.sensitivity_periods;
+  out["transient"]["idas_steps"] = ts.sensitivity_steps;
+  std::cout << fmt::format(
+      "   transient work: {} steady states, {} periods, {} IDA steps; {} sensitivity runs, {} periods, {} IDAS steps\n",
+      ts.solves, ts.solve_periods, ts.solve_steps, ts.sensitivity_runs, ts.sensitivity_periods, ts.sensitivity_steps);
+  std::cout << fmt::format("   time ratio transient / periodic: {:.0f} wall, {:.0f} CPU (against backward2); {:.0f} wall, "
+                           "{:.0f} CPU (against central4)\n",
+                           transient.ms / backward.ms, transient.cpu_ms / backward.cpu_ms, transient.ms / central.ms,
+                           transient.cpu_ms / central.cpu_ms);
+  out["ratio_backward2"] = transient.ms / backward.ms;
+  out["ratio_central4"] = transient.ms / central.ms;
+  out["cpu_ratio_backward2"] = transient.cpu_ms / backward.cpu_ms;
+  out["cpu_ratio_central4"] = transient.cpu_ms / central.cpu_ms;
   return out;
-}
-
-//! Central 95 % range of k / N for k ~ Binomial(N, p): the 2.5 % and 97.5 % quantiles.
-std::pair<double, double> BinomialRange(long total, double p) {
-  double cumulative = 0.0;
-  long lo = -1, hi = total;
-  for (long k = 0; k <= total; ++k) {
-    cumulative += std::exp(std::lgamma(total + 1.0) - std::lgamma(k + 1.0) - std::lgamma(total - k + 1.0) +
-                           k * std::log(p) + (total - k) * std::log1p(-p));
-    if (lo < 0 && cumulative >= 0.025) lo = k;
-    if (cumulative >= 0.975) {
-      hi = k;
-      break;
-    }
-  }
-  return {static_cast<double>(lo) / total, static_cast<double>(hi) / total};
-}
-
-std::vector<ident::ExperimentData> Subset(const std::vector<ident::ExperimentData>& data, const std::string& labels) {
-  if (labels.empty()) return data;
-  std::vector<ident::ExperimentData> out;
-  for (const auto& d : data)
-    if (labels.find(d.label) != std::string::npos) out.push_back(d);
-  return out;
-}
-
-std::string Labels(const std::vector<ident::ExperimentData>& data) {
-  std::string s;
-  for (const auto& d : data) s += d.label;
-  return s;
 }
 
 struct BenchIdentify {
   std::string json_path;
   bool quick = false;
-  int realisations = 0;                  // 0: 200 (quick: 20)
-  std::string transient_experiments;     // empty: all (quick: "hi")
-  bool transient_force = false;          // also the force-input transient fit
-  double transient_rtol = 1e-10, transient_atol = 1e-2, transient_steady = 1e-7, transient_sensitivity = 1e-5;
-  std::string sections = "123";          // which of the three figures to measure
-  double transient_off = 0.1;            // start of the transient comparison: the truth this much off
-  double coverage_stroke_noise = -1.0;   // m; < 0: the simulated rig's (a diagnostic: 0 removes input noise)
-
-  static constexpr int kN = 800;
-  static constexpr double kTargetMs = 50.0;
-  static constexpr const char* kEstimate = "theta4,theta6,theta16";
-  static constexpr double kZ95 = 1.959963984540054;
-
-  ident::ParameterSet Truth() const {
-    ident::ParameterSet truth = ident::Model::Build("2dof", ident::Causality::kStrokeInput).defaults();
-    truth.set("theta12", 0.0);
-    return truth;
-  }
-
-  //! The truth with every estimated parameter `off` (0.2: 20 %) too large.
-  static ident::ParameterSet Off(const ident::ParameterSet& truth, const std::vector<ident::ParameterChoice>& choices,
-                                 double off = 0.2) {
-    ident::ParameterSet p = truth;
-    for (int i = 0; i < p.size(); ++i)
-      if (choices[i].estimate) p.values()[i] *= 1.0 + off;
-    return p;
-  }
-
-  static nlohmann::json FitJson(const TimedFit& t, const ident::ParameterSet& truth) {
-    nlohmann::json estimates = nlohmann::json::object();
-    for (int i : t.fit.estimated_positions)
-      estimates[truth.spec(i).key()] = {{"value", t.fit.parameters.value(i)},
-                                        {"sd", t.fit.estimates[i].sd},
-                                        {"truth", truth.value(i)},
-                                        {"z", (t.fit.parameters.value(i) - truth.value(i)) / t.fit.estimates[i].sd}};
-    return {{"ms", t.ms},
-            {"cpu_ms", t.cpu_ms},
-            {"runs", t.runs},
-            {"converged", t.fit.converged},
-            {"iterations", t.fit.iterations},
-            {"solves", t.tally.solves},
-            {"cold_solves", t.tally.cold_solves},
-            {"cold_ms", t.tally.cold_ms},
-            {"failed_solves", t.tally.failures},
-            {"sensitivity_calls", t.tally.sensitivity_calls},
-            {"solve_ms", t.tally.solve_ms},
-            {"sensitivity_ms", t.tally.sensitivity_ms},
-            {"estimates", estimates}};
-  }
-
-  // 1. Full fit of the standard matrix: time against the 50 ms target.
-  nlohmann::json FitTimes(const daq::Session& session, const ident::ParameterSet& truth) const {
-    const int repeats = quick ? 3 : 11;
-    std::cout << fmt::format(
-        "1. full fit: 2dof, {} experiments of the standard matrix, estimating {} (the rest fixed at the truth),\n"
-        "   n = {}, backward2, one thread, median of {} fits; target < {:.0f} ms (judged on the CPU time)\n",
-        session.experiments.size(), kEstimate, kN, repeats, kTargetMs);
-    std::cout << fmt::format("   {:<7} {:<9} {:>8} {:>8} {:>7} {:>5} {:>7} {:>5} {:>9} {:>8} {:>8} {:>8}  {}\n", "input",
-                             "start", "fit ms", "cpu ms", "target", "iter", "solves", "sens", "solve ms", "cold ms",
-                             "sens ms", "other ms", "max |estimate - truth| / sd");
-    nlohmann::json rows = nlohmann::json::array();
-    for (const ident::Causality causality : {ident::Causality::kStrokeInput, ident::Causality::kForceInput}) {
-      const ident::Model model = ident::Model::Build("2dof", causality);
-      const auto data = ident::PrepareExperiments(session, causality, kN);
-      const auto choices = ident::ChoicesFromList(model.defaults(), kEstimate);
-      for (const bool from_truth : {true, false}) {
-        const ident::ParameterSet initial = from_truth ? truth : Off(truth, choices);
-        const TimedFit t =
-            TimeFit(model, data, initial, choices, PeriodicFactory(ident::Scheme::kBackward2), kN, repeats);
-        double worst = 0.0;
-        for (int i : t.fit.estimated_positions)
-          worst = std::max(worst, std::abs(t.fit.parameters.value(i) - truth.value(i)) / t.fit.estimates[i].sd);
-        std::cout << fmt::format("   {:<7} {:<9} {:>8.1f} {:>8.1f} {:>7} {:>5} {:>7} {:>5} {:>9.1f} {:>8.1f} {:>8.1f} {:>8.1f}  {:.2f}{}\n",
-                                 ident::ToString(causality), from_truth ? "truth" : "20 % off", t.ms, t.cpu_ms,
-                                 t.cpu_ms < kTargetMs ? "met" : "MISSED", t.fit.iterations, t.tally.solves,
-                                 t.tally.sensitivity_calls, t.tally.solve_ms, t.tally.cold_ms, t.tally.sensitivity_ms,
-                                 t.ms - t.tally.solve_ms - t.tally.sensitivity_ms, worst,
-                                 t.fit.converged ? "" : "  NOT CONVERGED");
-        if (t.tally.failures > 0) std::cout << fmt::format("      ({} solves failed)\n", t.tally.failures);
-        nlohmann::json row = FitJson(t, truth);
-        row["input"] = ident::ToString(causality);
-        row["start"] = from_truth ? "truth" : "20% off";
-        row["target_ms"] = kTargetMs;
-        rows.push_back(row);
-      }
-    }
-    std::cout << "   (solve ms: time inside the periodic solves of the last fit, cold ms the part in the first solve of\n"
-                 "    each experiment (no warm start); sens ms: sensitivity calls; other: the estimator itself)\n";
-    return rows;
-  }
-
-  // 2. Calibration of the reported uncertainty.
-  nlohmann::json Coverage(const ident::ParameterSet& truth) const {
-    const int count = realisations > 0 ? realisations : (quick ? 20 : 200);
-    sim::PeriodicSessionOptions options;
-    options.noise = {0.0, 0.0, 0.0};
-    const daq::Session clean = sim::SimulatePeriodicSession("2dof", truth.values(), rig::StandardMatrix(), options);
-    const ident::Model model = ident::Model::Build("2dof", ident::Causality::kStrokeInput);
-    const auto choices = ident::ChoicesFromList(model.defaults(), kEstimate);
-    // The default scheme, and central4 whose discretisation error at n = 800 is negligible: the
-    // difference separates the scheme's bias from the uncertainty machinery itself.
-    const std::vector<ident::Scheme> schemes = {ident::Scheme::kBackward2, ident::Scheme::kCentral4};
-    std::vector<ident::Estimator> estimators;
-    for (const ident::Scheme scheme : schemes) {
-      ident::EstimatorOptions estimator_options;
-      estimator_options.n = kN;
-      estimator_options.scheme = scheme;
-      estimators.emplace_back(model, estimator_options);
-    }
-    sim::SensorNoise noise;  // the simulated rig's sensor noise
-    if (coverage_stroke_noise >= 0) noise.stroke = coverage_stroke_noise;
-    std::mt19937_64 rng(2024);
-    std::normal_distribution<double> unit(0.0, 1.0);
-    std::vector<int> est;
-    for (int i = 0; i < model.parameter_count(); ++i)
-      if (choices[i].estimate) est.push_back(i);
-    const std::size_t ns = schemes.size(), np = est.size();
-    std::vector<std::vector<std::vector<double>>> z(ns, std::vector<std::vector<double>>(np));
-    std::vector<long> all_inside(ns, 0), not_converged(ns, 0);
-    const auto start = Clock::now();
-    for (int r = 0; r < count; ++r) {
-      daq::Session noisy = clean;
-      for (auto& e : noisy.experiments)
-        for (auto& c : e.channels) {
-          const double sd = c.name == "stroke" ? noise.stroke : c.name == "force" ? noise.force : noise.pressure;
-          if (sd > 0)
-            for (double& v : c.samples) v += sd * unit(rng);
-        }
-      const auto data = ident::PrepareExperiments(noisy, model.causality(), kN);
-      for (std::size_t a = 0; a < ns; ++a) {
-        const ident::FitSummary fit = estimators[a].Fit(data, truth, choices);
-        not_converged[a] += !fit.converged;
-        bool all = true;
-        for (std::size_t k = 0; k < np; ++k) {
-          const double zk = (fit.parameters.value(est[k]) - truth.value(est[k])) / fit.estimates[est[k]].sd;
-          z[a][k].push_back(zk);
-          all = all && std::abs(zk) <= kZ95;
-        }
-        all_inside[a] += all;
-      }
-    }
-    const double seconds = std::chrono::duration<double>(Clock::now() - start).count();
-    const auto nominal = BinomialRange(count, 0.95);
-    std::cout << fmt::format(
-        "2. 95 % intervals (estimate +- 1.96 sd) holding the truth: {} noise realisations of the standard matrix\n"
-        "   (stroke input, 14 experiments, sensor noise {:.0e} m / {:.0f} N / {:.0f} Pa, 3 periods at 200 Hz, n = {},\n"
-        "   estimating {}, started at the truth; {:.0f} s for both schemes)\n",
-        count, noise.stroke, noise.force, noise.pressure, kN, kEstimate, seconds);
-    std::cout << fmt::format("   {:<10} {:<16} {:>9} {:>9} {:>18} {:>8} {:>7}\n", "scheme", "parameter", "inside",
-                             "fraction", "Wilson 95 % range", "mean z", "sd z");
-    nlohmann::json out = {{"realisations", count}, {"seconds", seconds}, {"nominal_range95", {nominal.first, nominal.second}}};
-    for (std::size_t a = 0; a < ns; ++a) {
-      const std::string scheme(ident::ToString(schemes[a]));
-      nlohmann::json js = {{"not_converged", not_converged[a]}};
-      long total_inside = 0;
-      for (std::size_t k = 0; k < np; ++k) {
-        long inside = 0;
-        double mean = 0.0, var = 0.0;
-        for (double v : z[a][k]) {
-          inside += std::abs(v) <= kZ95;
-          mean += v / count;
-        }
-        for (double v : z[a][k]) var += (v - mean) * (v - mean) / std::max(1, count - 1);
-        const auto w = Wilson(inside, count);
-        const std::string key = truth.spec(est[k]).key();
-        std::cout << fmt::format("   {:<10} {:<16} {:>4}/{:<4} {:>9.3f}     [{:.3f}, {:.3f}] {:>8.2f} {:>7.2f}\n",
-                                 k == 0 ? scheme : "", key, inside, count, static_cast<double>(inside) / count, w.first,
-                                 w.second, mean, std::sqrt(var));
-        js["parameters"][key] = {{"inside", inside},
-                                 {"fraction", static_cast<double>(inside) / count},
-                                 {"wilson95", {w.first, w.second}},
-                                 {"mean_z", mean},
-                                 {"sd_z", std::sqrt(var)}};
-        total_inside += inside;
-      }
-      const long total = count * static_cast<long>(np);
-      const auto w = Wilson(total_inside, total);
-      std::cout << fmt::format("   {:<10} {:<16} {:>4}/{:<4} {:>9.3f}     [{:.3f}, {:.3f}]   (pooled; intervals of one fit "
-                               "are correlated)\n",
-                               "", "all three", total_inside, total, static_cast<double>(total_inside) / total, w.first,
-                               w.second);
-      const auto wj = Wilson(all_inside[a], count);
-      std::cout << fmt::format("   {:<10} {:<16} {:>4}/{:<4} {:>9.3f}     [{:.3f}, {:.3f}]   (all three at once){}\n", "",
-                               "jointly", all_inside[a], count, static_cast<double>(all_inside[a]) / count, wj.first,
-                               wj.second,
-                               not_converged[a] > 0 ? fmt::format("; {} fits not converged", not_converged[a]) : "");
-      js["overall"] = {{"inside", total_inside}, {"total", total},
-                       {"fraction", static_cast<double>(total_inside) / total}, {"wilson95", {w.first, w.second}}};
-      js["jointly"] = {{"inside", all_inside[a]}, {"fraction", static_cast<double>(all_inside[a]) / count},
-                       {"wilson95", {wj.first, wj.second}}};
-      out[scheme] = js;
-    }
-    std::cout << fmt::format("   a calibrated 95 % interval puts the fraction in [{:.3f}, {:.3f}] with 95 % probability "
-                             "(binomial, {} realisations);\n   z = (estimate - truth) / sd should have mean 0 and sd 1\n",
-                             nominal.first, nominal.second, count);
-    return out;
-  }
-
-  // 3. The same fit with transient integration to steady state.
-  nlohmann::json AgainstTransient(const daq::Session& session, const ident::ParameterSet& truth,
-                                  ident::Causality causality, double off) const {
-    const ident::Model model = ident::Model::Build("2dof", causality);
-    const auto choices = ident::ChoicesFromList(model.defaults(), kEstimate);
-    const auto data = Subset(ident::PrepareExperiments(session, causality, kN),
-                             quick && transient_experiments.empty() ? "hi" : transient_experiments);
-    const ident::ParameterSet initial = Off(truth, choices, off);
-    const sim::TransientPredictorOptions transient_options = TransientSettings();
-    const long estimated = std::count_if(choices.begin(), choices.end(), [](const auto& c) { return c.estimate; });
-    const PredictorFactory transient_factory = [transient_options](const ident::Model& m) {
-      return std::make_unique<sim::TransientPredictor>(m, transient_options);
-    };
-    const int repeats = quick ? 3 : 11;
-    const std::string start = off == 0.0 ? "truth" : fmt::format("{:.0f} % off", 100 * off);
-    std::cout << fmt::format(
-        "3. the same fit with predictions from transient integration to steady state ({} input, experiments {},\n"
-        "   n = {}, start: {}): IDA to periodic steady state (warm-started from the previous one; rtol {:.0e},\n"
-        "   atol {:.0e} x unknown scale, steady when the change between periods and its extrapolation are below\n"
-        "   {:.0e} of each unknown's peak) and IDAS forward sensitivities (exact dF/dtheta from the model's Jets, steps\n"
-        "   by the state's error test) integrated until they are periodic too (relative {:.0e}), for the {} estimated\n"
-        "   parameters only. Periodic: median of {}; transient: one fit.\n",
-        ident::ToString(causality), Labels(data), kN, start, transient_options.integrator.rtol,
-        transient_options.integrator.atol_factor, transient_options.steady.relative_floor * transient_options.steady.tol,
-        transient_options.sensitivity_relative_tol, estimated, repeats);
-    nlohmann::json out = {{"input", ident::ToString(causality)},
-                          {"experiments", Labels(data)},
-                          {"start", start},
-                          {"transient_rtol", transient_options.integrator.rtol},
-                          {"transient_atol_factor", transient_options.integrator.atol_factor},
-                          {"transient_steady_relative", transient_options.steady.relative_floor * transient_options.steady.tol},
-                          {"transient_sensitivity_relative", transient_options.sensitivity_relative_tol}};
-    // The measured inputs as they are on both sides: transient integration has no input sensitivities,
-    // so the periodic fits estimate no input either (the same estimation).
-    const TimedFit backward =
-        TimeFit(model, data, initial, choices, PeriodicFactory(ident::Scheme::kBackward2), kN, repeats, false);
-    const TimedFit central =
-        TimeFit(model, data, initial, choices, PeriodicFactory(ident::Scheme::kCentral4), kN, repeats, false);
-    TimedFit transient;
-    try {
-      transient = TimeFit(model, data, initial, choices, transient_factory, kN, 1, false);
-    } catch (const std::exception& e) {
-      std::cout << fmt::format("   the transient fit failed: {}\n", e.what());
-      out["transient_error"] = e.what();
-      return out;
-    }
-    // The reference is the most accurate of the three: the periodic solver with central4 (its
-    // discretisation error at n = 800 is about 1e-10 of the range, docs/periodic-solver.md).
-    std::cout << fmt::format("   {:<20} {:>10} {:>10} {:>5} {:>7} {:>5} {:>10} {:>10}  {}\n", "predictor", "fit ms",
-                             "cpu ms", "iter", "solves", "sens", "solve ms", "sens ms",
-                             "(estimate - central4's) / posterior sd");
-    const auto row = [&](const char* name, const TimedFit& t) {
-      std::string diff;
-      double worst = 0.0;
-      for (int i : t.fit.estimated_positions) {
-        const double d = (t.fit.parameters.value(i) - central.fit.parameters.value(i)) / central.fit.estimates[i].sd;
-        worst = std::max(worst, std::abs(d));
-        diff += fmt::format(" {} {:+.4f}", truth.spec(i).key(), d);
-      }
-      std::cout << fmt::format("   {:<20} {:>10.1f} {:>10.1f} {:>5} {:>7} {:>5} {:>10.1f} {:>10.1f} {}{}\n", name, t.ms,
-                               t.cpu_ms, t.fit.iterations, t.tally.solves, t.tally.sensitivity_calls, t.tally.solve_ms,
-                               t.tally.sensitivity_ms, diff, t.fit.converged ? "" : "  NOT CONVERGED");
-      if (t.tally.failures > 0) std::cout << fmt::format("      ({} solves failed)\n", t.tally.failures);
-      nlohmann::json j = FitJson(t, truth);
-      j["max_sd_from_central4"] = worst;
-      return j;
-    };
-    out["periodic_backward2"] = row("periodic backward2", backward);
-    out["periodic_central4"] = row("periodic central4", central);
-    out["transient"] = row("transient (IDA/IDAS)", transient);
-    const auto& ts = transient.tally.transient;
-    out["transient"]["periods"] = ts.solve_periods;
-    out["transient"]["ida_steps"] = ts.solve_steps;
-    out["transient"]["sensitivity_periods"] = ts.sensitivity_periods;
-    out["transient"]["idas_steps"] = ts.sensitivity_steps;
-    std::cout << fmt::format(
-        "   transient work: {} steady states, {} periods, {} IDA steps; {} sensitivity runs, {} periods, {} IDAS steps\n",
-        ts.solves, ts.solve_periods, ts.solve_steps, ts.sensitivity_runs, ts.sensitivity_periods, ts.sensitivity_steps);
-    std::cout << fmt::format("   time ratio transient / periodic: {:.0f} wall, {:.0f} CPU (against backward2); {:.0f} wall, "
-                             "{:.0f} CPU (against central4)\n",
-                             transient.ms / backward.ms, transient.cpu_ms / backward.cpu_ms, transient.ms / central.ms,
-                             transient.cpu_ms / central.cpu_ms);
-    out["ratio_backward2"] = transient.ms / backward.ms;
-    out["ratio_central4"] = transient.ms / central.ms;
-    out["cpu_ratio_backward2"] = transient.cpu_ms / backward.cpu_ms;
-    out["cpu_ratio_central4"] = transient.cpu_ms / central.cpu_ms;
-    return out;
-  }
-
-  //! Transient settings that reach the periodic solver's accuracy on these fits (see the docs).
-  sim::TransientPredictorOptions TransientSettings() const {
-    sim::TransientPredictorOptions o;
-    o.integrator.rtol = transient_rtol;
-    o.integrator.atol_factor = transient_atol;
-    o.integrator.max_steps = 20'000'000;  // the 2 Hz experiments near full compression need millions
-    o.steady.tol = 1.0;
-    o.steady.relative_floor = transient_steady;
-    o.steady.periods_max = 5000;
-    o.sensitivity_relative_tol = transient_sensitivity;
-    o.sensitivity_error_control = false;  // steps by the state alone: 20-40 % cheaper, estimates unchanged
-    return o;
-  }
+  int realisations = 0;               // 0: 200 (quick: 20)
+  std::string transient_experiments;  // empty: all (quick: "hi")
+  bool transient_force = false;       // also the force-input transient fit
+  study::TransientSettings transient;
+  std::string sections = "123";         // which of the three figures to measure
+  double transient_off = 0.1;           // start of the transient comparison: the truth this much off
+  double coverage_stroke_noise = -1.0;  // m; < 0: the simulated rig's (a diagnostic: 0 removes input noise)
 
   void Run() const {
     nlohmann::json report;
     const auto start = Clock::now();
-    {
-      std::ifstream load("/proc/loadavg");
-      std::string one, five;
-      if (load >> one >> five) {
-        std::cout << fmt::format("load average at the start: {} (1 min), {} (5 min); timings are medians, ratios side by side\n\n",
-                                 one, five);
-        report["load_average"] = {one, five};
-      }
+    if (const auto load = study::LoadAverages(); std::isfinite(load[0]) && std::isfinite(load[1])) {
+      const std::string one = fmt::format("{:.2f}", load[0]), five = fmt::format("{:.2f}", load[1]);
+      std::cout << fmt::format("load average at the start: {} (1 min), {} (5 min); timings are medians, ratios side by side\n\n",
+                               one, five);
+      report["load_average"] = {one, five};
     }
-    const ident::ParameterSet truth = Truth();
+    const ident::ParameterSet truth = study::IdentifyTruth();
     const daq::Session session =
         sim::SimulatePeriodicSession("2dof", truth.values(), rig::StandardMatrix(), sim::PeriodicSessionOptions{});
+    const int repeats = quick ? 3 : 11;
     if (sections.find('1') != std::string::npos) {
-      report["fit"] = FitTimes(session, truth);
+      report["fit"] = PrintFitTimes(study::MeasureFitTimes(session, truth, repeats), session.experiments.size(),
+                                    repeats, truth);
       std::cout << "\n";
     }
     if (sections.find('2') != std::string::npos) {
-      report["coverage"] = Coverage(truth);
+      const int count = realisations > 0 ? realisations : (quick ? 20 : 200);
+      report["coverage"] = PrintCoverage(study::MeasureCoverage(truth, count, coverage_stroke_noise));
       std::cout << "\n";
     }
     if (sections.find('3') != std::string::npos) {
-      report["transient"].push_back(AgainstTransient(session, truth, ident::Causality::kStrokeInput, transient_off));
+      const std::string labels = quick && transient_experiments.empty() ? "hi" : transient_experiments;
+      const auto compare = [&](ident::Causality causality) {
+        return PrintTransient(
+            study::CompareWithTransient(session, truth, causality, transient_off, labels, transient, repeats), truth);
+      };
+      report["transient"].push_back(compare(ident::Causality::kStrokeInput));
       if (transient_force) {
         std::cout << "\n";
-        report["transient"].push_back(AgainstTransient(session, truth, ident::Causality::kForceInput, transient_off));
+        report["transient"].push_back(compare(ident::Causality::kForceInput));
       }
     }
     const double seconds = std::chrono::duration<double>(Clock::now() - start).count();
@@ -807,8 +551,8 @@ struct BenchIdentify {
 };
 
 // ---------------------------------------------------------------------------------------------
-// strut bench sim: throughput of the simulated rig, the whole standard matrix with settling and
-// every effect on (the default truth), then a 30 s drop test. Single-threaded.
+// strut bench sim: throughput of the simulated rig (study::MeasureSimSpeed), the whole standard
+// matrix with settling and every effect on (the default truth), then a 30 s drop test.
 
 struct BenchSim {
   std::string json_path;
@@ -816,20 +560,13 @@ struct BenchSim {
 
   void Run() const {
     const sim::Truth truth = truth_path.empty() ? sim::DefaultTruth() : sim::ReadTruthFile(truth_path);
-    const sim::SimulatedRig rig(truth);
+    const study::SimSpeedStudy s = study::MeasureSimSpeed(truth);
     nlohmann::json report;
-    std::cout << fmt::format("simulated rig, {} ({}), standard matrix with settling:\n", rig.model().composition(),
-                             truth.source)
+    std::cout << fmt::format("simulated rig, {} ({}), standard matrix with settling:\n", s.composition, truth.source)
               << fmt::format("  {:<4} {:>6} {:>8} {:>10} {:>10} {:>12} {:>9}\n", "exp", "f Hz", "periods", "sim s",
                              "wall ms", "sim s/wall s", "IDA steps");
-    std::vector<sim::PeriodicRunReport> reports;
-    const auto start = Clock::now();
-    rig.RunMatrix(rig::StandardMatrixPlan(), {}, &reports);
-    const double wall = std::chrono::duration<double>(Clock::now() - start).count();
-    double simulated = 0.0;
     nlohmann::json rows = nlohmann::json::array();
-    for (const sim::PeriodicRunReport& r : reports) {
-      simulated += r.simulated_seconds;
+    for (const sim::PeriodicRunReport& r : s.experiments) {
       const double f = r.periods_simulated / r.simulated_seconds;
       std::cout << fmt::format("  {:<4} {:>6.2f} {:>8} {:>10.1f} {:>10.1f} {:>12.0f} {:>9}\n", r.label, f,
                                r.periods_simulated, r.simulated_seconds, r.wall_seconds * 1e3,
@@ -837,23 +574,20 @@ struct BenchSim {
       rows.push_back({{"label", r.label}, {"periods", r.periods_simulated}, {"simulated_s", r.simulated_seconds},
                       {"wall_s", r.wall_seconds}, {"ida_steps", r.ida_steps}});
     }
+    const double simulated = s.simulated, wall = s.matrix_wall;
     std::cout << fmt::format("  matrix: {:.1f} s simulated in {:.2f} s wall = {:.0f} simulated s per wall s   "
                              "target: whole matrix < 10 s ({})\n",
                              simulated, wall, simulated / wall, wall < 10.0 ? "met" : "MISSED");
     report["matrix"] = {{"experiments", rows}, {"simulated_s", simulated}, {"wall_s", wall},
                         {"simulated_per_wall", simulated / wall}, {"target_wall_s", 10.0}};
-
-    sim::DropSpec drop;
-    sim::DropRunReport d;
-    const auto drop_start = Clock::now();
-    rig.RunDropSession(drop, {}, &d);
-    const double drop_wall = std::chrono::duration<double>(Clock::now() - drop_start).count();
+    const sim::DropSpec& drop = s.drop;
+    const sim::DropRunReport& d = s.drop_report;
     std::cout << fmt::format("drop {} kg at {} m/s, {} s at {} Hz: {:.3f} s wall = {:.0f} simulated s per wall s, {} "
                              "IDA steps; gas time constant {:.2f} s (model {:.2f} s)\n",
                              drop.mass, drop.impact_velocity, drop.duration, truth.acquisition.drop_sample_rate,
-                             drop_wall, drop.duration / drop_wall, d.ida_steps, d.thermal_time_constant_fit,
+                             s.drop_wall, drop.duration / s.drop_wall, d.ida_steps, d.thermal_time_constant_fit,
                              d.thermal_time_constant_model);
-    report["drop"] = {{"simulated_s", drop.duration}, {"wall_s", drop_wall}, {"ida_steps", d.ida_steps},
+    report["drop"] = {{"simulated_s", drop.duration}, {"wall_s", s.drop_wall}, {"ida_steps", d.ida_steps},
                       {"time_constant_fit_s", d.thermal_time_constant_fit},
                       {"time_constant_model_s", d.thermal_time_constant_model}};
     if (!json_path.empty()) {
@@ -887,50 +621,17 @@ struct BenchSilverbox {
     nlohmann::json check = nullptr;
     std::vector<std::string> notes;
     if (!no_check) {
-      const ident::Model model = ident::Model::Build(best.model, ident::Causality::kForceInput);
-      const daq::Experiment& arrow = session.experiment("arrow");
-      const std::vector<double>& u = arrow.channel("u").samples;
-      constexpr int kFine = 16;
-      const double fs = arrow.sample_rate, h = 1.0 / (fs * kFine);
-      // The same band-limited input as the RK4 run, evaluated between its fine points by cubic Lagrange.
-      const std::vector<double> fine = study::BandLimitedRecord(u, kFine);
-      const sim::InputSignal input([&fine, h](double t) {
-        const double p = t / h;
-        const long i = static_cast<long>(std::floor(p));
-        const double s = p - i;
-        const auto at = [&](long j) { return fine[std::clamp<long>(j, 0, static_cast<long>(fine.size()) - 1)]; };
-        const double v = -s * (s - 1) * (s - 2) / 6 * at(i - 1) + (s + 1) * (s - 1) * (s - 2) / 2 * at(i) -
-                         (s + 1) * s * (s - 2) / 2 * at(i + 1) + (s + 1) * s * (s - 1) / 6 * at(i + 2);
-        return sim::InputSample{v, 0.0, 0.0};
-      });
-      sim::TransientOptions to;
-      to.rtol = 1e-8;
-      to.atol_factor = 10.0;
-      to.max_steps = 20'000'000;
-      const sim::TransientSimulator simulator(model, to);
-      std::vector<double> times(u.size());
-      for (std::size_t i = 0; i < times.size(); ++i) times[i] = i / fs;
-      const auto t0 = Clock::now();
-      const sim::TransientResult ida = simulator.Simulate(best.fit.parameters.values(), input, times);
-      const double ida_seconds = std::chrono::duration<double>(Clock::now() - t0).count();
-      const Eigen::VectorXd y = ida.channel("y");
-      double max_diff = 0.0, sum = 0.0;
-      long count = 0;
-      for (std::size_t i = 0; i < times.size(); ++i) max_diff = std::max(max_diff, std::abs(y[i] - r.arrow_simulated[i]));
-      for (long i = study::SilverboxLayout::kTransient; i < static_cast<long>(times.size()); ++i, ++count)
-        sum += std::pow(r.arrow_measured[i] - y[i], 2);
-      const double ida_rms = 1e3 * std::sqrt(sum / count);
+      const study::SilverboxSimulationCheck c = study::CheckArrowSimulation(session, r);
       check = {{"integrator", "IDA (sim::TransientSimulator), rtol 1e-8"},
-               {"seconds", ida_seconds},
-               {"steps", ida.steps},
-               {"max_difference_uv", 1e6 * max_diff},
-               {"test_arrow_rms_mv", ida_rms}};
+               {"seconds", c.seconds},
+               {"steps", c.steps},
+               {"max_difference_uv", c.max_difference_uv},
+               {"test_arrow_rms_mv", c.test_arrow_rms_mv}};
       notes.push_back(fmt::format(
           "Cross-check of the test simulation: SUNDIALS IDA (rtol 1e-8) on the same model and input gives an arrow "
           "RMS of {:.4f} mV; it differs from the RK4 run by at most {:.2f} µV ({} steps, {:.2f} s; RK4 {:.2f} s).",
-          ida_rms, 1e6 * max_diff, ida.steps, ida_seconds, r.simulate_seconds));
+          c.test_arrow_rms_mv, c.max_difference_uv, c.steps, c.seconds, r.simulate_seconds));
     }
-
     std::cout << fmt::format("Silverbox (classic split), model {}\n", best.model);
     std::cout << fmt::format("  candidates (chosen by validation RMS):\n");
     for (const auto& c : r.candidates)
@@ -992,18 +693,18 @@ void RegisterBenchCommand(CLI::App& app) {
                  "The start of the transient comparison: the estimated parameters this fraction too large (0: the truth).")
       ->check(NonNegative())
       ->capture_default_str();
-  id->add_option("--transient-rtol", identify->transient_rtol, "The IDA/IDAS relative tolerance of the transient fit.")
+  id->add_option("--transient-rtol", identify->transient.rtol, "The IDA/IDAS relative tolerance of the transient fit.")
       ->check(Positive())
       ->capture_default_str();
-  id->add_option("--transient-atol", identify->transient_atol,
+  id->add_option("--transient-atol", identify->transient.atol,
                  "The IDA/IDAS absolute tolerances as a multiple of each unknown's scale.")
       ->check(Positive())
       ->capture_default_str();
-  id->add_option("--transient-steady", identify->transient_steady,
+  id->add_option("--transient-steady", identify->transient.steady,
                  "The transient is steady when the change between periods (extrapolated) is below this fraction of each unknown's peak.")
       ->check(Positive())
       ->capture_default_str();
-  id->add_option("--transient-sensitivity", identify->transient_sensitivity,
+  id->add_option("--transient-sensitivity", identify->transient.sensitivity,
                  "The sensitivities are periodic when their change is below this fraction of their peak.")
       ->check(Positive())
       ->capture_default_str();

@@ -16,7 +16,8 @@
 #include "strut/report/qc_report.h"
 #include "strut/qc/decision.h"
 #include "strut/qc/history.h"
-#include "strut/qc/lot.h"
+#include "strut/qc/matrix.h"
+#include "strut/study/lot.h"
 
 namespace strut::tools {
 namespace {
@@ -82,8 +83,7 @@ struct PlanCommand {
     CheckOutputPath("--write-reference", reference_output, {});
     if (!output.empty() && output == reference_output)
       throw std::invalid_argument("-o and --write-reference name the same file " + output);
-    const std::string text = qc::MatrixFileText(
-        qc::QcMatrix(),
+    const std::string text = qc::QcMatrixFileText(
         "The QC matrix of strut (docs/qc.md): four experiments, about 2.5 minutes on the rig with settling.\n"
         "Run it with `strut rig run --matrix FILE` (or `strut sim matrix --matrix FILE`), then\n"
         "`strut qc SESSION.h5 --reference REF`.");
@@ -91,7 +91,7 @@ struct PlanCommand {
       std::cout << text;
     else
       WriteTextOutput(output, text);
-    if (!reference_output.empty()) WriteTextOutput(reference_output, std::string(qc::LotReferenceText()));
+    if (!reference_output.empty()) WriteTextOutput(reference_output, std::string(study::LotReferenceText()));
   }
 };
 

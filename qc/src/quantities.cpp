@@ -5,7 +5,7 @@
 #include <numbers>
 
 #include "strut/daq/session.h"
-#include "strut/sim/draw.h"
+#include "strut/ident/charge.h"
 
 namespace strut::qc {
 namespace {
@@ -38,10 +38,10 @@ double Param(const ident::ParameterSet& d, const std::vector<double>& theta, int
 
 double Evaluate(const std::string& name, const ident::Model& model, const std::vector<double>& theta) {
   const ident::ParameterSet& d = model.defaults();
-  if (name == "charge_pressure") return sim::ChargePressure(model, theta);
+  if (name == "charge_pressure") return ident::ChargePressure(model, theta);
   if (name == "gas_column") return -1.0 / Param(d, theta, 6);
   if (name == "friction")
-    return (Param(d, theta, 8) + Param(d, theta, 9) * sim::ChargePressure(model, theta)) * std::numbers::pi / 2;
+    return (Param(d, theta, 8) + Param(d, theta, 9) * ident::ChargePressure(model, theta)) * std::numbers::pi / 2;
   if (name == "orifice_damping") return Param(d, theta, 3);
   if (name == "viscous_damping") return Param(d, theta, 18);
   if (name == "wall_heat_conductance") return Param(d, theta, 16);

@@ -9,6 +9,7 @@
 #include <random>
 
 #include "strut/daq/session.h"
+#include "strut/ident/charge.h"
 #include "strut/ident/estimator.h"
 #include "strut/ident/model.h"
 #include "strut/ident/periodic.h"
@@ -65,25 +66,6 @@ bool Contains(const std::vector<std::string>& list, std::string_view name) {
 double Value(const ident::ParameterSet& p, int index) { return p.value(p.position_of_index(index)); }
 
 }  // namespace
-
-double ChargePressure(const ident::Model& model, const std::vector<double>& theta) {
-  const int offset = model.defaults().position_of_index(12);
-  const std::vector<double> x = model.StaticEquilibrium(offset >= 0 ? theta[offset] : 0.0, theta);
-  for (std::size_t i = 0; i < model.states().size(); ++i)
-    if (model.states()[i].name == "pressure") return x[1 + i];
-  throw ident::ModelError("the model has no gas pressure");
-}
-
-void SetCharge(const ident::Model& model, std::vector<double>& theta, double p0) {
-  const ident::ParameterSet& d = model.defaults();
-  if (const int ref = d.position_of_index(27); ref >= 0) theta[ref] = p0;  // compliance reference
-  const int scale = d.position_of_index(5);
-  for (int i = 0; i < 20; ++i) {
-    const double p = ChargePressure(model, theta);
-    theta[scale] *= p0 / p;
-    if (std::abs(p / p0 - 1.0) < 1e-12) break;
-  }
-}
 
 const std::vector<DrawSpread>& DrawSpreads() {
   using K = SpreadKind;
@@ -162,7 +144,7 @@ Feasibility CheckFeasibility(const Truth& unit, const std::vector<rig::MatrixEnt
   }
   f.min_stroke = shallowest - offset;
   try {
-    f.charge_pressure = ChargePressure(model, theta);
+    f.charge_pressure = ident::ChargePressure(model, theta);
   } catch (const ident::ModelError& e) {
     return fail(fmt::format("no static state at full extension: {}", e.what()));
   }
@@ -209,7 +191,7 @@ Truth DrawUnit(const Truth& around, const UnitDraw& spec, std::uint64_t seed) {
   const ident::ParameterSet around_values = around.Parameters(around_model);
   double base_charge = 0.0;
   try {
-    base_charge = ChargePressure(around_model, around_values.values());
+    base_charge = ident::ChargePressure(around_model, around_values.values());
   } catch (const ident::ModelError& e) {
     throw TruthError(fmt::format("{}: no static state at full extension to draw around: {}", around.source, e.what()));
   }
@@ -301,7 +283,7 @@ Truth DrawUnit(const Truth& around, const UnitDraw& spec, std::uint64_t seed) {
       p0 = kPatm + (base_charge - kPatm) * (a0 / area) * fraction;
     }
     try {
-      SetCharge(model, p.values(), p0);
+      ident::SetCharge(model, p.values(), p0);
     } catch (const ident::ModelError& e) {
       last_reason = fmt::format("no static state at full extension: {}", e.what());
       continue;

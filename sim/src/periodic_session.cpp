@@ -78,4 +78,16 @@ daq::Session SimulatePeriodicSession(const std::string& composition, std::span<c
   return session;
 }
 
+void AddSensorNoise(daq::Session& session, const SensorNoise& noise, std::mt19937_64& rng) {
+  std::normal_distribution<double> unit(0.0, 1.0);
+  for (auto& e : session.experiments)
+    for (auto& c : e.channels) {
+      const double sd = c.name == "stroke" ? noise.stroke : c.name == "force" ? noise.force
+                        : c.name == "pressure"                                ? noise.pressure
+                                                                              : 0.0;
+      if (sd > 0)
+        for (double& v : c.samples) v += sd * unit(rng);
+    }
+}
+
 }  // namespace strut::sim

@@ -71,16 +71,6 @@ struct Feasibility {
   double charge_pressure = 0.0;      //!< Pa abs at full extension and ambient temperature
 };
 
-//! The gas pressure (Pa abs) at full extension and ambient temperature: the static state of a
-//! stroke-input `model` at true stroke 0 (the charge a technician sets). Throws ident::ModelError
-//! when the model has no gas pressure or Newton fails.
-double ChargePressure(const ident::Model& model, const std::vector<double>& theta);
-
-//! Sets theta5 (extended pressure or pressure per temperature) so that ChargePressure is `p0`, and
-//! the oil compliance's reference pressure (theta27, when present) to `p0`: a few fixed-point steps
-//! (p is nearly proportional to theta5; solubility and real gas bend it).
-void SetCharge(const ident::Model& model, std::vector<double>& theta, double p0);
-
 //! Full dynamic stroke, m (method.md).
 inline constexpr double kFullStroke = 0.264;
 //! Fraction of the actuator's force_limit the periodic peak force may reach (margin for the

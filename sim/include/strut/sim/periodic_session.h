@@ -3,6 +3,7 @@
 // The fast path for identification tests; the simulated rig builds on the same pieces.
 #pragma once
 
+#include <random>
 #include <span>
 #include <string>
 #include <vector>
@@ -35,5 +36,9 @@ struct PeriodicSessionOptions {
 //! Throws std::invalid_argument when a frequency does not give whole samples per period.
 daq::Session SimulatePeriodicSession(const std::string& composition, std::span<const double> theta,
                                      const std::vector<rig::MatrixEntry>& matrix, const PeriodicSessionOptions& options);
+
+//! Adds white noise of `noise` to the stroke, force and pressure channels of every experiment
+//! (other channels unchanged), a standard normal draw from `rng` per sample in channel order.
+void AddSensorNoise(daq::Session& session, const SensorNoise& noise, std::mt19937_64& rng);
 
 }  // namespace strut::sim

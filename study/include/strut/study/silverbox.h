@@ -97,4 +97,14 @@ nlohmann::json SilverboxToJson(const SilverboxResult& result, const SilverboxOpt
 void WriteSilverboxReport(const SilverboxResult& result, const SilverboxOptions& options, const std::string& path,
                           const std::vector<std::string>& notes = {});
 
+//! The test simulation cross-checked by SUNDIALS IDA (sim::TransientSimulator, rtol 1e-8) on the
+//! chosen model and the same band-limited input as the RK4 run.
+struct SilverboxSimulationCheck {
+  double seconds = 0.0;  //!< wall time of the IDA run
+  long steps = 0;
+  double max_difference_uv = 0.0;  //!< largest |IDA - RK4| over the arrow, µV
+  double test_arrow_rms_mv = 0.0;  //!< the arrow's test RMS from the IDA run, mV
+};
+SilverboxSimulationCheck CheckArrowSimulation(const daq::Session& session, const SilverboxResult& result);
+
 }  // namespace strut::study

@@ -1,0 +1,89 @@
+// Discovery on drawn units (`strut bench confusion`, sim::DrawUnit) that hold one catalogue effect
+// at a drawn size, or none: how often the right term is named first, what else is added, how often
+// a unit with nothing missing gets a term anyway (false discoveries), and the size of an effect
+// above which discovery names it (docs/discovery.md, "Detection sizes").
+#pragma once
+
+#include <cmath>
+#include <functional>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "strut/daq/session.h"
+#include "strut/sim/draw.h"
+
+namespace strut::study {
+
+//! The detection study's sizes: per effect the parameter that sets how strongly the unit shows it,
+//! drawn from barely detectable to plain.
+struct StudyRange {
+  std::string effect;
+  int index;  //!< theta index of the size
+  double low, high;
+  bool log;       //!< log-uniform (else uniform)
+  bool via_draw;  //!< the draw itself spreads it (sim::DrawSpreads); no size is requested
+  const char* unit;
+};
+const std::vector<StudyRange>& StudyRanges();
+const StudyRange* FindStudyRange(const std::string& effect);  //!< null when the effect has none
+
+//! The smallest measure (size or signal) above which at least 95 % of the units (and at least 10)
+//! had the right first term; NaN when there is no such measure. `units`: (measure, right first).
+double DetectionSize(std::vector<std::pair<double, bool>> units);
+
+//! A fifth of the units sorted by their measure.
+struct MeasureBin {
+  double low = 0.0, high = 0.0;  //!< the measures of its first and last unit
+  long right = 0, count = 0;     //!< right first terms of its units
+};
+//! The units sorted by their measure in five bins (empty bins left out).
+std::vector<MeasureBin> Bins(std::vector<std::pair<double, bool>> units);
+
+struct ConfusionOptions {
+  int units = 10;  //!< per effect
+  unsigned long first_seed = 2000;
+  std::string base = "2dof";         //!< the units' base physics and the baseline model
+  std::vector<std::string> effects;  //!< catalogue effects; "none": units with nothing missing
+  bool servo = false;                //!< drive through the servo actuator (else an ideal one)
+  bool study_sizes = false;          //!< sizes from StudyRanges (else the simulated rig's spreads)
+};
+
+//! One unit's discovery.
+struct ConfusionUnit {
+  std::string effect;
+  unsigned long seed = 0;
+  std::vector<std::string> found;  //!< the terms discovery added, in order
+  bool right_first = false;
+  double seconds = 0.0;                 //!< wall time of the discovery
+  std::optional<sim::EffectSignal> signal;  //!< how plainly the effect shows (none for "none")
+  std::optional<double> size;               //!< the effect's size parameter (study sizes)
+  struct FirstRound {
+    double delta_bic, cv_ratio;
+    std::string verdict;
+  };
+  std::optional<FirstRound> first_round;  //!< the effect's candidate in discovery's first round
+};
+
+//! One effect's row of the table.
+struct ConfusionRow {
+  std::string effect;
+  const StudyRange* study = nullptr;  //!< the size range (study sizes)
+  int units = 0;
+  int right = 0, extra = 0, none = 0;  //!< right first term; other or more terms; nothing found
+  double median_seconds = 0.0;
+  std::map<std::string, int> added;  //!< "a+b" (or "(nothing)"): units
+  //! Detection in the signal, in what the baseline leaves of it and in the size parameter; NaN:
+  //! not reached (or not measured).
+  double detection_signal = NAN, detection_left = NAN, detection_size = NAN;
+  std::vector<MeasureBin> by_signal;
+};
+
+//! Runs the study; `on_unit` (may be empty) sees each unit and its session as it ends. Throws
+//! std::invalid_argument for an effect without a study range when `study_sizes`.
+std::vector<ConfusionRow> RunConfusionStudy(
+    const ConfusionOptions& options,
+    const std::function<void(const ConfusionUnit&, const daq::Session&)>& on_unit = {});
+
+}  // namespace strut::study

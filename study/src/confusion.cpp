@@ -1,0 +1,153 @@
+#include "strut/study/confusion.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <random>
+#include <stdexcept>
+
+#include "strut/ident/discover.h"
+#include "strut/sim/simulated_rig.h"
+#include "strut/study/statistics.h"
+
+namespace strut::study {
+namespace {
+
+sim::Truth DrawConfusionUnit(const ConfusionOptions& options, const std::string& effect, const StudyRange* study,
+                             unsigned long seed) {
+  sim::Truth around = sim::WithIdealRig(sim::DefaultTruth());
+  if (options.servo) around.actuator.ideal = false;
+  sim::UnitDraw draw;
+  draw.base = options.base;
+  if (effect != "none") {
+    std::optional<double> size;
+    if (study && !study->via_draw) {
+      // Its own stream, so the size does not move the unit's other drawn quantities.
+      std::mt19937_64 engine(seed * 7919 + 17);
+      const double v = sim::UnitUniform(engine());
+      size = study->log ? study->low * std::pow(study->high / study->low, v) : study->low + (study->high - study->low) * v;
+    }
+    draw.effects.push_back({effect, size});
+  }
+  return sim::DrawUnit(around, draw, seed);
+}
+
+ConfusionUnit DiscoverUnit(const ConfusionOptions& options, const ident::SessionFitOptions& fit,
+                           const ident::Model& model, const std::string& effect, const StudyRange* study,
+                           unsigned long seed, daq::Session& session) {
+  ConfusionUnit unit;
+  unit.effect = effect;
+  unit.seed = seed;
+  const sim::Truth truth = DrawConfusionUnit(options, effect, study, seed);
+  // How plainly the effect shows in this unit's data, before any fit absorbs part of it.
+  if (effect != "none") unit.signal = sim::MeasureEffectSignal(truth, effect, rig::StandardMatrixPlan().experiments);
+  const sim::SimulatedRig rig(truth);
+  sim::RigRunOptions run;
+  run.seed = seed;
+  session = rig.RunMatrix(rig::StandardMatrixPlan(), run);
+  const auto start = std::chrono::steady_clock::now();
+  const ident::DiscoveryResult r =
+      ident::Discover(ident::PrepareFitData(session, fmt::format("unit {}", seed), model, fit.estimator.n), fit, {});
+  unit.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  unit.found = r.missing;
+  unit.right_first = effect != "none" && !r.missing.empty() && r.missing.front() == effect;
+  if (study) {
+    const ident::ParameterSet p = truth.Parameters(rig.model());
+    unit.size = p.value(p.position_of_index(study->index));
+  }
+  if (!r.steps.empty())
+    for (const ident::CandidateFit& c : r.steps.front().candidates)
+      if (c.term == effect) unit.first_round = ConfusionUnit::FirstRound{c.delta_bic, c.cv_ratio, c.verdict};
+  return unit;
+}
+
+}  // namespace
+
+const std::vector<StudyRange>& StudyRanges() {
+  static const std::vector<StudyRange> ranges = {
+      {"viscous-damping", 18, 30.0, 3000.0, true, false, "N s/m"},
+      {"stribeck-friction", 19, 0.02, 0.6, false, false, "-"},
+      {"oil-compressibility", 26, 1e-10, 2e-9, true, false, "1/Pa"},
+      {"real-gas", 31, 0.05, 1.5, false, false, "-"},
+      {"end-stop", 23, 0.0, 8e-3, false, true, "m"},
+  };
+  return ranges;
+}
+
+const StudyRange* FindStudyRange(const std::string& effect) {
+  for (const StudyRange& r : StudyRanges())
+    if (r.effect == effect) return &r;
+  return nullptr;
+}
+
+double DetectionSize(std::vector<std::pair<double, bool>> units) {
+  std::sort(units.begin(), units.end());
+  for (std::size_t k = 0; k + 10 <= units.size(); ++k) {
+    const long right = std::count_if(units.begin() + k, units.end(), [](const auto& u) { return u.second; });
+    if (right >= 0.95 * static_cast<double>(units.size() - k)) return units[k].first;
+  }
+  return NAN;
+}
+
+std::vector<MeasureBin> Bins(std::vector<std::pair<double, bool>> units) {
+  std::sort(units.begin(), units.end());
+  std::vector<MeasureBin> bins;
+  const std::size_t count = units.size();
+  for (std::size_t b = 0; b < 5 && count > 0; ++b) {
+    const std::size_t lo = b * count / 5, hi = (b + 1) * count / 5;
+    if (hi <= lo) continue;
+    const long k = std::count_if(units.begin() + lo, units.begin() + hi, [](const auto& x) { return x.second; });
+    bins.push_back({units[lo].first, units[hi - 1].first, k, static_cast<long>(hi - lo)});
+  }
+  return bins;
+}
+
+std::vector<ConfusionRow> RunConfusionStudy(
+    const ConfusionOptions& options, const std::function<void(const ConfusionUnit&, const daq::Session&)>& on_unit) {
+  for (const std::string& effect : options.effects)
+    if (options.study_sizes && effect != "none" && !FindStudyRange(effect))
+      throw std::invalid_argument(fmt::format("no study range for the effect '{}'", effect));
+  ident::SessionFitOptions fit;
+  fit.composition = options.base;
+  const ident::Model model = ident::Model::Build(options.base, fit.causality);
+  std::vector<ConfusionRow> rows;
+  for (const std::string& effect : options.effects) {
+    ConfusionRow row;
+    row.effect = effect;
+    row.units = options.units;
+    row.study = options.study_sizes ? FindStudyRange(effect) : nullptr;
+    std::vector<double> seconds;
+    std::vector<std::pair<double, bool>> by_size, by_signal, by_left;  // (measure, right first term)
+    for (int u = 0; u < options.units; ++u) {
+      daq::Session session;
+      const ConfusionUnit unit =
+          DiscoverUnit(options, fit, model, effect, row.study, options.first_seed + u, session);
+      seconds.push_back(unit.seconds);
+      if (unit.found.empty()) ++row.none;
+      if (unit.right_first) ++row.right;
+      const std::size_t expected = effect == "none" ? 0 : 1;
+      if (unit.found.size() > expected || (effect != "none" && !unit.found.empty() && unit.found.front() != effect))
+        ++row.extra;
+      std::string names;
+      for (const auto& t : unit.found) names += (names.empty() ? "" : "+") + t;
+      ++row.added[names.empty() ? "(nothing)" : names];
+      if (unit.signal) {
+        by_signal.emplace_back(unit.signal->rms, unit.right_first);
+        by_left.emplace_back(unit.signal->left_rms, unit.right_first);
+      }
+      if (unit.size) by_size.emplace_back(*unit.size, unit.right_first);
+      if (on_unit) on_unit(unit, session);
+    }
+    row.detection_signal = DetectionSize(by_signal);
+    row.detection_left = DetectionSize(by_left);
+    if (row.study) row.detection_size = DetectionSize(by_size);
+    row.by_signal = Bins(by_signal);
+    row.median_seconds = Median(seconds);
+    rows.push_back(std::move(row));
+  }
+  return rows;
+}
+
+}  // namespace strut::study

@@ -642,6 +642,45 @@ ResidualSums FitProblem::Evaluate() const {
   return e;
 }
 
+bool FitProblem::RefreshInputSensitivities(Experiment& s, const std::vector<double>& theta, LinearisationMode mode) {
+  const int nc = periodic_channels_;
+  if (mode.reuse && static_cast<int>(s.estimate->sensitivity_rows.size()) == nc) return false;
+  // d(outputs)/d xi: a forward solve per coefficient with eq. 14's factorisation.
+  const auto sens = s.solver->InputSensitivities(s.solution, theta, s.estimate->directions, mode.exact);
+  if (sens.empty()) {
+    // A predictor without input sensitivities (transient integration): the input stays as it is.
+    spdlog::warn("experiment '{}': the predictor has no input sensitivities; its input is not estimated",
+                 s.data->label);
+    s.estimate.reset();
+    return false;
+  }
+  s.estimate->sensitivity_rows.assign(nc, Eigen::MatrixXd());
+  s.estimate->gram.assign(nc, Eigen::MatrixXd());
+  for (int b = 0; b < nc; ++b) {
+    if (!s.channel_fitted[b]) continue;
+    const Eigen::MatrixXd& jc = s.estimate->sensitivity_rows[b] = s.SampleColumns(sens[output_row_[b]]);
+    Eigen::MatrixXd& g = s.estimate->gram[b];
+    g.setZero(jc.cols(), jc.cols());
+    g.selfadjointView<Eigen::Lower>().rankUpdate(jc.transpose());
+  }
+  return true;
+}
+
+bool FitProblem::RefreshParameterSensitivities(Experiment& s, const std::vector<double>& theta,
+                                               LinearisationMode mode) const {
+  const int nc = periodic_channels_;
+  if (mode.reuse && static_cast<int>(s.sensitivity_rows.size()) == nc) return false;
+  const int l = static_cast<int>(estimated_.size());
+  const auto sens = s.solver->OutputSensitivities(s.solution, theta, estimated_, mode.exact);
+  s.sensitivity_rows.assign(nc, Eigen::MatrixXd());
+  for (int b = 0; b < nc; ++b) {
+    if (!s.channel_fitted[b]) continue;
+    Eigen::MatrixXd& j = s.sensitivity_rows[b] = s.SampleColumns(sens[output_row_[b]]);
+    for (int k = 0; k < l; ++k) j.col(k) *= scale_[estimated_[k]];
+  }
+  return true;
+}
+
 NormalEquations FitProblem::Linearise(const std::vector<double>& theta, const std::vector<double>& variance,
                                       LinearisationMode mode) {
   const int l = static_cast<int>(estimated_.size());
@@ -657,40 +696,9 @@ NormalEquations FitProblem::Linearise(const std::vector<double>& theta, const st
   ParallelFor(experiment_count(), threads_, [&](int a) {
     Experiment& s = experiments_[a];
     if (!s.active) return;
-    bool inputs_fresh = false, parameters_fresh = false;
-    if (mode.inputs && s.estimate &&
-        (!mode.reuse || static_cast<int>(s.estimate->sensitivity_rows.size()) != nc)) {
-      // d(outputs)/d xi: a forward solve per coefficient with eq. 14's factorisation.
-      const auto sens = s.solver->InputSensitivities(s.solution, theta, s.estimate->directions, mode.exact);
-      if (sens.empty()) {
-        // A predictor without input sensitivities (transient integration): the input stays as it is.
-        spdlog::warn("experiment '{}': the predictor has no input sensitivities; its input is not estimated",
-                     s.data->label);
-        s.estimate.reset();
-      } else {
-        s.estimate->sensitivity_rows.assign(nc, Eigen::MatrixXd());
-        s.estimate->gram.assign(nc, Eigen::MatrixXd());
-        for (int b = 0; b < nc; ++b) {
-          if (!s.channel_fitted[b]) continue;
-          const Eigen::MatrixXd& jc = s.estimate->sensitivity_rows[b] = s.SampleColumns(sens[output_row_[b]]);
-          Eigen::MatrixXd& g = s.estimate->gram[b];
-          g.setZero(jc.cols(), jc.cols());
-          g.selfadjointView<Eigen::Lower>().rankUpdate(jc.transpose());
-        }
-        inputs_fresh = true;
-      }
-    }
+    const bool inputs_fresh = mode.inputs && s.estimate && RefreshInputSensitivities(s, theta, mode);
     const bool with_estimate = mode.inputs && s.estimate;
-    if (!mode.reuse || static_cast<int>(s.sensitivity_rows.size()) != nc) {
-      const auto sens = s.solver->OutputSensitivities(s.solution, theta, estimated_, mode.exact);
-      s.sensitivity_rows.assign(nc, Eigen::MatrixXd());
-      for (int b = 0; b < nc; ++b) {
-        if (!s.channel_fitted[b]) continue;
-        Eigen::MatrixXd& j = s.sensitivity_rows[b] = s.SampleColumns(sens[output_row_[b]]);
-        for (int k = 0; k < l; ++k) j.col(k) *= scale_[estimated_[k]];
-      }
-      parameters_fresh = true;
-    }
+    const bool parameters_fresh = RefreshParameterSensitivities(s, theta, mode);
     // The gradient's noise from the input's: J^T W P dy = (P^T W J)^T dy on the grid (P the
     // interpolation to the phases), so the output weights P^T W J give it by one adjoint solve.
     // (Harmonics the fit estimates carry their noise through their elimination instead.)

@@ -155,6 +155,11 @@ class FitProblem {
   bool PredictTransient(TransientExperiment& t, const std::vector<double>& theta, bool sensitivities) const;
   //! The first solve of an experiment: from the measured stroke when that fits, else cold.
   PeriodicSolution FirstSolve(Experiment& experiment, const std::vector<double>& theta) const;
+  // The sensitivities Linearise needs, recomputed unless `mode` reuses current ones; true when
+  // recomputed. Without input sensitivities from the predictor the experiment's input estimate is dropped.
+  bool RefreshInputSensitivities(Experiment& experiment, const std::vector<double>& theta, LinearisationMode mode);
+  bool RefreshParameterSensitivities(Experiment& experiment, const std::vector<double>& theta,
+                                     LinearisationMode mode) const;
   const Model& model_;
   const EstimatorOptions& options_;
   std::vector<std::string> channels_;

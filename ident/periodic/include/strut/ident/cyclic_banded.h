@@ -113,7 +113,7 @@ class CyclicBandedLU {
   EquilibratedFactors dense_lu_;  // of the whole matrix (small n, spectral)
   // Point-by-point elimination: per point the diagonal block is [K0 B; C E] in the rows
   // (dynamic equations, algebraic equations) and columns (dynamic unknowns, algebraic unknowns);
-  // `reduced_` factorises `reduced_matrix_`, the bands of S = K - B E^-1 C (null when every
+  // `reduced_` factorises `reduced_matrix_`, the bands of S = K - B E^-1 C (unused when every
   // unknown is algebraic); both are kept for the next factorisation of the same shape.
   bool eliminated_ = false;
   std::vector<int> dynamic_equations_, algebraic_equations_, dynamic_unknowns_, algebraic_unknowns_;

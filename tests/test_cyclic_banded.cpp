@@ -89,9 +89,14 @@ TEST(CyclicBandedLU, EliminatesAlgebraicUnknownsLikeDenseLu) {
     Shape shape;
     std::vector<int> equations, unknowns;
   };
+  // Every shape the elimination unrolls (2 + 1 under stroke input, 1 + 2 under force input,
+  // 1 + 1, 1 + 3) and the run-time sizes (2 + 2, all algebraic), on every band path after it
+  // (border, folded, dense).
   for (const Case& c : {Case{{60, 3, -3, 0}, {0, 1}, {0, 1}}, Case{{60, 3, -2, 2}, {0, 2}, {1, 2}},
                         Case{{40, 4, -1, 1}, {3}, {0}}, Case{{50, 3, -3, 0}, {0, 1, 2}, {0, 1, 2}},
-                        Case{{7, 3, -3, 0}, {1}, {2}}}) {
+                        Case{{7, 3, -3, 0}, {1}, {2}}, Case{{80, 3, -3, 0}, {1}, {1}},
+                        Case{{30, 2, -2, 2}, {0}, {1}}, Case{{40, 2, -3, 0}, {1}, {0}},
+                        Case{{40, 4, -3, 0}, {0, 3}, {1, 2}}, Case{{36, 4, -1, 1}, {0, 3}, {1, 2}}}) {
     const Shape& s = c.shape;
     SCOPED_TRACE(testing::Message() << "n=" << s.n << " m=" << s.m << " k=" << s.kmin << ".." << s.kmax
                                     << " algebraic " << c.equations.size());
@@ -112,6 +117,35 @@ TEST(CyclicBandedLU, EliminatesAlgebraicUnknownsLikeDenseLu) {
     const Eigen::MatrixXd expected_t = dense.transpose().partialPivLu().solve(b);
     EXPECT_LT(EquilibratedResidual(dense.transpose(), xt, b), 1e-10);
     EXPECT_LT((xt - expected_t).norm() / expected_t.norm(), 1e-10);
+  }
+}
+
+// A factorisation reuses its storage (the reduced bands and their LU) when the next matrix has the
+// same shape: one LU object refactorised with other values, other shapes, without algebraic
+// unknowns and with them again must solve each matrix like a dense LU of it.
+TEST(CyclicBandedLU, RefactorisesOneObjectWithNewValuesAndShapes) {
+  struct Step {
+    Shape shape;
+    std::vector<int> equations, unknowns;
+    unsigned seed;
+  };
+  CyclicBandedLU lu;
+  for (const Step& step : {Step{{80, 3, -3, 0}, {1}, {1}, 1u}, Step{{80, 3, -3, 0}, {1}, {1}, 2u},
+                           Step{{80, 3, -3, 0}, {}, {}, 3u}, Step{{80, 3, -3, 0}, {0, 1}, {0, 1}, 4u},
+                           Step{{64, 3, -2, 2}, {0, 1}, {0, 1}, 5u}, Step{{80, 3, -3, 0}, {1}, {1}, 6u}}) {
+    const Shape& s = step.shape;
+    SCOPED_TRACE(testing::Message() << "n=" << s.n << " k=" << s.kmin << ".." << s.kmax << " algebraic "
+                                    << step.equations.size() << " seed " << step.seed);
+    const CyclicBlockBanded a = AlgebraicMatrix(s.n, s.m, s.kmin, s.kmax, step.equations, step.unknowns, step.seed);
+    ASSERT_TRUE(lu.Factorize(a));
+    const Eigen::MatrixXd dense = a.ToDense();
+    const Eigen::MatrixXd b = Eigen::MatrixXd::Random(a.rows(), 2);
+    Eigen::MatrixXd x = b;
+    lu.Solve(x);
+    EXPECT_LT(EquilibratedResidual(dense, x, b), 1e-10);
+    Eigen::MatrixXd xt = b;
+    lu.SolveTransposed(xt);
+    EXPECT_LT(EquilibratedResidual(dense.transpose(), xt, b), 1e-10);
   }
 }
 

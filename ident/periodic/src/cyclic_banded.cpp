@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cassert>
 #include <cmath>
+#include <memory>
+#include <utility>
 
 extern "C" {
 void dgbtrf_(const int* m, const int* n, const int* kl, const int* ku, double* ab, const int* ldab, int* ipiv,
@@ -211,9 +213,104 @@ bool InvertDiagonal(const CyclicBlockBanded& a, int m_runtime, int points, int l
   return true;
 }
 
+// The point-by-point passes of CyclicBandedLU's elimination for na algebraic and nd dynamic
+// unknowns; NA, ND > 0 fix them at compile time (the common shapes unroll), 0 reads na, nd.
+struct EliminationLayout {
+  int n, m, na, nd;
+  const int *eq_a, *eq_d, *unk_a, *unk_d;
+  const double *e_inverse, *e_inverse_c, *b_block;
+};
+
+// Pass<NA, ND>::Run(args...) with the shape's unrolled instance when there is one.
+template <template <int, int> class Pass, class... Args>
+auto WithShape(int na, int nd, Args&&... args) {
+  if (na == 2 && nd == 1) return Pass<2, 1>::Run(std::forward<Args>(args)...);  // stroke input: force, pressure
+  if (na == 1 && nd == 1) return Pass<1, 1>::Run(std::forward<Args>(args)...);
+  if (na == 1 && nd == 2) return Pass<1, 2>::Run(std::forward<Args>(args)...);  // force input: pressure
+  if (na == 1 && nd == 3) return Pass<1, 3>::Run(std::forward<Args>(args)...);
+  return Pass<0, 0>::Run(std::forward<Args>(args)...);
+}
+
+// Where the elimination writes: per point E^-1, E^-1 C and B, and the reduced bands.
+struct EliminationOutput {
+  double *e_inverse, *e_inverse_c, *b_block;
+  CyclicBlockBanded* reduced;
+  double rcond;
+};
+
+// Per point, from the diagonal block [K0 B; C E]: E^-1 by a pivoted LU of the row-equilibrated E
+// (so that the pivot ratio is a singularity test whatever the units), E^-1 C, B, and the reduced
+// blocks (K restricted to the dynamic rows and columns, S = K0 - B E^-1 C on the diagonal).
+// False when some E is (numerically) singular. Fixed-size loops: this runs at every point of
+// every factorisation.
+template <int NA, int ND>
+struct EliminatePoints {
+  static bool Run(const CyclicBlockBanded& a, const EliminationLayout& l, EliminationOutput& out) {
+    const int na = NA > 0 ? NA : l.na, nd = ND > 0 ? ND : l.nd, m = l.m;
+    double e[256], scale[16];
+    int pivots[16];
+    for (int mu = 0; mu < l.n; ++mu) {
+      const double* diag = a.block(mu, 0).data();  // column-major m x m
+      const auto at = [&](int r, int c) { return diag[r + c * m]; };
+      for (int i = 0; i < na; ++i) {
+        double largest = 0.0, sum = 0.0;
+        for (int j = 0; j < na; ++j) {
+          const double v = std::abs(at(l.eq_a[i], l.unk_a[j]));
+          largest = std::max(largest, v);
+          sum += v;
+        }
+        if (!(largest > 0.0) || !std::isfinite(sum)) return false;
+        scale[i] = 1.0 / largest;
+        for (int j = 0; j < na; ++j) e[i + j * na] = at(l.eq_a[i], l.unk_a[j]) * scale[i];
+      }
+      if (!SmallLuFactor<NA>(e, na, pivots)) return false;
+      double smallest = INFINITY, largest = 0.0;
+      for (int i = 0; i < na; ++i) {
+        smallest = std::min(smallest, std::abs(e[i + i * na]));
+        largest = std::max(largest, std::abs(e[i + i * na]));
+      }
+      const double ratio = smallest / largest;
+      if (!(ratio > 1e-13)) return false;
+      out.rcond = std::min(out.rcond, ratio);
+      // E^-1 = (R E)^-1 R with R the row scales.
+      double* inverse = out.e_inverse + static_cast<std::size_t>(mu) * na * na;
+      for (int j = 0; j < na; ++j)
+        for (int i = 0; i < na; ++i) inverse[i + j * na] = i == j ? 1.0 : 0.0;
+      SmallLuSolve<NA>(e, pivots, na, inverse, na, na);
+      for (int j = 0; j < na; ++j)
+        for (int i = 0; i < na; ++i) inverse[i + j * na] *= scale[j];
+      double* inverse_c = out.e_inverse_c + static_cast<std::size_t>(mu) * na * nd;
+      for (int j = 0; j < nd; ++j)
+        for (int i = 0; i < na; ++i) {
+          double v = 0.0;
+          for (int k = 0; k < na; ++k) v += inverse[i + k * na] * at(l.eq_a[k], l.unk_d[j]);
+          inverse_c[i + j * na] = v;
+        }
+      double* b = out.b_block + static_cast<std::size_t>(mu) * nd * na;
+      for (int j = 0; j < na; ++j)
+        for (int i = 0; i < nd; ++i) b[i + j * nd] = at(l.eq_d[i], l.unk_a[j]);
+      if (nd == 0) continue;
+      for (int k = a.kmin(); k <= a.kmax(); ++k) {
+        const double* from = a.block(mu, k).data();
+        double* to = out.reduced->block(mu, k).data();
+        for (int j = 0; j < nd; ++j)
+          for (int i = 0; i < nd; ++i) to[i + j * nd] = from[l.eq_d[i] + l.unk_d[j] * m];
+        if (k != 0) continue;
+        for (int j = 0; j < nd; ++j)
+          for (int i = 0; i < nd; ++i) {
+            double v = 0.0;
+            for (int q = 0; q < na; ++q) v += b[i + q * nd] * inverse_c[q + j * na];
+            to[i + j * nd] -= v;
+          }
+      }
+    }
+    return true;
+  }
+};
+
 }  // namespace
 
-bool CyclicBandedLU::Factorize(const CyclicBlockBanded& a) {
+void CyclicBandedLU::SetShape(const CyclicBlockBanded& a) {
   n_ = a.points();
   m_ = a.block_size();
   lower_ = -a.kmin();
@@ -221,8 +318,15 @@ bool CyclicBandedLU::Factorize(const CyclicBlockBanded& a) {
   border_ = std::max({lower_, upper_, 1});
   ok_ = false;
   dense_ = folded_ = eliminated_ = false;
-  reduced_.reset();
+}
+
+bool CyclicBandedLU::Factorize(const CyclicBlockBanded& a) {
+  SetShape(a);
   if (FactorizeEliminated(a)) return true;
+  return FactorizeBands(a);
+}
+
+bool CyclicBandedLU::FactorizeBands(const CyclicBlockBanded& a) {
   if (n_ < 2 * border_ + 2) return FactorizeDense(a);
   // Backward schemes: block forward substitution plus a small border system. Central schemes:
   // the open (non-periodic) interior has parasitic growing modes that wreck the border system, so
@@ -232,86 +336,59 @@ bool CyclicBandedLU::Factorize(const CyclicBlockBanded& a) {
 }
 
 bool CyclicBandedLU::FactorizeEliminated(const CyclicBlockBanded& a) {
-  // Which equations and unknowns appear in an off-diagonal block (a rate) anywhere.
-  std::vector<bool> dynamic_equation(m_, false), dynamic_unknown(m_, false);
+  if (m_ > 16) return false;  // EliminatePoints' buffers
+  // Which equations and unknowns appear in an off-diagonal block (a rate) anywhere: entry e of
+  // `rate` is set when it is nonzero in some off-diagonal block (a branch-free pass).
+  const int mm = m_ * m_;
+  unsigned char rate[256] = {};
   for (int mu = 0; mu < n_; ++mu)
     for (int k = a.kmin(); k <= a.kmax(); ++k) {
       if (k == 0) continue;
-      const auto blk = a.block(mu, k);
-      for (int c = 0; c < m_; ++c)
-        for (int r = 0; r < m_; ++r)
-          if (blk(r, c) != 0.0) dynamic_equation[r] = dynamic_unknown[c] = true;
+      const double* blk = a.block(mu, k).data();
+      for (int e = 0; e < mm; ++e) rate[e] |= blk[e] != 0.0;
     }
   dynamic_equations_.clear();
   algebraic_equations_.clear();
   dynamic_unknowns_.clear();
   algebraic_unknowns_.clear();
   for (int i = 0; i < m_; ++i) {
-    (dynamic_equation[i] ? dynamic_equations_ : algebraic_equations_).push_back(i);
-    (dynamic_unknown[i] ? dynamic_unknowns_ : algebraic_unknowns_).push_back(i);
+    bool equation = false, unknown = false;
+    for (int j = 0; j < m_; ++j) {
+      equation = equation || rate[i + j * m_];
+      unknown = unknown || rate[j + i * m_];
+    }
+    (equation ? dynamic_equations_ : algebraic_equations_).push_back(i);
+    (unknown ? dynamic_unknowns_ : algebraic_unknowns_).push_back(i);
   }
   const int na = static_cast<int>(algebraic_unknowns_.size()), nd = m_ - na;
-  if (na == 0 || static_cast<int>(algebraic_equations_.size()) != na || m_ > 16) return false;
-  using Small = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::ColMajor, 16, 16>;
+  if (na == 0 || static_cast<int>(algebraic_equations_.size()) != na) return false;
   e_inverse_.resize(static_cast<std::size_t>(n_) * na * na);
   e_inverse_c_.resize(static_cast<std::size_t>(n_) * na * nd);
   b_block_.resize(static_cast<std::size_t>(n_) * nd * na);
-  CyclicBlockBanded reduced(n_, std::max(nd, 1), a.kmin(), a.kmax());
-  double rcond = 1.0;
-  for (int mu = 0; mu < n_; ++mu) {
-    const auto diag = a.block(mu, 0);
-    Small e(na, na), c(na, nd), b(nd, na);
-    for (int i = 0; i < na; ++i) {
-      for (int j = 0; j < na; ++j) e(i, j) = diag(algebraic_equations_[i], algebraic_unknowns_[j]);
-      for (int j = 0; j < nd; ++j) c(i, j) = diag(algebraic_equations_[i], dynamic_unknowns_[j]);
-    }
-    for (int i = 0; i < nd; ++i)
-      for (int j = 0; j < na; ++j) b(i, j) = diag(dynamic_equations_[i], algebraic_unknowns_[j]);
-    // Rows equilibrated, so that the pivot ratio is a singularity test whatever the units.
-    Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 16, 1> row_scale = e.rowwise().lpNorm<Eigen::Infinity>();
-    if (!(row_scale.minCoeff() > 0.0) || !std::isfinite(row_scale.maxCoeff())) return false;
-    row_scale = row_scale.cwiseInverse();
-    const Eigen::PartialPivLU<Small> lu(row_scale.asDiagonal() * e);
-    const auto pivots = lu.matrixLU().diagonal().cwiseAbs();
-    const double ratio = pivots.minCoeff() / pivots.maxCoeff();
-    if (!(ratio > 1e-13)) return false;
-    rcond = std::min(rcond, ratio);
-    const Small inverse = lu.inverse() * row_scale.asDiagonal();
-    const Small inverse_c = inverse * c;
-    std::copy(inverse.data(), inverse.data() + na * na, e_inverse_.data() + static_cast<std::size_t>(mu) * na * na);
-    std::copy(inverse_c.data(), inverse_c.data() + na * nd, e_inverse_c_.data() + static_cast<std::size_t>(mu) * na * nd);
-    std::copy(b.data(), b.data() + nd * na, b_block_.data() + static_cast<std::size_t>(mu) * nd * na);
-    if (nd == 0) continue;
-    for (int k = a.kmin(); k <= a.kmax(); ++k) {
-      const auto from = a.block(mu, k);
-      auto to = reduced.block(mu, k);
-      for (int j = 0; j < nd; ++j)
-        for (int i = 0; i < nd; ++i) to(i, j) = from(dynamic_equations_[i], dynamic_unknowns_[j]);
-      if (k == 0) to -= b * inverse_c;
-    }
-  }
+  // Every reduced block is written below: a matrix of the same shape is reused as it is.
+  const int reduced_m = std::max(nd, 1);
+  if (reduced_matrix_.points() != n_ || reduced_matrix_.block_size() != reduced_m ||
+      reduced_matrix_.kmin() != a.kmin() || reduced_matrix_.kmax() != a.kmax())
+    reduced_matrix_ = CyclicBlockBanded(n_, reduced_m, a.kmin(), a.kmax());
+  const EliminationLayout l{n_, m_, na, nd,
+                            algebraic_equations_.data(), dynamic_equations_.data(),
+                            algebraic_unknowns_.data(), dynamic_unknowns_.data(),
+                            nullptr, nullptr, nullptr};
+  EliminationOutput out{e_inverse_.data(), e_inverse_c_.data(), b_block_.data(), &reduced_matrix_, 1.0};
+  if (!WithShape<EliminatePoints>(na, nd, a, l, out)) return false;
   if (nd > 0) {
-    reduced_ = std::make_shared<CyclicBandedLU>();
-    if (!reduced_->Factorize(reduced)) {
-      reduced_.reset();
-      return false;
-    }
-    rcond = std::min(rcond, reduced_->border_rcond());
+    // The reduced bands hold only dynamic equations and unknowns: nothing is left to eliminate.
+    if (!reduced_) reduced_ = std::make_unique<CyclicBandedLU>();
+    reduced_->SetShape(reduced_matrix_);
+    if (!reduced_->FactorizeBands(reduced_matrix_)) return false;
+    out.rcond = std::min(out.rcond, reduced_->border_rcond());
   }
   eliminated_ = ok_ = true;
-  border_rcond_ = rcond;
+  border_rcond_ = out.rcond;
   return true;
 }
 
 namespace {
-
-// The point-by-point passes of CyclicBandedLU's elimination for na algebraic and nd dynamic
-// unknowns; NA, ND > 0 fix them at compile time (the common shapes unroll), 0 reads na, nd.
-struct EliminationLayout {
-  int n, m, na, nd;
-  const int *eq_a, *eq_d, *unk_a, *unk_d;
-  const double *e_inverse, *e_inverse_c, *b_block;
-};
 
 template <int NA, int ND>
 void EliminateForward(const EliminationLayout& l, double* column, double* reduced) {
@@ -392,13 +469,7 @@ void EliminateBackTransposed(const EliminationLayout& l, double* column, const d
 // One pass for every column, with the shape's unrolled instance when there is one.
 template <template <int, int> class Pass, class Column, class Reduced>
 void ForEachColumn(const EliminationLayout& l, Eigen::Index cols, Column column, Reduced reduced) {
-  for (Eigen::Index c = 0; c < cols; ++c) {
-    if (l.na == 2 && l.nd == 1) Pass<2, 1>::Run(l, column(c), reduced(c));
-    else if (l.na == 1 && l.nd == 1) Pass<1, 1>::Run(l, column(c), reduced(c));
-    else if (l.na == 1 && l.nd == 2) Pass<1, 2>::Run(l, column(c), reduced(c));
-    else if (l.na == 1 && l.nd == 3) Pass<1, 3>::Run(l, column(c), reduced(c));
-    else Pass<0, 0>::Run(l, column(c), reduced(c));
-  }
+  for (Eigen::Index c = 0; c < cols; ++c) WithShape<Pass>(l.na, l.nd, l, column(c), reduced(c));
 }
 template <int NA, int ND>
 struct Forward {
@@ -545,9 +616,11 @@ bool CyclicBandedLU::FactorizeInterior(const CyclicBlockBanded& a) {
   coupled_.assign(lower_, m_ > 32 ? ~0u : 0u);
   for (int mu = 0; mu < ni && m_ <= 32; ++mu)
     for (int k = -lower_; k < 0; ++k) {
-      const auto blk = a.block(mu, k);
+      const double* blk = a.block(mu, k).data();
+      unsigned& mask = coupled_[k + lower_];
       for (int c = 0; c < m_; ++c)
-        if (blk.col(c).cwiseAbs().maxCoeff() > 0.0) coupled_[k + lower_] |= 1u << c;
+        for (int r = 0; r < m_; ++r)
+          if (blk[r + c * m_] != 0.0) mask |= 1u << c;
     }
   switch (m_) {
     case 1: return InvertDiagonal<1>(a, m_, ni, lower_, band_.data(), sub_.data(), pivots_.data());
@@ -594,16 +667,17 @@ void CyclicBandedLU::SubtractBorderTransposedTimes(const Eigen::MatrixXd& y, Eig
   x.bottomRows(border_tail_).noalias() -= border_interior_.transpose() * y;
 }
 
-void CyclicBandedLU::SolveFolded(Eigen::Ref<Eigen::MatrixXd> b, char trans) const {
-  // The band holds P A P^T (P: the folding order), so A^T = P^T (P A P^T)^T P reuses the order.
-  // dgbtrs's substitutions on every right-hand side at once, a row of the row-major y one
-  // contiguous vector (the reference BLAS's dtbsv walks the band once per column).
-  const int rows = n_ * m_, ldab = 2 * kl_ + ku_ + 1, kd = kl_ + ku_;
-  const Eigen::Index cols = b.cols();
-  using RowMajor = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
-  RowMajor rhs(rows, cols);
-  for (int mu = 0; mu < n_; ++mu) rhs.middleRows(position_[mu] * m_, m_) = b.middleRows(mu * m_, m_);
-  double* y = rhs.data();
+namespace {
+
+// dgbtrs's substitutions with the band LU of dgbtrf (kl, ku; row kd = kl + ku of the band holds
+// U's diagonal) on every right-hand side at once: y is row-major, a row one contiguous vector of
+// `cols` values. Cols > 0 fixes the column count at compile time: a Newton step's single column
+// then runs plain scalar loops instead of a vector loop's set-up per band entry.
+template <int Cols>
+void FoldedSubstitutions(const double* band_lu, const int* pivots, int rows, int kl, int ku, double* y,
+                         Eigen::Index cols_runtime, char trans) {
+  const Eigen::Index cols = Cols > 0 ? Cols : cols_runtime;
+  const int ldab = 2 * kl + ku + 1, kd = kl + ku;
   const auto row = [&](int i) { return y + static_cast<std::ptrdiff_t>(i) * cols; };
   const auto subtract = [&](int to, double factor, int from) {  // row `to` -= factor * row `from`
     if (factor == 0.0) return;  // U's fill-in room that pivoting left empty (most of it)
@@ -617,12 +691,12 @@ void CyclicBandedLU::SolveFolded(Eigen::Ref<Eigen::MatrixXd> b, char trans) cons
     for (Eigen::Index q = 0; q < cols; ++q) a[q] /= d;
   };
   // U(i, j) at band row kd + i - j of column j; L's multipliers below the diagonal at rows kd + 1 ...
-  const auto band = [&](int i, int j) { return band_[static_cast<std::size_t>(kd + i - j) + static_cast<std::size_t>(j) * ldab]; };
+  const auto band = [&](int i, int j) { return band_lu[static_cast<std::size_t>(kd + i - j) + static_cast<std::size_t>(j) * ldab]; };
   if (trans == 'N') {
     for (int j = 0; j + 1 < rows; ++j) {  // L, with the row interchanges as they were made
-      const int p = pivots_[j] - 1;
+      const int p = pivots[j] - 1;
       if (p != j) swap(j, p);
-      const int below = std::min(kl_, rows - 1 - j);
+      const int below = std::min(kl, rows - 1 - j);
       for (int i = 1; i <= below; ++i) subtract(j + i, band(j + i, j), j);
     }
     for (int j = rows - 1; j >= 0; --j) {  // U
@@ -635,12 +709,29 @@ void CyclicBandedLU::SolveFolded(Eigen::Ref<Eigen::MatrixXd> b, char trans) cons
       divide(j, band(j, j));
     }
     for (int j = rows - 2; j >= 0; --j) {  // L^T, the interchanges undone in reverse
-      const int below = std::min(kl_, rows - 1 - j);
+      const int below = std::min(kl, rows - 1 - j);
       for (int i = 1; i <= below; ++i) subtract(j, band(j + i, j), j + i);
-      const int p = pivots_[j] - 1;
+      const int p = pivots[j] - 1;
       if (p != j) swap(j, p);
     }
   }
+}
+
+}  // namespace
+
+void CyclicBandedLU::SolveFolded(Eigen::Ref<Eigen::MatrixXd> b, char trans) const {
+  // The band holds P A P^T (P: the folding order), so A^T = P^T (P A P^T)^T P reuses the order.
+  // The substitutions run on a row-major copy (the reference BLAS's dtbsv walks the band once per
+  // column).
+  const int rows = n_ * m_;
+  const Eigen::Index cols = b.cols();
+  using RowMajor = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+  RowMajor rhs(rows, cols);
+  for (int mu = 0; mu < n_; ++mu) rhs.middleRows(position_[mu] * m_, m_) = b.middleRows(mu * m_, m_);
+  if (cols == 1)
+    FoldedSubstitutions<1>(band_.data(), pivots_.data(), rows, kl_, ku_, rhs.data(), cols, trans);
+  else
+    FoldedSubstitutions<0>(band_.data(), pivots_.data(), rows, kl_, ku_, rhs.data(), cols, trans);
   for (int mu = 0; mu < n_; ++mu) b.middleRows(mu * m_, m_) = rhs.middleRows(position_[mu] * m_, m_);
 }
 

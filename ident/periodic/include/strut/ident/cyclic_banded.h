@@ -78,6 +78,9 @@ class CyclicBandedLU {
   double border_rcond() const { return border_rcond_; }
 
  private:
+  void SetShape(const CyclicBlockBanded& a);
+  //! Everything but the elimination: the border, folded or dense LU of `a` itself.
+  bool FactorizeBands(const CyclicBlockBanded& a);
   bool FactorizeEliminated(const CyclicBlockBanded& a);
   void SolveEliminated(Eigen::Ref<Eigen::MatrixXd> b, bool transposed) const;
   bool FactorizeDense(const CyclicBlockBanded& a);
@@ -110,13 +113,15 @@ class CyclicBandedLU {
   EquilibratedFactors dense_lu_;  // of the whole matrix (small n, spectral)
   // Point-by-point elimination: per point the diagonal block is [K0 B; C E] in the rows
   // (dynamic equations, algebraic equations) and columns (dynamic unknowns, algebraic unknowns);
-  // `reduced_` factorises the bands of S = K - B E^-1 C (null when every unknown is algebraic).
+  // `reduced_` factorises `reduced_matrix_`, the bands of S = K - B E^-1 C (unused when every
+  // unknown is algebraic); both are kept for the next factorisation of the same shape.
   bool eliminated_ = false;
   std::vector<int> dynamic_equations_, algebraic_equations_, dynamic_unknowns_, algebraic_unknowns_;
   std::vector<double> e_inverse_;    // per point, a x a: E^-1
   std::vector<double> e_inverse_c_;  // per point, a x d: E^-1 C
   std::vector<double> b_block_;      // per point, d x a: B
-  std::shared_ptr<CyclicBandedLU> reduced_;
+  CyclicBlockBanded reduced_matrix_;
+  std::unique_ptr<CyclicBandedLU> reduced_;
   double border_rcond_ = 1.0;
 };
 

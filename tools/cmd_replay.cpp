@@ -32,7 +32,7 @@ class SteadyStateOnReplay : public daq::ReplayObserver {
     rows_.emplace_back();
     summariser_.reset();
     detector_.reset();
-    const auto per_cycle = rig::WholeSamplesPerCycle(x.stream.sample_rate, x.header.frequency);
+    const auto per_cycle = daq::WholeSamplesPerPeriod(x.stream.sample_rate, x.header.frequency, 2);
     if (x.header.kind != daq::ExperimentKind::kPeriodic || !per_cycle) return;
     stroke_ = force_ = pressure_ = -1;
     for (std::size_t c = 0; c < x.stream.channels.size(); ++c) {

@@ -1,10 +1,8 @@
 // Session files on the HDF5 C API: a tolerant reader (any writer: strut, h5py, MATLAB) and a
 // crash-safe writer of the contract format.
-#include <fcntl.h>
 #include <hdf5.h>
 #include <spdlog/fmt/fmt.h>
 #include <spdlog/spdlog.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <charconv>
@@ -18,6 +16,7 @@
 #include <optional>
 
 #include "hdf5_handle.h"
+#include "strut/daq/atomic_file.h"
 #include "session_check.h"
 #include "strut/daq/session.h"
 
@@ -951,71 +950,6 @@ class Writer {
   bool generic_ = false;  //!< writing a generic-profile session
 };
 
-// The temporary file of a write: removed unless it was renamed onto the target.
-class PartialFile {
- public:
-  PartialFile(std::string path, std::string target)
-      : path_(std::move(path)), target_(std::move(target)) {}
-  ~PartialFile() {
-    if (committed_) return;
-    std::error_code ignored;
-    std::filesystem::remove(path_, ignored);
-  }
-  PartialFile(const PartialFile&) = delete;
-  PartialFile& operator=(const PartialFile&) = delete;
-
-  //! Writes `bytes` and makes them durable: without fsync a crash after the rename could leave
-  //! the target name on an empty file.
-  void Write(const std::vector<unsigned char>& bytes) {
-    const int fd = ::open(path_.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666);
-    if (fd < 0) Fail("creating " + path_);
-    std::size_t done = 0;
-    while (done < bytes.size()) {
-      const ssize_t n = ::write(fd, bytes.data() + done, bytes.size() - done);
-      if (n < 0 && errno == EINTR) continue;
-      if (n <= 0) {
-        const int error = n < 0 ? errno : EIO;
-        ::close(fd);
-        errno = error;
-        Fail("writing " + path_);
-      }
-      done += static_cast<std::size_t>(n);
-    }
-    if (::fsync(fd) != 0) {
-      const int error = errno;
-      ::close(fd);
-      errno = error;
-      Fail("syncing " + path_);
-    }
-    if (::close(fd) != 0) Fail("closing " + path_);
-  }
-
-  //! Atomically replaces the target with the written file.
-  void Commit() {
-    if (std::rename(path_.c_str(), target_.c_str()) != 0) Fail("renaming " + path_ + " onto it");
-    committed_ = true;
-    // Persist the rename itself; the file is complete either way, so only warn.
-    std::string directory = std::filesystem::path(target_).parent_path().string();
-    if (directory.empty()) directory = ".";
-    const int dir = ::open(directory.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
-    if (dir < 0 || ::fsync(dir) != 0) {
-      spdlog::warn("{}: written, but syncing directory {} failed: {}", target_, directory,
-                   std::strerror(errno));
-    }
-    if (dir >= 0) ::close(dir);
-  }
-
- private:
-  [[noreturn]] void Fail(const std::string& what) const {
-    throw SessionError(
-        fmt::format("{}: cannot write: {}: {}", target_, what, std::strerror(errno)));
-  }
-
-  std::string path_;
-  std::string target_;
-  bool committed_ = false;
-};
-
 }  // namespace
 
 Session ReadSession(const std::string& path) {
@@ -1040,9 +974,11 @@ void WriteSession(const std::string& path, const Session& session, const WriteOp
     throw SessionError(fmt::format("{}: not written: this HDF5 library has no gzip filter", path));
   }
   const std::vector<unsigned char> image = Writer(path, options).Image(session);
-  PartialFile partial(path + ".partial", path);
-  partial.Write(image);
-  partial.Commit();
+  try {
+    WriteFileAtomically(path, std::string_view(reinterpret_cast<const char*>(image.data()), image.size()));
+  } catch (const FileWriteError& e) {
+    throw SessionError(e.what());
+  }
 }
 
 }  // namespace strut::daq

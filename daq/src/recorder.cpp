@@ -20,6 +20,7 @@
 #include <thread>
 
 #include "journal.h"
+#include "strut/daq/atomic_file.h"
 #include "session_check.h"
 
 #ifndef STRUT_VERSION
@@ -68,17 +69,6 @@ class JournalFile final : public JournalSink {
   std::string path_;
   int fd_;
 };
-
-// Makes a new directory entry (the journal's, a renamed session's) durable.
-void SyncDirectoryOf(const std::string& path) {
-  std::filesystem::path parent = std::filesystem::path(path).parent_path();
-  const std::string directory = parent.empty() ? std::string(".") : parent.string();
-  const int dir = ::open(directory.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
-  if (dir < 0 || ::fsync(dir) != 0) {
-    spdlog::warn("{}: syncing directory {} failed: {}", path, directory, std::strerror(errno));
-  }
-  if (dir >= 0) ::close(dir);
-}
 
 bool ValidName(std::string_view name) {
   return !name.empty() && name != "." && name.find('/') == std::string_view::npos;
@@ -417,7 +407,6 @@ struct Recorder::Impl {
       throw RecorderError(fmt::format("{}{}cannot write the session: {} (the journal {} is kept)", failed,
                                       failed.empty() ? "" : "; ", e.what(), journal_path));
     }
-    SyncDirectoryOf(session_path);
     if (!failed.empty()) {
       throw RecorderError(fmt::format("{}; {} holds what was recorded until then ({} samples), the journal {} is kept",
                                       failed, session_path, report.samples, journal_path));

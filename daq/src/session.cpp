@@ -115,6 +115,14 @@ std::string UtcNowIso8601() {
   return std::string(text.data(), n);
 }
 
+std::optional<long> WholeSamplesPerPeriod(double sample_rate, double frequency, long minimum) {
+  if (!(sample_rate > 0.0) || !(frequency > 0.0)) return std::nullopt;
+  const double n = sample_rate / frequency;
+  const double rounded = std::round(n);
+  if (rounded < static_cast<double>(minimum) || std::abs(n - rounded) > kWholeSamplesTolerance * n) return std::nullopt;
+  return static_cast<long>(rounded);
+}
+
 namespace detail {
 
 std::optional<std::string> PeriodCountDefect(const Experiment& e, std::size_t samples) {

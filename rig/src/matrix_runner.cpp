@@ -459,7 +459,7 @@ struct MatrixRunner::Impl {
     current.emplace();
     Current& c = *current;
     c.item = item;
-    c.spp = *WholeSamplesPerCycle(RecordedRate(), e.frequency);
+    c.spp = *daq::WholeSamplesPerPeriod(RecordedRate(), e.frequency, 2);
     c.wanted = c.spp * options.periods;
     progress = Progress{};
     progress.experiment = item.label();
@@ -584,7 +584,7 @@ RunReport MatrixRunner::Run(const std::vector<RunItem>& items) {
   m.controller_lost = m.acquisition_lost = false;
   const double rate = m.RecordedRate();
   for (const RunItem& item : items) {
-    if (!WholeSamplesPerCycle(rate, item.entry.frequency)) {
+    if (!daq::WholeSamplesPerPeriod(rate, item.entry.frequency, 2)) {
       report.outcome = RunOutcome::kAborted;
       report.cause = fmt::format("experiment '{}': {} Hz sampled at {} Hz is no whole number of samples per period",
                                  item.label(), item.entry.frequency, rate);

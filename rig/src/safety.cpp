@@ -390,8 +390,7 @@ std::vector<std::string> CheckMatrix(const std::vector<MatrixEntry>& matrix, con
       refuse(fmt::format("actuator flow {:.4g} m^3/s ({:.1f} l/min: piston area {:.4g} m^2 x {:.4g} m/s) exceeds the "
                          "supply's {:.4g} m^3/s ({:.1f} l/min)",
                          flow, flow * 6e4, c.actuator.piston_area, velocity, c.actuator.max_flow, c.actuator.max_flow * 6e4));
-    const auto n = WholeSamplesPerCycle(sample_rate, e.frequency);
-    if (!n || *n < 16)
+    if (!daq::WholeSamplesPerPeriod(sample_rate, e.frequency, 16))
       refuse(fmt::format("{} Hz sampled at {} Hz is not a whole number (>= 16) of samples per period", e.frequency,
                          sample_rate));
     if (predictor) {

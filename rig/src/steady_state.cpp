@@ -139,18 +139,10 @@ std::vector<CycleSummary> CycleSummariser::Add(std::span<const std::int64_t> t, 
   return done;
 }
 
-std::optional<long> WholeSamplesPerCycle(double sample_rate, double frequency) {
-  if (!(sample_rate > 0.0) || !(frequency > 0.0)) return std::nullopt;
-  const double n = sample_rate / frequency;
-  const double rounded = std::round(n);
-  if (rounded < 2.0 || std::abs(n - rounded) > 1e-9 * n) return std::nullopt;
-  return static_cast<long>(rounded);
-}
-
 std::vector<CycleSummary> SummariseExperiment(const daq::Experiment& e) {
   if (e.kind != daq::ExperimentKind::kPeriodic)
     throw daq::SessionError(fmt::format("experiment '{}': not periodic, no cycles to summarise", e.label));
-  const auto n = WholeSamplesPerCycle(e.sample_rate, e.frequency);
+  const auto n = daq::WholeSamplesPerPeriod(e.sample_rate, e.frequency, 2);
   if (!n)
     throw daq::SessionError(fmt::format("experiment '{}': {} Hz at {} Hz is no whole number of samples per period",
                                         e.label, e.frequency, e.sample_rate));

@@ -24,12 +24,12 @@ daq::Session SimulatePeriodicSession(const std::string& composition, std::span<c
   session.damper_serial = options.damper_serial;
   session.rig = options.rig;
   for (const rig::MatrixEntry& entry : matrix) {
-    const double per_period = options.sample_rate / entry.frequency;
-    const long n = std::lround(per_period);
-    if (std::abs(per_period - n) > 1e-9 * per_period || n < 16)
+    const std::optional<long> whole = daq::WholeSamplesPerPeriod(options.sample_rate, entry.frequency, 16);
+    if (!whole)
       throw std::invalid_argument(fmt::format("experiment '{}': {} Hz at {} Hz sampling is not a whole number of samples "
                                               "per period",
                                               entry.label, entry.frequency, options.sample_rate));
+    const long n = *whole;
     // Solve on a grid fine enough for the friction transitions (at least 4000 points a period),
     // then take every k-th point: the samples of the continuous signal, as an ADC sees it.
     // The stroke set-point is the sensor reading; the model's true stroke is reading - theta12.

@@ -349,8 +349,7 @@ daq::Session SimulatedRig::RunMatrix(const rig::MatrixPlan& plan, const RigRunOp
   const long periods = plan.periods.value_or(truth_.acquisition.periods);
   // Check every experiment before simulating anything.
   for (const auto& e : plan.experiments) {
-    const double per_period = rate / e.frequency;
-    if (std::abs(per_period - std::round(per_period)) > 1e-9 * per_period || per_period < 16)
+    if (!daq::WholeSamplesPerPeriod(rate, e.frequency, 16))
       throw TruthError(fmt::format("{}: experiment '{}': {} Hz sampled at {} Hz is not a whole number (>= 16) of "
                                    "samples per period",
                                    plan.source, e.label, e.frequency, rate));
@@ -377,11 +376,12 @@ daq::Experiment SimulatedRig::RunPeriodic(const rig::MatrixEntry& entry, double 
   const auto wall_start = Clock::now();
   const AcquisitionOptions& acq = truth_.acquisition;
   const double f = entry.frequency, period = 1.0 / f;
-  const long n = std::lround(sample_rate / f);
-  if (std::abs(sample_rate / f - n) > 1e-9 * n || n < 16)
+  const std::optional<long> whole = daq::WholeSamplesPerPeriod(sample_rate, f, 16);
+  if (!whole)
     throw TruthError(fmt::format("experiment '{}': {} Hz sampled at {} Hz is not a whole number (>= 16) of samples "
                                  "per period",
                                  entry.label, f, sample_rate));
+  const long n = *whole;
   if (periods < 1) throw std::invalid_argument("periodic run: periods must be at least 1");
   const long oversample = std::max<long>(1, static_cast<long>(std::ceil(kLoadRate / sample_rate - 1e-9)));
   const long fine = n * oversample;  // damper outputs per period

@@ -268,9 +268,9 @@ std::vector<ExperimentData> Prepare(const daq::Session& session, const std::stri
     d.static_position = e.static_position;
     d.periods = e.periods;
     // Whole samples per period: average the recorded samples themselves, phase by phase.
-    const double per_period = e.sample_rate / e.frequency;
-    const long native = std::lround(per_period);
-    const bool whole = std::abs(per_period - native) < 1e-6 * per_period && native >= 4;
+    const std::optional<long> whole_samples = daq::WholeSamplesPerPeriod(e.sample_rate, e.frequency, 4);
+    const bool whole = whole_samples.has_value();
+    const long native = whole_samples.value_or(0);
     // Not a whole number of samples a period: the record is resampled onto an equidistant grid; the
     // default keeps the 800 points it had before the thinned grid (200 would smear the friction's
     // switches of a slow experiment over a quarter as many phases).

@@ -81,6 +81,17 @@ struct Experiment {
   double samples_per_period() const { return sample_rate / frequency; }
 };
 
+//! Relative tolerance within which sample_rate / frequency is a whole number of samples per
+//! period. Far above the rounding of a rate and frequency given in decimal (about 1e-15), and far
+//! below a drift that matters: phase-synchronous averaging over P periods of n samples is off by
+//! at most 1e-9 * P * n samples (a thousandth of a sample over 1000 periods of 1000 samples).
+inline constexpr double kWholeSamplesTolerance = 1e-9;
+
+//! sample_rate / frequency when it is a whole number of at least `minimum` samples (within
+//! kWholeSamplesTolerance, relative), else nullopt; nullopt too when either is not positive.
+//! The one test for "whole samples per period": the generators, the rig and the fit use it alike.
+std::optional<long> WholeSamplesPerPeriod(double sample_rate, double frequency, long minimum = 1);
+
 //! The value of an attribute of an extra group: a number (float64), a whole number (int64) or a
 //! text (fixed-length string), written with that HDF5 type and read back as the same alternative.
 using AttributeValue = std::variant<double, long long, std::string>;

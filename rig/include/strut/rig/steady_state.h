@@ -118,9 +118,6 @@ class CycleSummariser {
   bool has_pressure_ = false;
 };
 
-//! Samples per cycle at this rate and frequency when it is a whole number (>= 2), else nullopt.
-std::optional<long> WholeSamplesPerCycle(double sample_rate, double frequency);
-
 //! The cycles of a recorded periodic experiment (stroke, force and, if there, pressure), its time
 //! axis taken as monotonic ns from 0. Throws daq::SessionError naming the experiment when it is
 //! not periodic or its rate gives no whole number of samples per period.

@@ -1,0 +1,139 @@
+// daq::WriteFileAtomically, the one crash-safe write behind sessions, reports and text outputs:
+// the target holds either its old bytes or exactly the new ones, and no partial file is left.
+#include <gtest/gtest.h>
+#include <sys/resource.h>
+#include <unistd.h>
+
+#include <csignal>
+#include <filesystem>
+#include <fstream>
+#include <random>
+#include <string>
+
+#include "strut/daq/atomic_file.h"
+#include "test_support.h"
+
+namespace {
+
+using strut::daq::FileWriteError;
+using strut::daq::WriteFileAtomically;
+using strut::test::ReadFile;
+using strut::test::TempDir;
+namespace fs = std::filesystem;
+
+// Every byte value, NULs included, in a length that takes more than one write() on most systems.
+std::string BinaryBytes(std::size_t size) {
+  std::mt19937 rng(7);
+  std::string bytes(size, '\0');
+  for (char& c : bytes) c = static_cast<char>(rng() & 0xff);
+  return bytes;
+}
+
+// The message of the FileWriteError that `write` throws, or "(no error)".
+template <typename F>
+std::string ErrorOf(F write) {
+  try {
+    write();
+  } catch (const FileWriteError& e) {
+    return e.what();
+  }
+  return "(no error)";
+}
+
+// Lowers the file size limit while alive, so that a write fails half-way (EFBIG, not a signal).
+class FileSizeLimit {
+ public:
+  explicit FileSizeLimit(rlim_t bytes) {
+    getrlimit(RLIMIT_FSIZE, &previous_);
+    previous_handler_ = std::signal(SIGXFSZ, SIG_IGN);
+    rlimit limit = previous_;
+    limit.rlim_cur = bytes;
+    setrlimit(RLIMIT_FSIZE, &limit);
+  }
+  ~FileSizeLimit() {
+    setrlimit(RLIMIT_FSIZE, &previous_);
+    std::signal(SIGXFSZ, previous_handler_);
+  }
+  FileSizeLimit(const FileSizeLimit&) = delete;
+  FileSizeLimit& operator=(const FileSizeLimit&) = delete;
+
+ private:
+  rlimit previous_{};
+  void (*previous_handler_)(int) = nullptr;
+};
+
+TEST(AtomicFile, WritesTheBytesExactlyAndLeavesNoPartialFile) {
+  TempDir dir;
+  const std::string path = dir.file("out.bin");
+  const std::string bytes = BinaryBytes(3 * 1024 * 1024 + 17);
+  WriteFileAtomically(path, bytes);
+  EXPECT_EQ(ReadFile(path), bytes);
+  EXPECT_FALSE(fs::exists(path + ".partial"));
+  WriteFileAtomically(dir.file("empty.txt"), "");
+  EXPECT_EQ(fs::file_size(dir.file("empty.txt")), 0u);
+  EXPECT_EQ(std::distance(fs::directory_iterator(dir.path()), fs::directory_iterator()), 2);
+}
+
+TEST(AtomicFile, ReplacesAnExistingFileLongerOrShorter) {
+  TempDir dir;
+  const std::string path = dir.file("report.html");
+  std::ofstream(path) << std::string(1000, 'x');
+  WriteFileAtomically(path, "short");
+  EXPECT_EQ(ReadFile(path), "short");
+  WriteFileAtomically(path, std::string(5000, 'y'));
+  EXPECT_EQ(ReadFile(path), std::string(5000, 'y'));
+  EXPECT_FALSE(fs::exists(path + ".partial"));
+}
+
+TEST(AtomicFile, IntoAMissingFolderNamesThePathAndTheStepAndCreatesNothing) {
+  TempDir dir;
+  const std::string path = dir.file("missing/out.txt");
+  const std::string message = ErrorOf([&] { WriteFileAtomically(path, "text"); });
+  EXPECT_EQ(message, path + ": cannot write: creating " + path + ".partial: No such file or directory");
+  EXPECT_TRUE(fs::is_empty(dir.path()));
+}
+
+TEST(AtomicFile, IntoAReadOnlyFolderKeepsTheOldFile) {
+  if (geteuid() == 0) GTEST_SKIP() << "root writes into a read-only folder (the half-way and rename cases below still run)";
+  TempDir dir;
+  const std::string folder = dir.file("ro"), path = folder + "/out.txt";
+  fs::create_directory(folder);
+  std::ofstream(path) << "old";
+  fs::permissions(folder, fs::perms::owner_read | fs::perms::owner_exec);
+  const std::string message = ErrorOf([&] { WriteFileAtomically(path, "new"); });
+  fs::permissions(folder, fs::perms::owner_all);
+  EXPECT_EQ(message, path + ": cannot write: creating " + path + ".partial: Permission denied");
+  EXPECT_EQ(ReadFile(path), "old");
+  EXPECT_FALSE(fs::exists(path + ".partial"));
+}
+
+TEST(AtomicFile, AWriteFailingHalfWayKeepsTheOldFileAndRemovesThePartialOne) {
+  TempDir dir;
+  const std::string path = dir.file("session.h5");
+  std::ofstream(path) << "old contents";
+  std::string message;
+  {
+    const FileSizeLimit limit(64 * 1024);
+    message = ErrorOf([&] { WriteFileAtomically(path, BinaryBytes(256 * 1024)); });
+  }
+  EXPECT_EQ(message, path + ": cannot write: writing " + path + ".partial: File too large");
+  EXPECT_EQ(ReadFile(path), "old contents");
+  EXPECT_FALSE(fs::exists(path + ".partial"));
+}
+
+TEST(AtomicFile, AFailedRenameLeavesTheTargetAndNoPartialFile) {
+  TempDir dir;
+  const std::string path = dir.file("taken");
+  fs::create_directory(path);  // a folder with a file in it: rename() cannot replace it
+  std::ofstream(path + "/inside") << "kept";
+  const std::string message = ErrorOf([&] { WriteFileAtomically(path, "new"); });
+  EXPECT_EQ(message.rfind(path + ": cannot write: renaming " + path + ".partial onto it: ", 0), 0u) << message;
+  EXPECT_EQ(ReadFile(path + "/inside"), "kept");
+  EXPECT_FALSE(fs::exists(path + ".partial"));
+}
+
+TEST(AtomicFile, SyncingTheFolderOfAMissingPathOnlyWarns) {
+  EXPECT_NO_THROW(strut::daq::SyncDirectoryOf("/no/such/folder/file"));
+}
+
+}  // namespace

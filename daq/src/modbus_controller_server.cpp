@@ -54,6 +54,8 @@ class ModbusControllerServer::Impl {
   std::uint16_t server_faults = 0;  //!< fault_bits the server raised (kHeartbeatLost, kDevice)
   bool watchdog_tripped = false;
   Clock::time_point last_beat = Clock::now();
+  Clock::time_point start = Clock::now();  //!< of the loop: the status time when the backend fails
+  std::array<std::uint8_t, MODBUS_TCP_MAX_ADU_LENGTH> query{};  //!< the request being answered
 
   ~Impl() {
     for (int fd : clients) close(fd);
@@ -136,118 +138,161 @@ Write WriteOf(const std::uint8_t* query, int length, int header) {
 
 }  // namespace
 
+void ModbusControllerServer::RefreshStatus() {
+  Impl& s = *impl_;
+  ControllerStatus status;
+  // The backend is the caller's code behind an interface (a simulated plant, a device): whatever
+  // it throws is carried to the client as the device fault bit and to the log, and the server
+  // goes on answering, so that the client sees the fault instead of a vanished server.
+  try {
+    status = backend_.Status();
+  } catch (const std::exception& e) {
+    if (!(s.server_faults & fault_bits::kDevice)) spdlog::error("controller backend failed: {}", e.what());
+    s.server_faults |= fault_bits::kDevice;
+    status.state = ControllerState::kFaulted;
+    status.time_ms = static_cast<std::uint32_t>(
+        std::chrono::duration_cast<std::chrono::milliseconds>(Clock::now() - s.start).count());
+  }
+  status.applied_sequence = s.applied_sequence;
+  status.heartbeat = s.heartbeat;
+  status.fault_word |= s.server_faults;
+  if (s.map->tab_registers[reg::holding::kWatchdogMs] != 0) status.status_word |= status_bits::kWatchdogEnabled;
+  const reg::StatusBlock block = reg::EncodeStatus(status);
+  std::copy(block.begin(), block.end(), s.map->tab_input_registers + reg::input::kStatusBlock);
+}
+
+void ModbusControllerServer::Refuse(const std::uint8_t* query, const registers::Refusal& refusal, unsigned exception) {
+  Impl& s = *impl_;
+  spdlog::debug("Modbus controller server refuses a write: {}", refusal.message);
+  const reg::RefusalBlock block = reg::EncodeRefusal(refusal);
+  std::copy(block.begin(), block.end(), s.map->tab_input_registers + reg::input::kRefusalBlock);
+  modbus_reply_exception(s.ctx, query, exception);
+  ++refusals_;
+}
+
+void ModbusControllerServer::Tick() {
+  Impl& s = *impl_;
+  ++s.heartbeat;
+  const std::uint16_t watchdog = s.map->tab_registers[reg::holding::kWatchdogMs];
+  if (watchdog != 0 && !s.watchdog_tripped && Clock::now() - s.last_beat > std::chrono::milliseconds(watchdog)) {
+    s.watchdog_tripped = true;
+    s.server_faults |= fault_bits::kHeartbeatLost;
+    spdlog::warn("Modbus controller server: no client heartbeat for {} ms; stopping", watchdog);
+    try {
+      backend_.Execute(ControllerCommand::kStop);
+    } catch (const std::exception& e) {  // the caller's backend: see RefreshStatus
+      spdlog::error("controller backend failed to stop: {}", e.what());
+    }
+  }
+  RefreshStatus();
+}
+
+void ModbusControllerServer::HandleWrite(const std::uint8_t* query, int length, int address,
+                                         std::span<const std::uint16_t> values) {
+  Impl& s = *impl_;
+  const int end = address + static_cast<int>(values.size());
+  if (end > reg::holding::kCount) {
+    modbus_reply(s.ctx, query, length, s.map);  // illegal data address
+    return;
+  }
+  auto touches = [&](int a) { return a >= address && a < end; };
+  std::array<std::uint16_t, reg::holding::kCount> proposed{};
+  std::copy(s.map->tab_registers, s.map->tab_registers + reg::holding::kCount, proposed.begin());
+  std::copy(values.begin(), values.end(), proposed.begin() + address);
+
+  std::optional<ControllerCommand> command;
+  if (touches(reg::holding::kCommand)) {
+    const auto decoded = reg::DecodeCommand(proposed[reg::holding::kCommand]);
+    if (!decoded.ok()) return Refuse(query, decoded.refusal, MODBUS_EXCEPTION_ILLEGAL_DATA_VALUE);
+    command = *decoded.value;
+  }
+  const std::uint16_t sequence = proposed[reg::holding::kSequence];
+  if (touches(reg::holding::kSequence) && sequence != s.applied_sequence) {
+    const auto decoded = reg::DecodeSetPoint(
+        std::span<const std::uint16_t>(proposed.data() + reg::holding::kSetPointBlock, reg::holding::kSetPointCount));
+    if (!decoded.ok()) return Refuse(query, decoded.refusal, MODBUS_EXCEPTION_ILLEGAL_DATA_VALUE);
+    std::optional<std::string> reason;
+    try {
+      reason = backend_.Apply(*decoded.value);
+    } catch (const std::exception& e) {  // the caller's backend: answered as a device failure
+      return Refuse(query, {reg::RefusalCode::kDeviceFailure, reg::holding::kSequence, e.what()},
+                    MODBUS_EXCEPTION_SLAVE_OR_SERVER_FAILURE);
+    }
+    if (reason)
+      return Refuse(query, {reg::RefusalCode::kStateRefused, reg::holding::kSequence, *reason},
+                    MODBUS_EXCEPTION_ILLEGAL_DATA_VALUE);
+    // Applied: the block stays even if a command in the same request is refused below.
+    std::copy(proposed.begin() + reg::holding::kSetPointBlock,
+              proposed.begin() + reg::holding::kSetPointBlock + reg::holding::kSetPointCount,
+              s.map->tab_registers + reg::holding::kSetPointBlock);
+    s.applied_sequence = sequence;
+  }
+  if (command) {
+    std::optional<std::string> reason;
+    try {
+      reason = backend_.Execute(*command);
+    } catch (const std::exception& e) {  // the caller's backend: answered as a device failure
+      return Refuse(query, {reg::RefusalCode::kDeviceFailure, reg::holding::kCommand, e.what()},
+                    MODBUS_EXCEPTION_SLAVE_OR_SERVER_FAILURE);
+    }
+    if (reason)
+      return Refuse(query, {reg::RefusalCode::kStateRefused, reg::holding::kCommand, *reason},
+                    MODBUS_EXCEPTION_ILLEGAL_DATA_VALUE);
+    if (*command == ControllerCommand::kResetFaults) {
+      s.server_faults = 0;
+      s.watchdog_tripped = false;
+      s.last_beat = Clock::now();
+    }
+  }
+  if ((touches(reg::holding::kClientHeartbeat) &&
+       proposed[reg::holding::kClientHeartbeat] != s.map->tab_registers[reg::holding::kClientHeartbeat]) ||
+      touches(reg::holding::kWatchdogMs))
+    s.last_beat = Clock::now();
+  modbus_reply(s.ctx, query, length, s.map);
+}
+
+void ModbusControllerServer::Accept() {
+  Impl& s = *impl_;
+  const int fd = accept4(s.listen_fd, nullptr, nullptr, SOCK_CLOEXEC);
+  if (fd < 0) return;
+  if (static_cast<int>(s.clients.size()) >= options_.max_connections) {
+    spdlog::warn("Modbus controller server: refusing a connection beyond {}", options_.max_connections);
+    close(fd);
+  } else {
+    s.clients.push_back(fd);
+  }
+}
+
+bool ModbusControllerServer::Serve(int fd) {
+  Impl& s = *impl_;
+  std::uint8_t* query = s.query.data();
+  modbus_set_socket(s.ctx, fd);
+  const int length = modbus_receive(s.ctx, query);
+  if (length < 0) return false;  // closed by the peer, or a request cut off mid-way (byte timeout)
+  const int header = modbus_get_header_length(s.ctx);
+  if (length <= header) return true;
+  ++requests_;
+  RefreshStatus();
+  const std::uint8_t function = query[header];
+  if (function == MODBUS_FC_READ_HOLDING_REGISTERS || function == MODBUS_FC_READ_INPUT_REGISTERS) {
+    modbus_reply(s.ctx, query, length, s.map);
+  } else if (function == MODBUS_FC_WRITE_SINGLE_REGISTER || function == MODBUS_FC_WRITE_MULTIPLE_REGISTERS) {
+    const Write w = WriteOf(query, length, header);
+    if (w.values.empty())
+      modbus_reply(s.ctx, query, length, s.map);  // malformed: libmodbus answers the exception
+    else
+      HandleWrite(query, length, w.address, w.values);
+    RefreshStatus();
+  } else {
+    modbus_reply_exception(s.ctx, query, MODBUS_EXCEPTION_ILLEGAL_FUNCTION);
+  }
+  return true;
+}
+
 void ModbusControllerServer::Loop() {
   Impl& s = *impl_;
-  std::array<std::uint8_t, MODBUS_TCP_MAX_ADU_LENGTH> query{};
-  const int header = modbus_get_header_length(s.ctx);
-  auto next_tick = Clock::now();
-  const auto start = Clock::now();
-
-  auto refresh = [&] {
-    ControllerStatus status;
-    try {
-      status = backend_.Status();
-    } catch (const std::exception& e) {
-      if (!(s.server_faults & fault_bits::kDevice)) spdlog::error("controller backend failed: {}", e.what());
-      s.server_faults |= fault_bits::kDevice;
-      status.state = ControllerState::kFaulted;
-      status.time_ms = static_cast<std::uint32_t>(
-          std::chrono::duration_cast<std::chrono::milliseconds>(Clock::now() - start).count());
-    }
-    status.applied_sequence = s.applied_sequence;
-    status.heartbeat = s.heartbeat;
-    status.fault_word |= s.server_faults;
-    if (s.map->tab_registers[reg::holding::kWatchdogMs] != 0) status.status_word |= status_bits::kWatchdogEnabled;
-    const reg::StatusBlock block = reg::EncodeStatus(status);
-    std::copy(block.begin(), block.end(), s.map->tab_input_registers + reg::input::kStatusBlock);
-  };
-
-  auto refuse = [&](const std::uint8_t* q, reg::Refusal refusal, unsigned exception) {
-    spdlog::debug("Modbus controller server refuses a write: {}", refusal.message);
-    const reg::RefusalBlock block = reg::EncodeRefusal(refusal);
-    std::copy(block.begin(), block.end(), s.map->tab_input_registers + reg::input::kRefusalBlock);
-    modbus_reply_exception(s.ctx, q, exception);
-    ++refusals_;
-  };
-
-  auto tick = [&] {
-    ++s.heartbeat;
-    const std::uint16_t watchdog = s.map->tab_registers[reg::holding::kWatchdogMs];
-    if (watchdog != 0 && !s.watchdog_tripped && Clock::now() - s.last_beat > std::chrono::milliseconds(watchdog)) {
-      s.watchdog_tripped = true;
-      s.server_faults |= fault_bits::kHeartbeatLost;
-      spdlog::warn("Modbus controller server: no client heartbeat for {} ms; stopping", watchdog);
-      try {
-        backend_.Execute(ControllerCommand::kStop);
-      } catch (const std::exception& e) {
-        spdlog::error("controller backend failed to stop: {}", e.what());
-      }
-    }
-    refresh();
-  };
-
-  // Validates a write against the registers it would leave, applies a committed set-point and a
-  // command, and answers. Returns after replying (normally or with an exception).
-  auto handle_write = [&](const std::uint8_t* q, int length, const Write& w) {
-    const int end = w.address + static_cast<int>(w.values.size());
-    if (end > reg::holding::kCount) {
-      modbus_reply(s.ctx, q, length, s.map);  // illegal data address
-      return;
-    }
-    auto touches = [&](int address) { return address >= w.address && address < end; };
-    std::array<std::uint16_t, reg::holding::kCount> proposed{};
-    std::copy(s.map->tab_registers, s.map->tab_registers + reg::holding::kCount, proposed.begin());
-    std::copy(w.values.begin(), w.values.end(), proposed.begin() + w.address);
-
-    std::optional<ControllerCommand> command;
-    if (touches(reg::holding::kCommand)) {
-      const auto decoded = reg::DecodeCommand(proposed[reg::holding::kCommand]);
-      if (!decoded.ok()) return refuse(q, decoded.refusal, MODBUS_EXCEPTION_ILLEGAL_DATA_VALUE);
-      command = *decoded.value;
-    }
-    const std::uint16_t sequence = proposed[reg::holding::kSequence];
-    if (touches(reg::holding::kSequence) && sequence != s.applied_sequence) {
-      const auto decoded = reg::DecodeSetPoint(
-          std::span<const std::uint16_t>(proposed.data() + reg::holding::kSetPointBlock, reg::holding::kSetPointCount));
-      if (!decoded.ok()) return refuse(q, decoded.refusal, MODBUS_EXCEPTION_ILLEGAL_DATA_VALUE);
-      std::optional<std::string> reason;
-      try {
-        reason = backend_.Apply(*decoded.value);
-      } catch (const std::exception& e) {
-        return refuse(q, {reg::RefusalCode::kDeviceFailure, reg::holding::kSequence, e.what()},
-                      MODBUS_EXCEPTION_SLAVE_OR_SERVER_FAILURE);
-      }
-      if (reason) return refuse(q, {reg::RefusalCode::kStateRefused, reg::holding::kSequence, *reason},
-                                MODBUS_EXCEPTION_ILLEGAL_DATA_VALUE);
-      // Applied: the block stays even if a command in the same request is refused below.
-      std::copy(proposed.begin() + reg::holding::kSetPointBlock,
-                proposed.begin() + reg::holding::kSetPointBlock + reg::holding::kSetPointCount,
-                s.map->tab_registers + reg::holding::kSetPointBlock);
-      s.applied_sequence = sequence;
-    }
-    if (command) {
-      std::optional<std::string> reason;
-      try {
-        reason = backend_.Execute(*command);
-      } catch (const std::exception& e) {
-        return refuse(q, {reg::RefusalCode::kDeviceFailure, reg::holding::kCommand, e.what()},
-                      MODBUS_EXCEPTION_SLAVE_OR_SERVER_FAILURE);
-      }
-      if (reason) return refuse(q, {reg::RefusalCode::kStateRefused, reg::holding::kCommand, *reason},
-                                MODBUS_EXCEPTION_ILLEGAL_DATA_VALUE);
-      if (*command == ControllerCommand::kResetFaults) {
-        s.server_faults = 0;
-        s.watchdog_tripped = false;
-        s.last_beat = Clock::now();
-      }
-    }
-    if ((touches(reg::holding::kClientHeartbeat) &&
-         proposed[reg::holding::kClientHeartbeat] != s.map->tab_registers[reg::holding::kClientHeartbeat]) ||
-        touches(reg::holding::kWatchdogMs))
-      s.last_beat = Clock::now();
-    modbus_reply(s.ctx, q, length, s.map);
-  };
-
+  s.start = Clock::now();
+  auto next_tick = s.start;
   while (!stop_) {
     fd_set readable;
     FD_ZERO(&readable);
@@ -265,52 +310,19 @@ void ModbusControllerServer::Loop() {
       break;
     }
     if (Clock::now() >= next_tick) {
-      tick();
+      Tick();
       next_tick += options_.tick;
       if (next_tick < Clock::now()) next_tick = Clock::now() + options_.tick;  // fell behind: no burst
     }
     if (ready <= 0) continue;
-    if (FD_ISSET(s.listen_fd, &readable)) {
-      const int fd = accept4(s.listen_fd, nullptr, nullptr, SOCK_CLOEXEC);
-      if (fd >= 0) {
-        if (static_cast<int>(s.clients.size()) >= options_.max_connections) {
-          spdlog::warn("Modbus controller server: refusing a connection beyond {}", options_.max_connections);
-          close(fd);
-        } else {
-          s.clients.push_back(fd);
-        }
-      }
-    }
+    if (FD_ISSET(s.listen_fd, &readable)) Accept();
     for (auto it = s.clients.begin(); it != s.clients.end();) {
-      if (!FD_ISSET(*it, &readable)) {
-        ++it;
-        continue;
-      }
-      modbus_set_socket(s.ctx, *it);
-      const int length = modbus_receive(s.ctx, query.data());
-      if (length < 0) {  // closed by the peer, or a request cut off mid-way (byte timeout)
+      if (FD_ISSET(*it, &readable) && !Serve(*it)) {
         close(*it);
         it = s.clients.erase(it);
-        continue;
+      } else {
+        ++it;
       }
-      if (length > header) {
-        ++requests_;
-        refresh();
-        const std::uint8_t function = query[header];
-        if (function == MODBUS_FC_READ_HOLDING_REGISTERS || function == MODBUS_FC_READ_INPUT_REGISTERS) {
-          modbus_reply(s.ctx, query.data(), length, s.map);
-        } else if (function == MODBUS_FC_WRITE_SINGLE_REGISTER || function == MODBUS_FC_WRITE_MULTIPLE_REGISTERS) {
-          const Write w = WriteOf(query.data(), length, header);
-          if (w.values.empty())
-            modbus_reply(s.ctx, query.data(), length, s.map);  // malformed: libmodbus answers the exception
-          else
-            handle_write(query.data(), length, w);
-          refresh();
-        } else {
-          modbus_reply_exception(s.ctx, query.data(), MODBUS_EXCEPTION_ILLEGAL_FUNCTION);
-        }
-      }
-      ++it;
     }
   }
   modbus_set_socket(s.ctx, -1);

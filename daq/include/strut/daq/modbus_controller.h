@@ -145,7 +145,21 @@ class ModbusControllerServer {
 
  private:
   class Impl;
+  //! The server's thread: select() over the listening socket and the clients, ticking on time.
   void Loop();
+  //! The heartbeat tick: counts, trips the watchdog when the client fell silent, refreshes.
+  void Tick();
+  //! The status block of the input registers from the backend's status and the server's own state.
+  void RefreshStatus();
+  //! Takes a waiting connection, or closes it when max_connections are open.
+  void Accept();
+  //! Receives and answers one request on `fd`; false when the connection is gone.
+  bool Serve(int fd);
+  //! Validates a write of `values` at `address` against the registers it would leave, applies a
+  //! committed set-point and a command, and answers (normally or with an exception).
+  void HandleWrite(const std::uint8_t* query, int length, int address, std::span<const std::uint16_t> values);
+  //! Records the refusal in its input registers and answers the Modbus `exception`.
+  void Refuse(const std::uint8_t* query, const registers::Refusal& refusal, unsigned exception);
 
   ControllerBackend& backend_;
   ModbusServerOptions options_;

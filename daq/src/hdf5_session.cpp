@@ -11,9 +11,12 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <exception>
 #include <filesystem>
 #include <fstream>
+#include <new>
 #include <optional>
+#include <stdexcept>
 
 #include "hdf5_handle.h"
 #include "strut/daq/atomic_file.h"
@@ -299,7 +302,10 @@ std::optional<std::vector<double>> GetSamples(hid_t dataset, std::string& error)
   std::vector<double> samples;
   try {
     samples.resize(*count);
-  } catch (const std::exception&) {  // bad_alloc or length_error: a damaged or absurd extent
+  } catch (const std::bad_alloc&) {  // a damaged or absurd extent
+    error = fmt::format("cannot hold {} samples in memory", *count);
+    return std::nullopt;
+  } catch (const std::length_error&) {
     error = fmt::format("cannot hold {} samples in memory", *count);
     return std::nullopt;
   }
@@ -312,20 +318,37 @@ std::optional<std::vector<double>> GetSamples(hid_t dataset, std::string& error)
   return samples;
 }
 
+// The names an HDF5 iteration collects. No exception may cross the C library, so the callback
+// keeps whatever it threw (a bad_alloc) and Rethrow() raises it after the iteration.
+struct NameCollector {
+  std::vector<std::string> names;
+  std::exception_ptr error;
+
+  static herr_t Add(const char* name, void* data) {
+    auto* self = static_cast<NameCollector*>(data);
+    try {
+      self->names.emplace_back(name);
+      return 0;
+    } catch (...) {  // carried across the C library, rethrown by Rethrow()
+      self->error = std::current_exception();
+      return -1;
+    }
+  }
+  void Rethrow() const {
+    if (error) std::rethrow_exception(error);
+  }
+};
+
 // Names of the attributes of `object`, in name order.
 std::vector<std::string> AttributeNames(hid_t object) {
-  std::vector<std::string> names;
+  NameCollector collector;
   hsize_t index = 0;
   H5A_operator2_t collect = [](hid_t, const char* name, const H5A_info_t*, void* data) -> herr_t {
-    try {
-      static_cast<std::vector<std::string>*>(data)->emplace_back(name);
-      return 0;
-    } catch (...) {
-      return -1;  // no exception may cross the C library
-    }
+    return NameCollector::Add(name, data);
   };
-  H5Aiterate2(object, H5_INDEX_NAME, H5_ITER_INC, &index, collect, &names);
-  return names;
+  H5Aiterate2(object, H5_INDEX_NAME, H5_ITER_INC, &index, collect, &collector);
+  collector.Rethrow();
+  return std::move(collector.names);
 }
 
 // Names of the links in `group`: in creation order when the group records it (strut writes
@@ -338,19 +361,14 @@ std::optional<std::vector<std::string>> LinkNames(hid_t group) {
       (flags & H5P_CRT_ORDER_INDEXED) != 0) {
     order = H5_INDEX_CRT_ORDER;
   }
-  std::vector<std::string> names;
+  NameCollector collector;
   hsize_t index = 0;
   // `auto` fits both the 1.10 (H5L_info_t) and the 1.12 (H5L_info2_t) callback.
-  auto collect = [](hid_t, const char* name, const auto*, void* data) -> herr_t {
-    try {
-      static_cast<std::vector<std::string>*>(data)->emplace_back(name);
-      return 0;
-    } catch (...) {
-      return -1;
-    }
-  };
-  if (H5Literate(group, order, H5_ITER_INC, &index, collect, &names) < 0) return std::nullopt;
-  return names;
+  auto collect = [](hid_t, const char* name, const auto*, void* data) -> herr_t { return NameCollector::Add(name, data); };
+  const herr_t status = H5Literate(group, order, H5_ITER_INC, &index, collect, &collector);
+  collector.Rethrow();
+  if (status < 0) return std::nullopt;
+  return std::move(collector.names);
 }
 
 // Reads from file systems without lock support (some NFS mounts) instead of failing there.

@@ -251,6 +251,12 @@ std::string Iso8601Ms(std::int64_t utc_ns) {
 
 namespace {
 
+//! A record whose layout or content the writer cannot have produced (a damaged journal).
+class DamagedRecord : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
 using journal::RecordType;
 using nlohmann::json;
 
@@ -286,14 +292,14 @@ ExperimentKind KindFromText(const std::string& text) {
   if (text == "drop") return ExperimentKind::kDrop;
   if (text == "static") return ExperimentKind::kStatic;
   if (text == "record") return ExperimentKind::kRecord;
-  throw std::invalid_argument("unknown experiment kind '" + text + "'");
+  throw DamagedRecord("unknown experiment kind '" + text + "'");
 }
 
 EndStatus EndFromText(const std::string& text) {
   if (text == "complete") return EndStatus::kComplete;
   if (text == "not-steady") return EndStatus::kNotSteady;
   if (text == "aborted") return EndStatus::kAborted;
-  throw std::invalid_argument("unknown end status '" + text + "'");
+  throw DamagedRecord("unknown end status '" + text + "'");
 }
 
 // A number the writer may have stored as null (JSON has no NaN or Inf).
@@ -415,7 +421,7 @@ class JournalReader {
 
 template <typename T>
 const std::byte* Take(const std::byte* p, const std::byte* end, std::size_t n, std::vector<T>& out) {
-  if (static_cast<std::size_t>(end - p) < n * sizeof(T)) throw std::out_of_range("block shorter than its counts");
+  if (static_cast<std::size_t>(end - p) < n * sizeof(T)) throw DamagedRecord("block shorter than its counts");
   const std::size_t old = out.size();
   out.resize(old + n);
   std::memcpy(out.data() + old, p, n * sizeof(T));
@@ -426,7 +432,7 @@ const std::byte* Take(const std::byte* p, const std::byte* end, std::size_t n, s
 template <typename T>
 const std::byte* TakeAsDouble(const std::byte* p, const std::byte* end, std::size_t n,
                               std::vector<double>& out) {
-  if (static_cast<std::size_t>(end - p) < n * sizeof(T)) throw std::out_of_range("block shorter than its counts");
+  if (static_cast<std::size_t>(end - p) < n * sizeof(T)) throw DamagedRecord("block shorter than its counts");
   for (std::size_t i = 0; i < n; ++i, p += sizeof(T)) {
     T v;
     std::memcpy(&v, p, sizeof(T));
@@ -436,7 +442,7 @@ const std::byte* TakeAsDouble(const std::byte* p, const std::byte* end, std::siz
 }
 
 void AppendBlock(Building& b, std::span<const std::byte> payload) {
-  if (payload.size() < 12) throw std::out_of_range("block header cut off");
+  if (payload.size() < 12) throw DamagedRecord("block header cut off");
   std::uint32_t n = 0;
   std::uint16_t values = 0, counts = 0;
   std::uint8_t sequence = 0, status = 0;
@@ -447,12 +453,12 @@ void AppendBlock(Building& b, std::span<const std::byte> payload) {
   std::memcpy(&status, payload.data() + 9, 1);
   if (values != b.values.size() || counts != b.counts.size() ||
       (sequence != 0) != b.descriptor.sequence || (status != 0) != b.descriptor.status) {
-    throw std::out_of_range("block does not match its experiment's channels");
+    throw DamagedRecord("block does not match its experiment's channels");
   }
   // Checked before anything is copied, so a bad block leaves the experiment as it was.
   const std::size_t expected = 12 + std::size_t{n} * (8 + 8 * values + 4 * counts +
                                                      (sequence ? 8 : 0) + (status ? 4 : 0));
-  if (payload.size() != expected) throw std::out_of_range("block size does not match its counts");
+  if (payload.size() != expected) throw DamagedRecord("block size does not match its counts");
   const std::byte* p = payload.data() + 12;
   const std::byte* end = payload.data() + payload.size();
   p = Take(p, end, n, b.monotonic_ns);
@@ -460,7 +466,7 @@ void AppendBlock(Building& b, std::span<const std::byte> payload) {
   for (auto& c : b.counts) p = TakeAsDouble<std::int32_t>(p, end, n, c);
   if (sequence) p = TakeAsDouble<std::uint64_t>(p, end, n, b.sequence);
   if (status) p = TakeAsDouble<std::uint32_t>(p, end, n, b.status);
-  if (p != end) throw std::out_of_range("block longer than its counts");
+  if (p != end) throw DamagedRecord("block longer than its counts");
 }
 
 // UTC of a monotonic time from the latest clock pair before it (else the first one).
@@ -481,7 +487,7 @@ class Assembler {
 
   void Apply(RecordType type, std::span<const std::byte> payload) {
     if (type == RecordType::kBlock) {
-      if (open_ == nullptr) throw std::out_of_range("samples outside an experiment");
+      if (open_ == nullptr) throw DamagedRecord("samples outside an experiment");
       AppendBlock(*open_, payload);
       return;
     }
@@ -502,7 +508,7 @@ class Assembler {
         break;
       }
       case RecordType::kBegin: {
-        if (open_ != nullptr) throw std::out_of_range("an experiment begins inside another");
+        if (open_ != nullptr) throw DamagedRecord("an experiment begins inside another");
         Building& b = experiments_.emplace_back();
         b.descriptor = DescriptorFromJson(j);
         b.values.resize(b.descriptor.header.channels.size());
@@ -524,7 +530,7 @@ class Assembler {
         break;
       }
       case RecordType::kEnd: {
-        if (open_ == nullptr) throw std::out_of_range("an experiment ends that did not begin");
+        if (open_ == nullptr) throw DamagedRecord("an experiment ends that did not begin");
         open_->ended = true;
         open_->end = EndFromText(j.at("status").get<std::string>());
         open_->periods = j.at("periods").get<long>();
@@ -541,7 +547,7 @@ class Assembler {
       case RecordType::kResume: {
         // A new process goes on recording: its monotonic clock may be another boot's, so the
         // pair it brings maps its times to UTC from here on.
-        if (open_ != nullptr) throw std::out_of_range("a resume inside an experiment");
+        if (open_ != nullptr) throw DamagedRecord("a resume inside an experiment");
         const std::int64_t t = j.at("monotonic_ns").get<std::int64_t>();
         clock_.push_back({t, j.at("utc_ns").get<std::int64_t>()});
         events_.push_back({t, "resumed", j.at("text").get<std::string>(), {}});
@@ -552,7 +558,7 @@ class Assembler {
         MergeGroup(journal::GroupFromJson(j));
         break;
       default:
-        throw std::out_of_range(fmt::format("unknown record type {}", static_cast<int>(type)));
+        throw DamagedRecord(fmt::format("unknown record type {}", static_cast<int>(type)));
     }
   }
 
@@ -571,7 +577,7 @@ class Assembler {
   // Attributes replace those of the same name; subgroups replace the same-named or are appended.
   void MergeGroup(MetadataGroup group) {
     if (group.name == "experiments" || group.name == "recording" || group.name.empty())
-      throw std::out_of_range("metadata group '" + group.name + "' is reserved");
+      throw DamagedRecord("metadata group '" + group.name + "' is reserved");
     auto it = std::find_if(session_.metadata.begin(), session_.metadata.end(),
                            [&](const MetadataGroup& g) { return g.name == group.name; });
     if (it == session_.metadata.end()) {
@@ -714,7 +720,10 @@ Session ReadJournal(const std::string& journal_path, JournalReport* report_out) 
     }
     try {
       assembler.Apply(type, payload);
-    } catch (const std::exception& e) {  // json or layout errors: a damaged record
+    } catch (const nlohmann::json::exception& e) {  // a damaged record's JSON
+      problem = fmt::format("record at byte {} is damaged ({})", good, e.what());
+      break;
+    } catch (const DamagedRecord& e) {
       problem = fmt::format("record at byte {} is damaged ({})", good, e.what());
       break;
     }

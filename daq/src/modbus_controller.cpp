@@ -291,7 +291,7 @@ void ModbusController::IoLoop() {
       try {
         pending->job(*connection_);
         pending->done.set_value();
-      } catch (...) {
+      } catch (...) {  // the I/O thread's boundary: the caller waiting on `done` gets the exception
         pending->done.set_exception(std::current_exception());
       }
       lock.lock();

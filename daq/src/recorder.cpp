@@ -244,6 +244,9 @@ struct Recorder::Impl {
           unsynced_bytes = 0;
         }
       } catch (const std::exception& e) {
+        // The writer thread's boundary, before a sink the caller may have written: whatever it
+        // throws becomes the recorder's failure, which the next Append and Close throw to the
+        // producers as RecorderError (a throw out of this thread would end the process).
         error = e.what();
         failed = true;
       }
@@ -426,7 +429,7 @@ Recorder& Recorder::operator=(Recorder&& other) noexcept {
     if (impl_ && !impl_->closed) {
       try {
         impl_->Close(false);
-      } catch (const std::exception& e) {
+      } catch (const RecorderError& e) {  // Close's one error type; an assignment cannot throw it on
         spdlog::error("{}", e.what());
       }
     }
@@ -439,7 +442,7 @@ Recorder::~Recorder() {
   if (!impl_ || impl_->closed) return;
   try {
     impl_->Close(false);
-  } catch (const std::exception& e) {
+  } catch (const RecorderError& e) {  // Close's one error type; a destructor cannot throw it on
     spdlog::error("{}", e.what());
   }
 }

@@ -172,7 +172,10 @@ ReplayAcquisition::ReplayAcquisition(Session session, ReplayOptions options)
       if (const auto requested = e.extra_attributes.find("requested_periods"); requested != e.extra_attributes.end()) {
         try {
           x.header.periods = std::stol(requested->second);
-        } catch (const std::exception&) {
+        } catch (const std::invalid_argument&) {
+          spdlog::warn("{}: experiment '{}': requested_periods '{}' is no number; replayed without it", file, e.label,
+                       requested->second);
+        } catch (const std::out_of_range&) {
           spdlog::warn("{}: experiment '{}': requested_periods '{}' is no number; replayed without it", file, e.label,
                        requested->second);
         }

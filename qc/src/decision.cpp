@@ -5,6 +5,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <stdexcept>
 
 
 namespace strut::qc {
@@ -61,6 +62,16 @@ std::string Meaning(const std::string& name, double value, double nominal, int s
     return fmt::format("load cell zero {:+.0f} N from nominal: re-zero the load cell", value - nominal);
   }
   return fmt::format("{:.4g} against {:.4g}", value, nominal);
+}
+
+// The decision when the session cannot be judged: undecided, with the reason.
+Decision Undecided(std::string reason, const Reference& reference) {
+  Decision d;
+  d.verdict = Verdict::kUndecided;
+  d.reasons.push_back(std::move(reason));
+  d.reference = reference.source;
+  d.reference_kind = reference.kind;
+  return d;
 }
 
 }  // namespace
@@ -195,12 +206,14 @@ Decision RunQc(const daq::Session& session, const std::string& name, const Refer
     d = Decide(ComputeQuantities(model, fit.summary), reference, fit.summary.Verdict(), fit.data.issues);
     d.fit_verdict_text = fit.summary.VerdictText();
     if (fit_out) *fit_out = std::move(fit);
-  } catch (const std::exception& e) {
-    d = Decision{};
-    d.verdict = Verdict::kUndecided;
-    d.reasons.push_back(name + ": " + e.what());
-    d.reference = reference.source;
-    d.reference_kind = reference.kind;
+  } catch (const ident::EstimationError& e) {  // the session does not fit: undecided, with why
+    d = Undecided(name + ": " + e.what(), reference);
+  } catch (const ident::PeriodicSolverError& e) {
+    d = Undecided(name + ": " + e.what(), reference);
+  } catch (const daq::SessionError& e) {  // a channel or experiment the fit needs is not there
+    d = Undecided(name + ": " + e.what(), reference);
+  } catch (const std::invalid_argument& e) {  // the reference's model, or data the fit cannot take
+    d = Undecided(name + ": " + e.what(), reference);
   }
   d.model = model_name;
   d.serial = session.damper_serial;
@@ -213,13 +226,9 @@ Decision RunQc(const std::string& session_path, const Reference& reference, iden
   daq::Session session;
   try {
     session = daq::ReadSession(session_path);
-  } catch (const std::exception& e) {
-    Decision d;
-    d.verdict = Verdict::kUndecided;
-    d.reasons.push_back(std::string("cannot read the session: ") + e.what());
+  } catch (const daq::SessionError& e) {
+    Decision d = Undecided(std::string("cannot read the session: ") + e.what(), reference);
     d.session = session_path;
-    d.reference = reference.source;
-    d.reference_kind = reference.kind;
     return d;
   }
   return RunQc(session, session_path, reference, fit);

@@ -164,7 +164,7 @@ long History::Record(const Decision& d, const std::string& time) {
     }
     Exec("COMMIT");
     return id;
-  } catch (...) {
+  } catch (...) {  // whatever failed, the transaction is undone and the error goes on to the caller
     sqlite3_exec(db_, "ROLLBACK", nullptr, nullptr, nullptr);
     throw;
   }
@@ -194,7 +194,7 @@ std::vector<HistoryEntry> History::Query(const std::optional<std::string>& seria
     e.verdict = s.Text(6);
     try {
       e.reasons = nlohmann::json::parse(s.Text(7)).get<std::vector<std::string>>();
-    } catch (const std::exception&) {
+    } catch (const nlohmann::json::exception&) {  // a row written by hand: its text is the one reason
       e.reasons = {s.Text(7)};
     }
     at[e.id] = out.size();

@@ -33,7 +33,7 @@ std::string CompositionNote(const DiscoveryResult& r) {
   std::string canonical = r.final_model;
   try {
     canonical = Model::Build(chain, Causality::kStrokeInput).composition();
-  } catch (const std::exception&) {
+  } catch (const ModelError&) {
     // A chain the catalogue cannot build again: say only what discovery reported.
   }
   if (canonical != r.final_model) return "";

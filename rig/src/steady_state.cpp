@@ -196,7 +196,9 @@ std::vector<CycleSummary> CyclesFromGroup(const daq::MetadataGroup& g) {
     CycleSummary c;
     try {
       c.cycle = std::stol(s.name);
-    } catch (const std::exception&) {
+    } catch (const std::invalid_argument&) {
+      throw daq::SessionError(fmt::format("group '{}/{}': the name is no cycle number", g.name, s.name));
+    } catch (const std::out_of_range&) {
       throw daq::SessionError(fmt::format("group '{}/{}': the name is no cycle number", g.name, s.name));
     }
     c.start_ns = static_cast<std::int64_t>(get("start_ns"));

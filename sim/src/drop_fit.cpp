@@ -165,11 +165,7 @@ ident::TransientPrediction DropExperimentPredictor::Predict(std::span<const doub
       }
     }
     steps_ = ida.steps();
-  } catch (const ident::TransientPredictionError&) {
-    throw;
-  } catch (const std::invalid_argument&) {
-    throw;
-  } catch (const std::exception& e) {
+  } catch (const TransientError& e) {  // the integration failed: no prediction at these values
     throw ident::TransientPredictionError(fmt::format("drop predictor: {}", e.what()));
   }
   return out;

@@ -220,17 +220,21 @@ DropPrediction PredictDrop(const ident::Model& model, std::span<const double> th
       plus[i] += sd;
       minus[i] -= sd;
       const bool plus_ok = specs.spec(i).range.contains(plus[i]), minus_ok = specs.spec(i).range.contains(minus[i]);
+      if (!plus_ok && !minus_ok) {
+        prediction.interval_notes.push_back(fmt::format(
+            "{}: a run one sd off failed (both sides outside the physical range), left out of the intervals", key));
+        continue;
+      }
       try {
         const std::vector<double> up = plus_ok ? FigureValues(run(plus, nullptr)) : nominal;
         const std::vector<double> down = minus_ok ? FigureValues(run(minus, nullptr)) : nominal;
         prediction.simulations += plus_ok + minus_ok;
         const double span = (plus_ok ? sd : 0.0) + (minus_ok ? sd : 0.0);
-        if (span == 0.0) throw std::runtime_error("both sides outside the physical range");
         Eigen::VectorXd g(nf);
         for (int f = 0; f < nf; ++f) g[f] = (up[f] - down[f]) / span;
         used.push_back(a);
         columns.push_back(g);
-      } catch (const std::exception& e) {
+      } catch (const TransientError& e) {  // the drop is not integrable one sd off
         prediction.interval_notes.push_back(fmt::format("{}: a run one sd off failed ({}), left out of the intervals", key, e.what()));
       }
     }
@@ -393,7 +397,9 @@ std::vector<MissingPhysics> AttributeMissingPhysics(const std::string& truth_com
           words += fmt::format("{}{} {:+.1f} %", words.empty() ? "" : ", ", DropFigureNames()[f].name, 100 * change);
       }
       m.affects = words.empty() ? fmt::format("no figure by more than {:.1f} %", 100 * threshold) : words;
-    } catch (const std::exception& e) {
+    } catch (const TransientError& e) {  // the drop without the term is not integrable
+      m.affects = fmt::format("could not be separated ({})", e.what());
+    } catch (const std::invalid_argument& e) {  // the composition without it cannot be built or run
       m.affects = fmt::format("could not be separated ({})", e.what());
     }
     out.push_back(m);

@@ -35,8 +35,8 @@ int ResidualCallback(double t, N_Vector y, N_Vector yp, N_Vector r, void* user) 
     for (double v : rs)
       if (!std::isfinite(v)) return 1;  // recoverable: IDA retries with a smaller step
     return 0;
-  } catch (const std::exception& e) {
-    data->failure = fmt::format("residual failed at t = {:.9g} s: {}", t, e.what());
+  } catch (...) {  // no exception may cross IDAS: IdaRun::Fail rethrows it once IDAS has returned
+    data->error = std::current_exception();
     return -1;
   }
 }
@@ -51,8 +51,8 @@ int JacobianCallback(double t, double cj, N_Vector y, N_Vector yp, N_Vector, SUN
     if (!j.allFinite()) return 1;
     for (int c = 0; c < n; ++c) std::copy(j.col(c).data(), j.col(c).data() + n, SUNDenseMatrix_Column(jac, c));
     return 0;
-  } catch (const std::exception& e) {
-    data->failure = fmt::format("Jacobian failed at t = {:.9g} s: {}", t, e.what());
+  } catch (...) {  // no exception may cross IDAS: IdaRun::Fail rethrows it once IDAS has returned
+    data->error = std::current_exception();
     return -1;
   }
 }
@@ -74,8 +74,8 @@ int SensitivityCallback(int ns, double t, N_Vector y, N_Vector yp, N_Vector, N_V
     if (!r.allFinite()) return 1;
     for (int k = 0; k < ns; ++k) Eigen::Map<Eigen::VectorXd>(N_VGetArrayPointer(rs[k]), n) = r.col(k);
     return 0;
-  } catch (const std::exception& e) {
-    data->failure = fmt::format("sensitivity residual failed at t = {:.9g} s: {}", t, e.what());
+  } catch (...) {  // no exception may cross IDAS: IdaRun::Fail rethrows it once IDAS has returned
+    data->error = std::current_exception();
     return -1;
   }
 }
@@ -202,6 +202,7 @@ void IdaRun::BudgetExceeded() const {
 }
 
 void IdaRun::Fail(int flag, const std::string& what) {
+  if (data_.error) std::rethrow_exception(data_.error);
   const std::string detail = !data_.failure.empty() ? data_.failure : data_.ida_message;
   throw TransientError(fmt::format("transient: {} failed at t = {:.9g} s with {}{}{}", what, t_, FlagName(flag),
                                    detail.empty() ? "" : ": ", detail),

@@ -10,6 +10,7 @@
 
 #include <Eigen/Dense>
 #include <cmath>
+#include <exception>
 #include <span>
 #include <string>
 #include <vector>
@@ -44,6 +45,7 @@ struct CallbackData {
   const DaeSystem* system = nullptr;
   const SensitivitySetup* sensitivities = nullptr;
   std::string failure;      //!< why a callback returned an unrecoverable error
+  std::exception_ptr error;  //!< what a callback threw (its system's or input's own error)
   std::string ida_message;  //!< the last message of IDAS's error handler
 };
 

@@ -119,6 +119,8 @@ void RigServer::Loop() {
     try {
       controller_.Advance(next, sink);
     } catch (const std::exception& e) {
+      // The streaming thread's boundary: whatever the plant or the sink threw ends the stream and
+      // is kept in error_ for the caller (a throw out of this thread would end the process).
       spdlog::error("simulated rig: the stream stops: {}", e.what());
       std::lock_guard lock(mutex_);
       error_ = e.what();

@@ -435,7 +435,7 @@ double SimulatedController::Advance(double to_time, const SampleSink& sink) {
                                 {&chunk.force, &first.force}, {&chunk.pressure, &first.pressure}})
           std::copy(from->begin(), from->begin() + upto, to->begin());
       }
-    } catch (const std::exception& e) {
+    } catch (const std::exception& e) {  // whatever the plant threw: recorded as the device fault, then rethrown
       std::lock_guard lock(mutex_);
       failed_ = true;
       failure_ = e.what();

@@ -252,7 +252,7 @@ std::vector<Eigen::MatrixXd> TransientPredictor::OutputSensitivities(const ident
     run.emplace(ida_->ctx, system, options_.integrator, std::span<const double>(y0.data(), size),
                 std::span<const double>(yp0.data(), size), &setup);
     run->ConsistentStart(1.0 / (n * f));
-  } catch (const std::exception& e) {
+  } catch (const TransientError& e) {
     throw PeriodicSolverError(fmt::format("transient predictor: sensitivities: {}", e.what()), NAN, 0);
   }
   detail::IdaRun& ida = *run;
@@ -309,9 +309,7 @@ std::vector<Eigen::MatrixXd> TransientPredictor::OutputSensitivities(const ident
       ida.AdvanceTo(period_end, period_end);
       store(0);
     }
-  } catch (const ident::PeriodicSolverError&) {
-    throw;
-  } catch (const std::exception& e) {
+  } catch (const TransientError& e) {
     throw PeriodicSolverError(fmt::format("transient predictor: sensitivities: {}", e.what()), NAN, 0);
   }
   if (!converged)

@@ -210,7 +210,10 @@ std::optional<std::vector<double>> HeldOutRatios(const FitData& data, const Mode
       }
       if (n > 0) ratios.push_back(sum / n);
     }
-  } catch (const std::exception& e) {
+  } catch (const EstimationError& e) {  // the fold's data have no solution: no ratio from it
+    spdlog::debug("cross-validation fold {} of {}: {}", k + 1, model.composition(), e.what());
+    return std::nullopt;
+  } catch (const PeriodicSolverError& e) {
     spdlog::debug("cross-validation fold {} of {}: {}", k + 1, model.composition(), e.what());
     return std::nullopt;
   }
@@ -430,7 +433,11 @@ void DiscoveryRun::Refit(Round& round, const FitSummary& current, int number) {
       if (!r.ok) r.error = round.fits[c].VerdictText();
       r.delta_bic = round.fits[c].bic - current.bic;
       r.noise_ratio = PooledNoiseRatio(round.fits[c]);
-    } catch (const std::exception& e) {
+    } catch (const EstimationError& e) {  // the candidate does not fit: reported, the round goes on
+      r.error = e.what();
+    } catch (const PeriodicSolverError& e) {
+      r.error = e.what();
+    } catch (const std::invalid_argument& e) {  // its model or starting values cannot be built
       r.error = e.what();
     }
     seconds[c] = watch.Seconds();

@@ -117,7 +117,7 @@ FitSummary Estimator::Fit(const std::vector<ExperimentData>& data, const Paramet
   summary.warnings = problem.warnings();
   problem.Solve(initial.values(), true, 0, progress);
   if (problem.active_count() == 0)
-    throw std::runtime_error("estimator: no experiment has a solution at the starting values");
+    throw EstimationError("estimator: no experiment has a solution at the starting values");
 
   internal::MinimizerSummary minimum =
       internal::Minimize(problem, scaled, priors, bounds, options_, initial.values(), progress);

@@ -149,7 +149,10 @@ std::optional<PeriodicSolution> MeasuredStrokeStart(const Model& model, const Mo
     guess.unknowns = PeriodicResample(states.unknowns, n);
     for (int mu = 0; mu < n; ++mu) guess.unknowns(0, mu) = measured.values[mu] - outputs[0];
     return guess;
-  } catch (const std::exception& e) {  // no stroke-driven solution there: the usual cold start
+  } catch (const PeriodicSolverError& e) {  // no stroke-driven solution there: the usual cold start
+    spdlog::debug("experiment '{}': no start from the measured stroke ({})", d.label, e.what());
+    return std::nullopt;
+  } catch (const ModelError& e) {  // no static equilibrium at a measured stroke
     spdlog::debug("experiment '{}': no start from the measured stroke ({})", d.label, e.what());
     return std::nullopt;
   }
@@ -401,7 +404,10 @@ FitProblem::FitProblem(const Model& model, const EstimatorOptions& options, cons
     t.data = &d;
     try {
       t.predictor = options.transient_predictor(model, d);
-    } catch (const std::exception& e) {
+    } catch (const TransientPredictionError& e) {  // the predictor cannot take this record
+      warnings_.push_back(fmt::format("{}: {} experiment '{}' left out: {}", d.session, d.kind, d.label, e.what()));
+      continue;
+    } catch (const std::invalid_argument& e) {  // the record's mass, velocity or times are unusable
       warnings_.push_back(fmt::format("{}: {} experiment '{}' left out: {}", d.session, d.kind, d.label, e.what()));
       continue;
     }
@@ -479,7 +485,7 @@ bool FitProblem::PredictTransient(TransientExperiment& t, const std::vector<doub
       t.sensitivities[b] = std::move(j);
     }
     return true;
-  } catch (const std::exception& e) {
+  } catch (const TransientPredictionError& e) {  // no prediction at these parameters: the fit drops it
     t.error = e.what();
     return false;
   }
@@ -766,7 +772,7 @@ NormalEquations FitProblem::Linearise(const std::vector<double>& theta, const st
     Eigen::VectorXd g = Eigen::VectorXd::Zero(l);
     if (t.active) {
       if ((!mode.reuse || mode.exact || t.sensitivities.empty()) && !PredictTransient(t, theta, true))
-        throw std::runtime_error(fmt::format("{} experiment '{}': no sensitivities at the current parameters: {}",
+        throw EstimationError(fmt::format("{} experiment '{}': no sensitivities at the current parameters: {}",
                                              t.data->kind, t.data->label, t.error));
       for (int b = nc; b < static_cast<int>(channels_.size()); ++b) {
         if (!t.fitted(b)) continue;

@@ -15,7 +15,7 @@ FitRecord ParseFitJson(const nlohmann::json& j, const std::string& source, Causa
   r.source = source;
   try {
     r.model = Model::Build(j["model"].get<std::string>(), causality);
-  } catch (const std::exception& e) {
+  } catch (const ModelError& e) {
     throw fail(fmt::format("model '{}': {}", j["model"].get<std::string>(), e.what()));
   }
   r.parameters = r.model.defaults();

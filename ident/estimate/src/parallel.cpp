@@ -22,7 +22,7 @@ void ParallelFor(int count, int threads, const std::function<void(int)>& f) {
     for (int i = next++; i < count; i = next++) {
       try {
         f(i);
-      } catch (...) {
+      } catch (...) {  // a worker thread's boundary: the first error is rethrown to the caller below
         const std::lock_guard lock(error_mutex);
         if (!error) error = std::current_exception();
       }

@@ -177,7 +177,7 @@ Regression GaussNewtonSize(const FitSummary& baseline, const Model& model, const
       // The baseline's solution is the candidate's at size 0: Newton starts at the answer.
       solution = solver.Solve(e.solution.input, theta, &e.solution);
       sensitivities = solver.OutputSensitivities(solution, theta, positions);
-    } catch (const std::exception& ex) {
+    } catch (const PeriodicSolverError& ex) {
       problems.push_back(fmt::format("experiment '{}': {}", e.label, ex.what()));
       continue;
     }
@@ -230,7 +230,7 @@ std::vector<std::pair<std::string, double>> CandidateStartingValues(const std::s
   std::optional<Model> built;
   try {
     built.emplace(Model::Build(baseline.model + "+" + term, Causality::kStrokeInput));
-  } catch (const std::exception& e) {
+  } catch (const ModelError& e) {  // the baseline and the term make no catalogue model
     note(fmt::format("{}: no starting values: {}", term, e.what()));
     return {};
   }

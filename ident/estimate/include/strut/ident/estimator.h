@@ -7,6 +7,7 @@
 #include <map>
 #include <memory>
 #include <optional>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -246,6 +247,14 @@ std::vector<ParameterChoice> PaperChoices(const ParameterSet& parameters);
 //! empty / "default" (DefaultChoices). Named parameters keep their specs' default priors.
 std::vector<ParameterChoice> ChoicesFromList(const ParameterSet& parameters, const std::string& list);
 
+//! A fit that cannot proceed on its data: no experiment has a solution at the starting values,
+//! or a drop has no sensitivities at the current parameters. A failure of the data and starting
+//! values, not of the program: callers that fit many candidates note it and go on.
+class EstimationError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
 class Estimator {
  public:
   Estimator(Model model, EstimatorOptions options = {});
@@ -253,7 +262,8 @@ class Estimator {
 
   //! Fits all experiments at once from `initial`. Experiments whose periodic solution fails at the
   //! start are reported by name and left out; the others still fit. `transients` (drops) are fitted
-  //! beside the periodic ones when the options have a transient_predictor.
+  //! beside the periodic ones when the options have a transient_predictor. Throws EstimationError
+  //! when no experiment has a solution at the start, std::invalid_argument for mismatched input.
   FitSummary Fit(const std::vector<ExperimentData>& data, const ParameterSet& initial,
                  const std::vector<ParameterChoice>& choices, const std::vector<DataIssue>& issues = {},
                  const std::function<void(const FitProgress&)>& progress = {},

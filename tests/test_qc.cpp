@@ -120,7 +120,7 @@ TEST(QcReference, MistakesNameTheFileLineAndItem) {
             std::string::npos);
   EXPECT_NE(message("[friction]\nnominal = 1\nlower = 3\nupper = 2\n").find("lower <= nominal <= upper"),
             std::string::npos);
-  EXPECT_NE(message("[friction]\nnominal = \"x\"\n").find("ref.toml:2: friction.nominal must be a number"),
+  EXPECT_NE(message("[friction]\nnominal = \"x\"\n").find("ref.toml:2: [friction] nominal: expected a number, got the string \"x\""),
             std::string::npos);
   EXPECT_NE(message("[friction]\nnominal = 1\nlower = 0\nupper = 2\nmargin = 3\n").find("unknown key 'margin'"),
             std::string::npos);

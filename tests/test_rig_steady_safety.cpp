@@ -278,7 +278,7 @@ max_velocity = 0.3
   EXPECT_NE(error("[stroke]\nuper = 0.2\n").find("l.toml:2: [stroke] unknown key 'uper'"), std::string::npos);
   EXPECT_NE(error("[strok]\n").find("l.toml:1: unknown section 'strok'"), std::string::npos);
   EXPECT_NE(error("[stroke]\nlower = 0.3\n").find("[stroke] lower 0.3 must be below upper 0.27"), std::string::npos);
-  EXPECT_NE(error("[force]\nupper = \"lots\"\n").find("l.toml:2: [force] upper must be a number"), std::string::npos);
+  EXPECT_NE(error("[force]\nupper = \"lots\"\n").find("l.toml:2: [force] upper: expected a number, got the string \"lots\""), std::string::npos);
   EXPECT_NE(error("[force\n").find("l.toml:1:"), std::string::npos);
 }
 

@@ -4,11 +4,10 @@
 
 #include <algorithm>
 #include <cmath>
-#include <fstream>
 #include <nlohmann/json.hpp>
-#include <sstream>
-#include <toml++/toml.h>
+#include <stdexcept>
 
+#include "strut/daq/toml_reader.h"
 #include "strut/ident/model.h"
 #include "strut/qc/quantities.h"
 
@@ -51,38 +50,25 @@ Band MakeBand(const std::string& where, const std::string& name, std::optional<d
   return b;
 }
 
+using TomlReader = daq::TomlReader<ReferenceError>;
+
 Reference ParseToml(std::string_view text, const std::string& source) {
-  toml::table root;
-  try {
-    root = toml::parse(text, source);
-  } catch (const toml::parse_error& e) {
-    throw ReferenceError(fmt::format("{}:{}: {}", source, e.source().begin.line, e.description()));
-  }
+  const TomlReader toml(source);
+  const toml::table root = toml.Parse(text);
   Reference r{source, "nominal-file", "", {}};
   for (const auto& [key, node] : root) {
-    const std::string where = fmt::format("{}:{}", source, node.source().begin.line);
+    const std::string where = toml.Where(node);
     const std::string name(key.str());
     if (name == "model") {
-      if (!node.is_string()) throw ReferenceError(where + ": 'model' must be a string such as \"2dof\"");
-      r.model = **node.as_string();
+      r.model = toml.Text(node, "", name);
       continue;
     }
     if (!Known(name)) throw ReferenceError(where + ": unknown quantity '" + name + "' (known: " + KnownList() + ")");
-    const toml::table* t = node.as_table();
-    if (!t) throw ReferenceError(where + ": '" + name + "' must be a table [" + name + "]");
-    std::optional<double> nominal, lower, upper, tolerance;
-    for (const auto& [k, v] : *t) {
-      const std::string item(k.str());
-      const std::string at = fmt::format("{}:{}", source, v.source().begin.line);
-      const std::optional<double> x = v.value<double>();
-      if (!x) throw ReferenceError(at + ": " + name + "." + item + " must be a number");
-      if (item == "nominal") nominal = x;
-      else if (item == "lower") lower = x;
-      else if (item == "upper") upper = x;
-      else if (item == "tolerance") tolerance = x;
-      else throw ReferenceError(at + ": unknown key '" + item + "' in [" + name + "] (nominal, lower, upper, tolerance)");
-    }
-    r.bands.push_back(MakeBand(where, name, nominal, lower, upper, tolerance));
+    const toml::table& t = toml.Table(node, "", name);
+    const std::string in = TomlReader::In(name);
+    toml.RefuseUnknown(t, in, {"nominal", "lower", "upper", "tolerance"});
+    r.bands.push_back(MakeBand(where, name, toml.Number(t, in, "nominal"), toml.Number(t, in, "lower"),
+                               toml.Number(t, in, "upper"), toml.Number(t, in, "tolerance")));
   }
   return r;
 }
@@ -123,14 +109,6 @@ Reference ParseJsonNominal(const nlohmann::json& j, const std::string& source) {
   return r;
 }
 
-std::string ReadText(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw ReferenceError(path + ": cannot open the reference file");
-  std::ostringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
-
 }  // namespace
 
 const std::vector<DefaultBand>& DefaultBands() {
@@ -164,7 +142,7 @@ Reference ReferenceFromFitJson(const std::string& json_text, const std::string& 
   ident::Model model = [&] {
     try {
       return ident::Model::Build(r.model, ident::Causality::kStrokeInput);
-    } catch (const std::exception& e) {
+    } catch (const ident::ModelError& e) {
       throw ReferenceError(source + ": model '" + r.model + "': " + e.what());
     }
   }();
@@ -180,7 +158,7 @@ Reference ReferenceFromFitJson(const std::string& json_text, const std::string& 
   std::vector<Quantity> values;
   try {
     values = ComputeQuantities(model, theta);
-  } catch (const std::exception& e) {
+  } catch (const std::invalid_argument& e) {  // a parameter a quantity needs is not in the model
     throw ReferenceError(source + ": the golden unit's quantities cannot be computed: " + e.what());
   }
   for (const Quantity& q : values) {
@@ -207,7 +185,7 @@ Reference ParseNominalFile(std::string_view text, const std::string& source) {
 }
 
 Reference ReadReference(const std::string& path) {
-  const std::string text = ReadText(path);
+  const std::string text = TomlReader::ReadFile(path, "the reference file");
   const auto first = text.find_first_not_of(" \t\r\n");
   if (first != std::string::npos && text[first] == '{') {
     const nlohmann::json j = ParseJson(text, path);

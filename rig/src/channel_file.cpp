@@ -5,7 +5,7 @@
 #include <algorithm>
 #include <map>
 
-#include "toml_reader.h"
+#include "strut/daq/toml_reader.h"
 
 namespace strut::rig {
 namespace {
@@ -31,7 +31,7 @@ const std::vector<RecordedChannel>& RecordedChannels() {
   return channels;
 }
 
-using Reader = TomlReader<ChannelFileError>;
+using Reader = daq::TomlReader<ChannelFileError>;
 
 }  // namespace
 
@@ -65,9 +65,8 @@ ChannelMap ParseChannelFile(std::string_view text, const std::string& source) {
       if (c.required) r.Fail(fmt::format("[{}] is missing: the run records stroke and force", c.name));
       continue;
     }
-    const toml::table* t = node->as_table();
-    const std::string where = fmt::format("[{}] ", c.name);
-    if (!t) r.Fail(*node, fmt::format("'{}' must be a table ([{}])", c.name, c.name));
+    const toml::table* t = &r.Table(*node, "", c.name);
+    const std::string where = Reader::In(c.name);
     if (std::string_view(c.name) == "pressure")
       r.RefuseUnknown(*t, where, {"index", "unit", "gain", "offset", "range_min", "range_max", "reference"});
     else

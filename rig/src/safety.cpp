@@ -10,7 +10,7 @@
 #include "strut/daq/session.h"
 #include "strut/ident/fit_record.h"
 #include "strut/ident/periodic.h"
-#include "toml_reader.h"
+#include "strut/daq/toml_reader.h"
 
 namespace strut::rig {
 
@@ -71,7 +71,7 @@ namespace {
 // The limits file's sections over the shared TOML reading; a key absent keeps its default.
 class Reader {
  public:
-  Reader(const toml::table& root, const TomlReader<SafetyError>& reader) : root_(root), toml_(reader) {}
+  Reader(const toml::table& root, const daq::TomlReader<SafetyError>& reader) : root_(root), toml_(reader) {}
 
   [[noreturn]] void Fail(const toml::node& n, const std::string& what) const { toml_.Fail(n, what); }
 
@@ -81,10 +81,9 @@ class Reader {
     seen_.insert(name);
     const toml::node* node = root_.get(name);
     if (!node) return;
-    const toml::table* t = node->as_table();
-    if (!t) Fail(*node, fmt::format("'{}' must be a table ([{}])", name, name));
-    toml_.RefuseUnknown(*t, Where(name), keys);
-    read(*t);
+    const toml::table& t = toml_.Table(*node, "", name);
+    toml_.RefuseUnknown(t, Where(name), keys);
+    read(t);
   }
 
   void Number(const toml::table& t, const char* section, const char* key, double& out) const {
@@ -128,17 +127,17 @@ class Reader {
   }
 
  private:
-  static std::string Where(const char* section) { return fmt::format("[{}] ", section); }
+  static std::string Where(const char* section) { return daq::TomlReader<SafetyError>::In(section); }
 
   const toml::table& root_;
-  const TomlReader<SafetyError>& toml_;
+  const daq::TomlReader<SafetyError>& toml_;
   std::set<std::string> seen_;
 };
 
 }  // namespace
 
 SafetyConfig ParseSafetyConfig(std::string_view text, const std::string& source) {
-  const TomlReader<SafetyError> reader(source);
+  const daq::TomlReader<SafetyError> reader(source);
   const toml::table root = reader.Parse(text);
   SafetyConfig c;
   Reader r(root, reader);
@@ -186,7 +185,7 @@ SafetyConfig ParseSafetyConfig(std::string_view text, const std::string& source)
 }
 
 SafetyConfig ReadSafetyConfig(const std::string& path) {
-  return ParseSafetyConfig(TomlReader<SafetyError>::ReadFile(path, "the limits file"), path);
+  return ParseSafetyConfig(daq::TomlReader<SafetyError>::ReadFile(path, "the limits file"), path);
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -5,10 +5,10 @@
 #include <algorithm>
 #include <cmath>
 #include <fmt/format.h>
-#include <fstream>
+#include <map>
 #include <set>
-#include <sstream>
-#include <toml++/toml.h>
+
+#include "strut/daq/toml_reader.h"
 
 namespace strut::sim {
 namespace {
@@ -16,16 +16,10 @@ namespace {
 //! Reads one truth file; every message starts with "FILE:LINE:".
 class Reader {
  public:
-  explicit Reader(std::string source) : source_(std::move(source)) {}
+  explicit Reader(std::string source) : source_(source), toml_(std::move(source)) {}
 
   Truth Read(std::string_view text) {
-    toml::table root;
-    try {
-      root = toml::parse(text, source_);
-    } catch (const toml::parse_error& e) {
-      throw TruthError(fmt::format("{}:{}:{}: TOML syntax: {}", source_, e.source().begin.line,
-                                   e.source().begin.column, e.description()));
-    }
+    const toml::table root = toml_.Parse(text);
     Truth truth;
     truth.source = source_;
     for (auto&& [key, node] : root) {
@@ -56,66 +50,19 @@ class Reader {
   }
 
  private:
-  std::string Where(const toml::node& node) const {
-    return fmt::format("{}:{}", source_, node.source().begin.line);
-  }
-  const toml::table& Table(const toml::node& node, std::string_view name) const {
-    const toml::table* t = node.as_table();
-    if (!t) throw TruthError(fmt::format("{}: '{}' must be a table ([{}])", Where(node), name, name));
-    return *t;
-  }
-  double Number(const toml::node& node, std::string_view section, std::string_view key) const {
-    if (!node.is_number())
-      throw TruthError(fmt::format("{}: [{}] {}: expected a number, got {}", Where(node), section, key,
-                                   Describe(node)));
-    const double v = *node.value<double>();
-    if (!std::isfinite(v)) throw TruthError(fmt::format("{}: [{}] {}: the value must be finite", Where(node), section, key));
-    return v;
-  }
-  long Integer(const toml::node& node, std::string_view section, std::string_view key) const {
-    if (!node.is_integer())
-      throw TruthError(fmt::format("{}: [{}] {}: expected an integer, got {}", Where(node), section, key,
-                                   Describe(node)));
-    return static_cast<long>(*node.value<int64_t>());
-  }
-  bool Boolean(const toml::node& node, std::string_view section, std::string_view key) const {
-    if (!node.is_boolean())
-      throw TruthError(fmt::format("{}: [{}] {}: expected true or false, got {}", Where(node), section, key,
-                                   Describe(node)));
-    return *node.value<bool>();
-  }
-  std::string String(const toml::node& node, std::string_view section, std::string_view key) const {
-    if (!node.is_string())
-      throw TruthError(fmt::format("{}: [{}] {}: expected a string, got {}", Where(node), section, key,
-                                   Describe(node)));
-    return *node.value<std::string>();
-  }
-  static std::string Describe(const toml::node& node) {
-    std::ostringstream out;
-    if (node.is_string())
-      out << "the string \"" << *node.value<std::string>() << "\"";
-    else if (node.is_table())
-      out << "a table";
-    else if (node.is_array())
-      out << "an array";
-    else
-      out << node.type();
-    return out.str();
-  }
-  [[noreturn]] void UnknownKey(const toml::node& node, std::string_view section, std::string_view key,
-                               std::string_view known) const {
-    throw TruthError(fmt::format("{}: [{}] unknown key '{}' (known: {})", Where(node), section, key, known));
-  }
+  std::string Where(const toml::node& node) const { return toml_.Where(node); }
+  static std::string In(std::string_view section) { return daq::TomlReader<TruthError>::In(section); }
+  const toml::table& Table(const toml::node& node, std::string_view name) const { return toml_.Table(node, "", name); }
 
   void ReadDamper(const toml::table& t, Truth& truth) const {
     for (auto&& [k, node] : t) {
       const std::string key(k.str());
       if (key == "serial")
-        truth.damper_serial = String(node, "damper", key);
+        truth.damper_serial = toml_.Text(node, "[damper] ", key);
       else if (key == "rig")
-        truth.rig = String(node, "damper", key);
+        truth.rig = toml_.Text(node, "[damper] ", key);
       else
-        UnknownKey(node, "damper", key, "serial, rig");
+        toml_.UnknownKey(node, "[damper] ", key, "serial, rig");
     }
   }
 
@@ -129,7 +76,7 @@ class Reader {
         for (const auto& n : names) known += (known.empty() ? "" : ", ") + n;
         throw TruthError(fmt::format("{}: [effects] unknown effect '{}' (known: {})", Where(node), key, known));
       }
-      if (Boolean(node, "effects", key)) on.insert(key);
+      if (toml_.Bool(node, "[effects] ", key)) on.insert(key);
       effect_lines_[key] = static_cast<int>(node.source().begin.line);
     }
     truth.effects.clear();
@@ -140,7 +87,7 @@ class Reader {
   void ReadParameters(const toml::table& t, Truth& truth) {
     for (auto&& [k, node] : t) {
       const std::string key(k.str());
-      truth.parameters.emplace_back(key, Number(node, "parameters", key));
+      truth.parameters.emplace_back(key, toml_.Number(node, "[parameters] ", key));
       parameter_lines_.push_back(static_cast<int>(node.source().begin.line));
     }
   }
@@ -149,23 +96,23 @@ class Reader {
     for (auto&& [k, node] : t) {
       const std::string key(k.str());
       if (key == "ideal")
-        a.ideal = Boolean(node, "actuator", key);
+        a.ideal = toml_.Bool(node, "[actuator] ", key);
       else if (key == "loop_bandwidth")
-        a.loop_bandwidth = Number(node, "actuator", key);
+        a.loop_bandwidth = toml_.Number(node, "[actuator] ", key);
       else if (key == "feedforward")
-        a.feedforward = Number(node, "actuator", key);
+        a.feedforward = toml_.Number(node, "[actuator] ", key);
       else if (key == "valve_bandwidth")
-        a.valve_bandwidth = Number(node, "actuator", key);
+        a.valve_bandwidth = toml_.Number(node, "[actuator] ", key);
       else if (key == "max_velocity")
-        a.max_velocity = Number(node, "actuator", key);
+        a.max_velocity = toml_.Number(node, "[actuator] ", key);
       else if (key == "stall_force")
-        a.stall_force = Number(node, "actuator", key);
+        a.stall_force = toml_.Number(node, "[actuator] ", key);
       else if (key == "force_limit")
-        a.force_limit = Number(node, "actuator", key);
+        a.force_limit = toml_.Number(node, "[actuator] ", key);
       else if (key == "control_rate")
-        a.control_rate = Number(node, "actuator", key);
+        a.control_rate = toml_.Number(node, "[actuator] ", key);
       else
-        UnknownKey(node, "actuator", key,
+        toml_.UnknownKey(node, "[actuator] ", key,
                    "ideal, loop_bandwidth, feedforward, valve_bandwidth, max_velocity, stall_force, force_limit, "
                    "control_rate");
     }
@@ -178,18 +125,18 @@ class Reader {
         const toml::array* a = node.as_array();
         if (!a || a->size() != 2)
           throw TruthError(fmt::format("{}: [{}] range: expected [low, high]", Where(node), section));
-        s.range_min = Number((*a)[0], section, "range");
-        s.range_max = Number((*a)[1], section, "range");
+        s.range_min = toml_.Number((*a)[0], In(section), "range");
+        s.range_max = toml_.Number((*a)[1], In(section), "range");
       } else if (key == "noise") {
-        s.noise = Number(node, section, key);
+        s.noise = toml_.Number(node, In(section), key);
       } else if (key == "offset") {
-        s.offset = Number(node, section, key);
+        s.offset = toml_.Number(node, In(section), key);
       } else if (key == "gain_error") {
-        s.gain_error = Number(node, section, key);
+        s.gain_error = toml_.Number(node, In(section), key);
       } else if (key == "bits") {
-        s.bits = static_cast<int>(Integer(node, section, key));
+        s.bits = static_cast<int>(toml_.Integer(node, In(section), key));
       } else {
-        UnknownKey(node, section, key, "range, noise, offset, gain_error, bits");
+        toml_.UnknownKey(node, In(section), key, "range, noise, offset, gain_error, bits");
       }
     }
     std::string error;
@@ -207,7 +154,7 @@ class Reader {
       else if (key == "pressure")
         ReadSensor(Table(node, section), section, sensors.pressure);
       else
-        UnknownKey(node, "sensors", key, "stroke, force, pressure");
+        toml_.UnknownKey(node, "[sensors] ", key, "stroke, force, pressure");
     }
   }
 
@@ -215,21 +162,21 @@ class Reader {
     for (auto&& [k, node] : t) {
       const std::string key(k.str());
       if (key == "sample_rate")
-        a.sample_rate = Number(node, "acquisition", key);
+        a.sample_rate = toml_.Number(node, "[acquisition] ", key);
       else if (key == "drop_sample_rate")
-        a.drop_sample_rate = Number(node, "acquisition", key);
+        a.drop_sample_rate = toml_.Number(node, "[acquisition] ", key);
       else if (key == "periods")
-        a.periods = Integer(node, "acquisition", key);
+        a.periods = toml_.Integer(node, "[acquisition] ", key);
       else if (key == "settle_tolerance")
-        a.settle_tolerance = Number(node, "acquisition", key);
+        a.settle_tolerance = toml_.Number(node, "[acquisition] ", key);
       else if (key == "settle_periods_max")
-        a.settle_periods_max = static_cast<int>(Integer(node, "acquisition", key));
+        a.settle_periods_max = static_cast<int>(toml_.Integer(node, "[acquisition] ", key));
       else if (key == "gauge_pressure")
-        a.gauge_pressure = Boolean(node, "acquisition", key);
+        a.gauge_pressure = toml_.Bool(node, "[acquisition] ", key);
       else if (key == "rtol")
-        a.rtol = Number(node, "acquisition", key);
+        a.rtol = toml_.Number(node, "[acquisition] ", key);
       else
-        UnknownKey(node, "acquisition", key,
+        toml_.UnknownKey(node, "[acquisition] ", key,
                    "sample_rate, drop_sample_rate, periods, settle_tolerance, settle_periods_max, gauge_pressure, rtol");
     }
     std::string error;
@@ -247,26 +194,26 @@ class Reader {
       for (auto&& [k, v] : *t) {
         const std::string key(k.str());
         if (key == "experiment") {
-          f.experiment = String(v, "faults", key);
+          f.experiment = toml_.Text(v, "[faults] ", key);
         } else if (key == "channel") {
-          f.channel = String(v, "faults", key);
+          f.channel = toml_.Text(v, "[faults] ", key);
         } else if (key == "kind") {
           try {
-            f.kind = ParseFaultKind(String(v, "faults", key));
+            f.kind = ParseFaultKind(toml_.Text(v, "[faults] ", key));
           } catch (const std::invalid_argument& e) {
             throw TruthError(fmt::format("{}: [[faults]] {}", Where(v), e.what()));
           }
           has_kind = true;
         } else if (key == "start") {
-          f.start = Number(v, "faults", key);
+          f.start = toml_.Number(v, "[faults] ", key);
         } else if (key == "duration") {
-          f.duration = Number(v, "faults", key);
+          f.duration = toml_.Number(v, "[faults] ", key);
         } else if (key == "rate") {
-          f.rate = Number(v, "faults", key);
+          f.rate = toml_.Number(v, "[faults] ", key);
         } else if (key == "amplitude") {
-          f.amplitude = Number(v, "faults", key);
+          f.amplitude = toml_.Number(v, "[faults] ", key);
         } else {
-          UnknownKey(v, "faults", key, "experiment, channel, kind, start, duration, rate, amplitude");
+          toml_.UnknownKey(v, "[faults] ", key, "experiment, channel, kind, start, duration, rate, amplitude");
         }
       }
       if (!has_kind) throw TruthError(fmt::format("{}: [[faults]] needs a kind", Where(item)));
@@ -324,6 +271,7 @@ class Reader {
   }
 
   std::string source_;
+  daq::TomlReader<TruthError> toml_;
   std::map<std::string, int> effect_lines_;
   std::vector<int> parameter_lines_;
 };
@@ -391,11 +339,7 @@ void Truth::Validate() const {
 Truth ParseTruth(std::string_view text, const std::string& source_name) { return Reader(source_name).Read(text); }
 
 Truth ReadTruthFile(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw TruthError(fmt::format("{}: cannot open the truth file", path));
-  std::ostringstream text;
-  text << in.rdbuf();
-  return ParseTruth(text.str(), path);
+  return ParseTruth(daq::TomlReader<TruthError>::ReadFile(path, "the truth file"), path);
 }
 
 Truth DefaultTruth() { return ParseTruth(DefaultTruthText(), "<built-in default truth>"); }

@@ -3,10 +3,9 @@
 
 #include <cmath>
 #include <cstdint>
-#include <fstream>
-#include <sstream>
-#include <toml++/toml.h>
+#include <string_view>
 
+#include "strut/daq/toml_reader.h"
 #include "strut/rig/test_matrix.h"
 
 namespace strut::rig {
@@ -18,30 +17,18 @@ MatrixPlan StandardMatrixPlan() {
 }
 
 MatrixPlan ParseMatrix(std::string_view text, const std::string& source_name) {
-  toml::table root;
-  try {
-    root = toml::parse(text, source_name);
-  } catch (const toml::parse_error& e) {
-    throw MatrixFileError(fmt::format("{}:{}:{}: TOML syntax: {}", source_name, e.source().begin.line,
-                                      e.source().begin.column, e.description()));
-  }
-  const auto where = [&](const toml::node& n) { return fmt::format("{}:{}", source_name, n.source().begin.line); };
-  const auto number = [&](const toml::node& n, std::string_view key) {
-    if (!n.is_number()) throw MatrixFileError(fmt::format("{}: '{}' must be a number", where(n), key));
-    const double v = *n.value<double>();
-    if (!std::isfinite(v)) throw MatrixFileError(fmt::format("{}: '{}' must be finite", where(n), key));
-    return v;
-  };
+  const daq::TomlReader<MatrixFileError> toml(source_name);
+  const toml::table root = toml.Parse(text);
+  const auto where = [&](const toml::node& n) { return toml.Where(n); };
   MatrixPlan plan;
   plan.source = source_name;
   for (auto&& [k, node] : root) {
     const std::string key(k.str());
     if (key == "sample_rate") {
-      plan.sample_rate = number(node, key);
+      plan.sample_rate = toml.Number(node, "", key);
       if (!(*plan.sample_rate > 0)) throw MatrixFileError(fmt::format("{}: sample_rate must be positive", where(node)));
     } else if (key == "periods") {
-      if (!node.is_integer()) throw MatrixFileError(fmt::format("{}: 'periods' must be an integer", where(node)));
-      plan.periods = static_cast<long>(*node.value<int64_t>());
+      plan.periods = static_cast<long>(toml.Integer(node, "", key));
       if (*plan.periods < 1) throw MatrixFileError(fmt::format("{}: periods must be at least 1", where(node)));
     } else if (key == "experiment") {
       const toml::array* list = node.as_array();
@@ -54,23 +41,20 @@ MatrixPlan ParseMatrix(std::string_view text, const std::string& source_name) {
         bool has_label = false, has_f = false, has_s = false, has_a = false;
         for (auto&& [ek, v] : *t) {
           const std::string name(ek.str());
+          constexpr std::string_view in = "[[experiment]] ";
           if (name == "label") {
-            if (!v.is_string()) throw MatrixFileError(fmt::format("{}: 'label' must be a string", where(v)));
-            e.label = *v.value<std::string>();
+            e.label = toml.Text(v, in, name);
             has_label = true;
           } else if (name == "group") {
-            if (!v.is_string()) throw MatrixFileError(fmt::format("{}: 'group' must be a string", where(v)));
-            e.group = *v.value<std::string>();
+            e.group = toml.Text(v, in, name);
           } else if (name == "frequency") {
-            e.frequency = number(v, name), has_f = true;
+            e.frequency = toml.Number(v, in, name), has_f = true;
           } else if (name == "static_position") {
-            e.static_position = number(v, name), has_s = true;
+            e.static_position = toml.Number(v, in, name), has_s = true;
           } else if (name == "amplitude") {
-            e.amplitude = number(v, name), has_a = true;
+            e.amplitude = toml.Number(v, in, name), has_a = true;
           } else {
-            throw MatrixFileError(fmt::format("{}: [[experiment]] unknown key '{}' (known: label, group, frequency, "
-                                              "static_position, amplitude)",
-                                              where(v), name));
+            toml.UnknownKey(v, in, name, "label, group, frequency, static_position, amplitude");
           }
         }
         if (!has_label || !has_f || !has_s || !has_a)
@@ -86,8 +70,7 @@ MatrixPlan ParseMatrix(std::string_view text, const std::string& source_name) {
         plan.experiments.push_back(e);
       }
     } else {
-      throw MatrixFileError(
-          fmt::format("{}: unknown key '{}' (known: sample_rate, periods, [[experiment]])", where(node), key));
+      toml.UnknownKey(node, "", key, "sample_rate, periods, [[experiment]]");
     }
   }
   if (plan.experiments.empty()) throw MatrixFileError(fmt::format("{}: the matrix has no [[experiment]]", source_name));
@@ -95,11 +78,7 @@ MatrixPlan ParseMatrix(std::string_view text, const std::string& source_name) {
 }
 
 std::string ReadMatrixText(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw MatrixFileError(fmt::format("{}: cannot open the matrix file", path));
-  std::ostringstream text;
-  text << in.rdbuf();
-  return text.str();
+  return daq::TomlReader<MatrixFileError>::ReadFile(path, "the matrix file");
 }
 
 MatrixPlan ReadMatrixFile(const std::string& path) { return ParseMatrix(ReadMatrixText(path), path); }

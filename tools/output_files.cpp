@@ -8,7 +8,7 @@
 #include <fstream>
 #include <stdexcept>
 
-#include "strut/report/html_report.h"
+#include "strut/daq/atomic_file.h"
 
 namespace strut::tools {
 namespace fs = std::filesystem;
@@ -44,7 +44,7 @@ void CheckOutputPath(const std::string& option, const std::string& path, const s
 }
 
 void WriteTextOutput(const std::string& path, const std::string& text) {
-  report::WriteFileAtomically(path, text);
+  daq::WriteFileAtomically(path, text);
   spdlog::info("wrote {}", path);
 }
 

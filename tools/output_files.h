@@ -32,7 +32,7 @@ class ExitCode : public std::exception {
 void CheckOutputPath(const std::string& option, const std::string& path, const std::vector<std::string>& inputs,
                      bool force = false);
 
-//! Writes `text` to `path` atomically (report::WriteFileAtomically) and logs it.
+//! Writes `text` to `path` atomically (daq::WriteFileAtomically) and logs it.
 void WriteTextOutput(const std::string& path, const std::string& text);
 
 }  // namespace strut::tools

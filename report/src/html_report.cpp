@@ -1,18 +1,15 @@
 #include "strut/report/html_report.h"
 
-#include <fcntl.h>
-#include <unistd.h>
-
 #include <algorithm>
-#include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <ctime>
-#include <filesystem>
 #include <stdexcept>
 #include <utility>
+
+#include "strut/daq/atomic_file.h"
 
 namespace strut::report {
 
@@ -220,40 +217,6 @@ nlohmann::json Finite(double v) { return std::isfinite(v) ? nlohmann::json(v) : 
 
 }  // namespace
 
-// Crash-safe file replacement: write and fsync path.partial, then rename over the target.
-void WriteFileAtomically(const std::string& path, std::string_view bytes) {
-  const std::string partial = path + ".partial";
-  auto fail = [&](const std::string& step) {
-    const int error = errno;
-    std::error_code ignored;
-    std::filesystem::remove(partial, ignored);
-    throw std::runtime_error(path + ": " + step + " failed: " + std::strerror(error));
-  };
-  const int fd = ::open(partial.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666);
-  if (fd < 0) fail("creating " + partial);
-  std::size_t done = 0;
-  while (done < bytes.size()) {
-    const ssize_t n = ::write(fd, bytes.data() + done, bytes.size() - done);
-    if (n < 0 && errno == EINTR) continue;
-    if (n <= 0) {
-      if (n == 0) errno = EIO;
-      const int error = errno;
-      ::close(fd);
-      errno = error;
-      fail("writing " + partial);
-    }
-    done += static_cast<std::size_t>(n);
-  }
-  if (::fsync(fd) != 0) {
-    const int error = errno;
-    ::close(fd);
-    errno = error;
-    fail("syncing " + partial);
-  }
-  if (::close(fd) != 0) fail("closing " + partial);
-  if (std::rename(partial.c_str(), path.c_str()) != 0) fail("renaming " + partial + " onto it");
-}
-
 HtmlReport::HtmlReport(std::string title) : title_(std::move(title)), generated_(LocalTimeNow()) {}
 
 std::string_view HtmlReport::PlotScript() { return detail::ReportScript(); }
@@ -444,6 +407,6 @@ std::string HtmlReport::Render() const {
   return html;
 }
 
-void HtmlReport::Write(const std::string& path) const { WriteFileAtomically(path, Render()); }
+void HtmlReport::Write(const std::string& path) const { daq::WriteFileAtomically(path, Render()); }
 
 }  // namespace strut::report

@@ -13,10 +13,6 @@
 
 namespace strut::report {
 
-//! Crash-safe file replacement: writes and fsyncs `path`.partial, then renames it over `path`.
-//! Throws std::runtime_error naming the path and the failed step.
-void WriteFileAtomically(const std::string& path, std::string_view bytes);
-
 //! One line or scatter trace of a line plot.
 struct Series {
   std::string name;          //!< legend entry
@@ -81,8 +77,8 @@ class HtmlReport {
 
   //! The whole HTML document, the plotting script inline.
   std::string Render() const;
-  //! Writes Render() to `path` crash-safely (path.partial, fsync, rename).
-  //! Throws std::runtime_error naming the path and the reason.
+  //! Writes Render() to `path` crash-safely (daq::WriteFileAtomically). Throws
+  //! daq::FileWriteError naming the path and the failed step.
   void Write(const std::string& path) const;
 
   //! The embedded plotting script (uPlot with its licence banner, then strut's figure code), as

@@ -176,6 +176,27 @@ TEST(Transient, NonFiniteInputEndsWithATransientErrorNamingTheTime) {
                TransientError);
 }
 
+// What an input throws mid-integration crosses IDAS intact: a programming error stays one instead
+// of becoming a TransientError that a caller would take for a failed experiment.
+TEST(Transient, AnInputsOwnErrorReachesTheCallerUnchanged) {
+  const Model model = Model::Build("2dof", Causality::kStrokeInput);
+  const auto& theta = model.defaults().values();
+  const TransientSimulator simulator(model);
+  const InputSignal sine = InputSignal::Sine(0.5, kStaticStroke, 0.034);
+  const InputSignal broken([sine](double t) {
+    if (t > 1.0) throw std::logic_error("the input's own bug at t > 1 s");
+    return sine(t);
+  });
+  try {
+    simulator.Simulate(theta, broken, 3.0, 10.0);
+    FAIL() << "the input's exception was lost";
+  } catch (const TransientError& e) {
+    FAIL() << "flattened into a TransientError: " << e.what();
+  } catch (const std::logic_error& e) {
+    EXPECT_STREQ(e.what(), "the input's own bug at t > 1 s");
+  }
+}
+
 TEST(Transient, ImpossibleSettingsAreRejectedBeforeIntegrating) {
   const Model model = Model::Build("1dof", Causality::kForceInput);
   const auto& theta = model.defaults().values();

@@ -2,6 +2,7 @@
 // the target holds either its old bytes or exactly the new ones, and no partial file is left.
 #include <gtest/gtest.h>
 #include <sys/resource.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <csignal>
@@ -93,14 +94,40 @@ TEST(AtomicFile, IntoAMissingFolderNamesThePathAndTheStepAndCreatesNothing) {
   EXPECT_TRUE(fs::is_empty(dir.path()));
 }
 
+// The message of writing "new" to `path` as a user without write permission there: this process
+// when it is not root, else a child that drops to nobody (root writes into read-only folders).
+std::string ErrorWritingUnprivileged(const std::string& path) {
+  if (geteuid() != 0) return ErrorOf([&] { WriteFileAtomically(path, "new"); });
+  int pipe_fds[2];
+  if (pipe(pipe_fds) != 0) return "(no pipe)";
+  const pid_t child = fork();
+  if (child == 0) {
+    close(pipe_fds[0]);
+    std::string message = "(cannot drop privileges)";
+    if (setgid(65534) == 0 && setuid(65534) == 0) message = ErrorOf([&] { WriteFileAtomically(path, "new"); });
+    const ssize_t ignored = write(pipe_fds[1], message.data(), message.size());
+    (void)ignored;
+    _exit(0);
+  }
+  close(pipe_fds[1]);
+  std::string message;
+  char buffer[512];
+  for (ssize_t n; (n = read(pipe_fds[0], buffer, sizeof buffer)) > 0;) message.append(buffer, static_cast<std::size_t>(n));
+  close(pipe_fds[0]);
+  waitpid(child, nullptr, 0);
+  return message;
+}
+
 TEST(AtomicFile, IntoAReadOnlyFolderKeepsTheOldFile) {
-  if (geteuid() == 0) GTEST_SKIP() << "root writes into a read-only folder (the half-way and rename cases below still run)";
   TempDir dir;
   const std::string folder = dir.file("ro"), path = folder + "/out.txt";
   fs::create_directory(folder);
   std::ofstream(path) << "old";
-  fs::permissions(folder, fs::perms::owner_read | fs::perms::owner_exec);
-  const std::string message = ErrorOf([&] { WriteFileAtomically(path, "new"); });
+  fs::permissions(dir.path(), fs::perms::owner_all | fs::perms::group_read | fs::perms::group_exec |
+                                  fs::perms::others_read | fs::perms::others_exec);
+  fs::permissions(folder, fs::perms::owner_read | fs::perms::owner_exec | fs::perms::group_read |
+                              fs::perms::group_exec | fs::perms::others_read | fs::perms::others_exec);
+  const std::string message = ErrorWritingUnprivileged(path);
   fs::permissions(folder, fs::perms::owner_all);
   EXPECT_EQ(message, path + ": cannot write: creating " + path + ".partial: Permission denied");
   EXPECT_EQ(ReadFile(path), "old");

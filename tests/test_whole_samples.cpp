@@ -5,6 +5,10 @@
 #include <cmath>
 
 #include "strut/daq/session.h"
+#include "strut/ident/experiment_data.h"
+#include "strut/ident/model.h"
+#include "strut/rig/test_matrix.h"
+#include "strut/sim/periodic_session.h"
 
 namespace {
 
@@ -46,6 +50,24 @@ TEST(WholeSamples, RefusesRatesAndFrequenciesThatAreNotPositive) {
   EXPECT_FALSE(WholeSamplesPerPeriod(-2000.0, -10.0));
   EXPECT_FALSE(WholeSamplesPerPeriod(NAN, 10.0));
   EXPECT_FALSE(WholeSamplesPerPeriod(2000.0, NAN));
+}
+
+// The fit averages the recorded samples phase by phase only when the rate gives whole samples per
+// period by this same test; a rate a tenth of a ppm off (beyond the tolerance) is resampled onto
+// the n-point grid instead, since its phases drift through the record.
+TEST(WholeSamples, TheFitAveragesRecordedPhasesOnlyAtWholeSamples) {
+  using namespace strut;
+  const ident::Model model = ident::Model::Build("2dof", ident::Causality::kStrokeInput);
+  const rig::MatrixEntry entry = rig::StandardMatrix().front();
+  const daq::Session whole =
+      sim::SimulatePeriodicSession("2dof", model.defaults().values(), {entry}, sim::PeriodicSessionOptions{});
+  const long native = *WholeSamplesPerPeriod(whole.experiments[0].sample_rate, entry.frequency);
+  daq::Session drifting = whole;
+  drifting.experiments[0].sample_rate *= 1 + 1e-7;
+  ASSERT_FALSE(WholeSamplesPerPeriod(drifting.experiments[0].sample_rate, entry.frequency));
+  const int n = 3 * static_cast<int>(native);
+  EXPECT_EQ(ident::PrepareExperiments(whole, model, n).at(0).phases.size(), static_cast<std::size_t>(native));
+  EXPECT_EQ(ident::PrepareExperiments(drifting, model, n).at(0).phases.size(), static_cast<std::size_t>(n));
 }
 
 }  // namespace

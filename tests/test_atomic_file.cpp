@@ -1,11 +1,9 @@
 // daq::WriteFileAtomically, the one crash-safe write behind sessions, reports and text outputs:
 // the target holds either its old bytes or exactly the new ones, and no partial file is left.
 #include <gtest/gtest.h>
-#include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
-#include <csignal>
 #include <filesystem>
 #include <fstream>
 #include <random>
@@ -18,6 +16,7 @@ namespace {
 
 using strut::daq::FileWriteError;
 using strut::daq::WriteFileAtomically;
+using strut::test::FileSizeLimit;
 using strut::test::ReadFile;
 using strut::test::TempDir;
 namespace fs = std::filesystem;
@@ -40,28 +39,6 @@ std::string ErrorOf(F write) {
   }
   return "(no error)";
 }
-
-// Lowers the file size limit while alive, so that a write fails half-way (EFBIG, not a signal).
-class FileSizeLimit {
- public:
-  explicit FileSizeLimit(rlim_t bytes) {
-    getrlimit(RLIMIT_FSIZE, &previous_);
-    previous_handler_ = std::signal(SIGXFSZ, SIG_IGN);
-    rlimit limit = previous_;
-    limit.rlim_cur = bytes;
-    setrlimit(RLIMIT_FSIZE, &limit);
-  }
-  ~FileSizeLimit() {
-    setrlimit(RLIMIT_FSIZE, &previous_);
-    std::signal(SIGXFSZ, previous_handler_);
-  }
-  FileSizeLimit(const FileSizeLimit&) = delete;
-  FileSizeLimit& operator=(const FileSizeLimit&) = delete;
-
- private:
-  rlimit previous_{};
-  void (*previous_handler_)(int) = nullptr;
-};
 
 TEST(AtomicFile, WritesTheBytesExactlyAndLeavesNoPartialFile) {
   TempDir dir;

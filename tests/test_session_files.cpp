@@ -4,12 +4,10 @@
 #include <hdf5.h>
 #include <spdlog/sinks/ringbuffer_sink.h>
 #include <spdlog/spdlog.h>
-#include <sys/resource.h>
 #include <sys/wait.h>
 
 #include <algorithm>
 #include <cmath>
-#include <csignal>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -35,6 +33,7 @@ using strut::daq::Session;
 using strut::daq::SessionError;
 using strut::daq::WriteOptions;
 using strut::daq::WriteSession;
+using strut::test::FileSizeLimit;
 using strut::test::PythonWithH5py;
 using strut::test::RunPython;
 using strut::test::TempDir;
@@ -427,26 +426,6 @@ TEST(SessionFiles, WriteFailureNamesThePathAndRemovesThePartialFile) {
   }
   EXPECT_TRUE(std::filesystem::is_empty(dir.path()));
 }
-
-// Lowers the file size limit while alive, so that writes fail half-way (EFBIG, not a signal).
-class FileSizeLimit {
- public:
-  explicit FileSizeLimit(rlim_t bytes) {
-    getrlimit(RLIMIT_FSIZE, &previous_);
-    previous_handler_ = std::signal(SIGXFSZ, SIG_IGN);
-    rlimit limit = previous_;
-    limit.rlim_cur = bytes;
-    setrlimit(RLIMIT_FSIZE, &limit);
-  }
-  ~FileSizeLimit() {
-    setrlimit(RLIMIT_FSIZE, &previous_);
-    std::signal(SIGXFSZ, previous_handler_);
-  }
-
- private:
-  rlimit previous_{};
-  void (*previous_handler_)(int) = nullptr;
-};
 
 TEST(SessionFiles, WriteFailingHalfWayNamesThePathAndRemovesThePartialFile) {
   TempDir dir;

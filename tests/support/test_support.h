@@ -63,4 +63,17 @@ std::size_t Count(const std::string& haystack, const std::string& needle);
 //! Modbus TCP server, SOCK_DGRAM for a CAN-over-UDP receiver.
 int FreeLoopbackPort(int type);
 
+//! Lowers the file size limit while alive, so that writes fail half-way (EFBIG, not a signal).
+class FileSizeLimit {
+ public:
+  explicit FileSizeLimit(unsigned long bytes);
+  ~FileSizeLimit();
+  FileSizeLimit(const FileSizeLimit&) = delete;
+  FileSizeLimit& operator=(const FileSizeLimit&) = delete;
+
+ private:
+  unsigned long previous_soft_ = 0;
+  void (*previous_handler_)(int) = nullptr;
+};
+
 }  // namespace strut::test

@@ -9,7 +9,7 @@
 #include "strut/daq/toml_reader.h"
 #include "strut/qc/reference.h"
 #include "strut/rig/safety.h"
-#include "strut/sim/simulated_rig.h"
+#include "strut/rig/test_matrix.h"
 #include "strut/sim/truth.h"
 #include "test_support.h"
 
@@ -97,9 +97,9 @@ TEST(TomlReader, EveryFileOfTheProjectReadsThroughIt) {
     EXPECT_EQ(std::string(e.what()), "ref.toml:2: [friction] upper: expected a number, got the string \"lots\"");
   }
   try {
-    strut::sim::ParseMatrix("sample_rate = \"lots\"\n", "matrix.toml");
+    strut::rig::ParseMatrix("sample_rate = \"lots\"\n", "matrix.toml");
     FAIL() << "no error";
-  } catch (const strut::sim::TruthError& e) {
+  } catch (const strut::rig::MatrixFileError& e) {
     EXPECT_EQ(std::string(e.what()), "matrix.toml:1: sample_rate: expected a number, got the string \"lots\"");
   }
 }

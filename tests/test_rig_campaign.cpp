@@ -189,7 +189,7 @@ amplitude = 0.005
                   "[[experiment]]\nlabel = \"a\"\nfrequency = 2\nstatic_position = 0.1\namplitude = 0.01\n")
                 .find("m.toml:6: label 'a' appears twice"),
             std::string::npos);
-  EXPECT_NE(error("periods = 1.5\n").find("m.toml:1: 'periods' must be an integer"), std::string::npos);
+  EXPECT_NE(error("periods = 1.5\n").find("m.toml:1: periods: expected an integer, got the number 1.5"), std::string::npos);
   EXPECT_NE(error("[[experiment]\n").find("m.toml:1:"), std::string::npos);
   try {
     ReadMatrixText("/nonexistent/m.toml");

@@ -62,7 +62,7 @@ TEST(PeriodicSolver, NewtonStopsWithinItsToleranceFromEveryStart) {
     PeriodicSolver reference(model, tight), solver(model);
     const PeriodicSolution cold = solver.Solve(input, theta);
     EXPECT_LE(ErrorInScales(model, cold, reference.Solve(input, theta)).maxCoeff(), 1.0);
-    ASSERT_TRUE(cold.jacobian);
+    ASSERT_TRUE(cold.solver_state.jacobian);
     for (const double change : {1.01, 1.3}) {
       SCOPED_TRACE(change);
       auto changed = theta;
@@ -71,7 +71,7 @@ TEST(PeriodicSolver, NewtonStopsWithinItsToleranceFromEveryStart) {
       const PeriodicSolution warm = solver.Solve(input, changed, &cold);
       EXPECT_LE(ErrorInScales(model, warm, truth).maxCoeff(), 1.0);
       PeriodicSolution guess = cold;
-      guess.jacobian.reset();
+      guess.solver_state.jacobian.reset();
       const PeriodicSolution from_guess = solver.Solve(input, changed, &guess);
       EXPECT_LE(ErrorInScales(model, from_guess, truth).maxCoeff(), 1.0);
       EXPECT_GE(from_guess.factorizations, 1);
@@ -90,7 +90,7 @@ TEST(PeriodicSolver, WarmStartWithSensitivitiesStartsAtTheTangentPrediction) {
   const std::vector<int> estimated = {model.defaults().position("theta4"), model.defaults().position("theta6"),
                                       model.defaults().position("theta16")};
   solver.OutputSensitivities(base, theta, estimated);
-  ASSERT_EQ(base.unknown_sensitivities.cols(), 3);
+  ASSERT_EQ(base.solver_state.unknown_sensitivities.cols(), 3);
   auto changed = theta;
   for (int i : estimated) changed[i] *= 1.01;
   const PeriodicSolution tangent = solver.Solve(force, changed, &base), chord = solver.Solve(force, changed, &plain);

@@ -210,9 +210,9 @@ struct ColdWarmCase {
     from[0] = cold;
     solver.OutputSensitivities(from[0], theta, estimated);  // factorisation at the solution, dz/dtheta
     from[1] = from[0];
-    from[1].unknown_sensitivities.resize(0, 0);
+    from[1].solver_state.unknown_sensitivities.resize(0, 0);
     from[2] = from[1];
-    from[2].jacobian.reset();
+    from[2].solver_state.jacobian.reset();
   }
   void Warm(std::size_t kind) {
     const double start = ThreadCpuMs();
@@ -322,7 +322,7 @@ struct BenchPeriodic {
         full_newton.reuse_contraction = 0.0;  // every step a full Newton step: the cost per step is comparable
         ident::PeriodicSolver solver(model, full_newton);
         ident::PeriodicSolution start = solver.Solve(input, theta);
-        start.jacobian.reset();
+        start.solver_state.jacobian.reset();
         std::vector<double> changed = theta;
         changed[model.defaults().position("theta4")] *= 1.01;
         ident::PeriodicSolution s;

@@ -101,10 +101,10 @@ struct PeriodicCommand {
     // same at the solution it returned: the correction its Jacobian makes of the residual there.
     Eigen::MatrixXd correction = -solver.Residual(solution.unknowns, input, parameters.values());
     const double residual_at_solution = correction.size() > 0 ? correction.cwiseAbs().maxCoeff() : 0.0;
-    if (solution.jacobian)
-      solution.jacobian->Solve(Eigen::Map<Eigen::VectorXd>(correction.data(), correction.size()));
-    double step_left = solution.jacobian ? 0.0 : INFINITY;
-    for (int j = 0; j < correction.rows() && solution.jacobian; ++j)
+    if (solution.solver_state.jacobian)
+      solution.solver_state.jacobian->Solve(Eigen::Map<Eigen::VectorXd>(correction.data(), correction.size()));
+    double step_left = solution.solver_state.jacobian ? 0.0 : INFINITY;
+    for (int j = 0; j < correction.rows() && solution.solver_state.jacobian; ++j)
       step_left = std::max(step_left, correction.row(j).cwiseAbs().maxCoeff() /
                                           (m.unknown_spec(j).scale * options.tolerance));
     spdlog::info("{} ({} input), {} at n = {}: {} Newton iterations, scaled residual {:.3g}, Newton step left {:.3g} "

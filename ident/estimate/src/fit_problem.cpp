@@ -930,7 +930,10 @@ void FitProblem::Summarise(const ResidualSums& sums, const std::vector<double>& 
       }
       f.channels.push_back(st);
     }
-    if (s.active) f.solution = std::move(s.solution);
+    if (s.active) {
+      f.solution = std::move(s.solution);
+      f.solution.solver_state = {};  // a result holds values only; the factorisation is megabytes
+    }
     summary.experiments.push_back(std::move(f));
   }
   for (const TransientExperiment& t : transients_) {

@@ -186,6 +186,75 @@ void ForceBalanceRegression(const Model& model, const std::vector<ExperimentData
   if (viscous && x[6] >= 0) set(18, x[6], how);
 }
 
+// The gas law's start for a model with a gas temperature state (heat-exchange): ideal gas near
+// ambient temperature from pressure against stroke.
+template <class Set>
+void IdealGasStart(const Model& model, const std::vector<ExperimentData>& data, const ExperimentData& slow,
+                   const std::string& where, const ParameterSet& values, const Set& set) {
+  const Eigen::VectorXd& y = slow.channels.at("stroke").mean;
+  const Eigen::VectorXd& p = slow.channels.at("pressure").mean;
+  const Eigen::Index m = y.size();
+  Eigen::VectorXd x;
+  // Ideal gas near ambient temperature: 1/p = (1 + theta6 q) / (theta5 T) + theta7 / theta5. Slow
+  // large strokes swing the gas temperature by tens of kelvin, so use the cycle means of the
+  // small-amplitude experiments (gas close to ambient on average) at their static positions.
+  std::vector<std::pair<double, double>> points;  // (mean stroke, mean pressure)
+  for (const ExperimentData& e : data)
+    if (e.amplitude < 0.04 && e.channels.count("stroke") && e.channels.count("pressure"))
+      points.emplace_back(e.channels.at("stroke").mean.mean(), e.channels.at("pressure").mean.mean());
+  double stroke_spread = 0.0;
+  for (const auto& [q, pressure] : points) stroke_spread = std::max(stroke_spread, std::abs(q - points[0].first));
+  Eigen::MatrixXd b;
+  Eigen::VectorXd inverse_pressure;
+  std::string how;
+  if (points.size() >= 2 && stroke_spread > 0.05) {
+    b.resize(static_cast<Eigen::Index>(points.size()), 2);
+    inverse_pressure.resize(b.rows());
+    for (Eigen::Index i = 0; i < b.rows(); ++i) {
+      b(i, 0) = 1.0;
+      b(i, 1) = points[i].first;
+      inverse_pressure[i] = 1.0 / points[i].second;
+    }
+    how = fmt::format("cycle means of {} small-amplitude experiments, gas at ambient temperature", points.size());
+  } else {
+    b.resize(m, 2);
+    b.col(0).setOnes();
+    b.col(1) = y;
+    inverse_pressure = p.cwiseInverse();
+    how = where + ", isothermal gas at ambient temperature";
+  }
+  LeastSquares(b, inverse_pressure, x);
+  const int solubility = values.position_of_index(7);
+  const double theta7 = solubility >= 0 && model.has_term("gas-solubility") ? values.value(solubility) : 0.0;
+  const double theta5 = (1.0 + theta7 * kAmbientK) / (x[0] * kAmbientK);
+  set(5, theta5, how);
+  set(6, x[1] * theta5 * kAmbientK, how);
+}
+
+// The gas law's start for a polytropic gas (no temperature state).
+template <class Set>
+void PolytropicGasStart(const ExperimentData& slow, const std::string& where, const Set& set) {
+  const Eigen::VectorXd& y = slow.channels.at("stroke").mean;
+  const Eigen::VectorXd& p = slow.channels.at("pressure").mean;
+  const Eigen::Index m = y.size();
+  const double y_max = y.maxCoeff();
+  Eigen::VectorXd x;
+  // Polytropic: log p = log theta5 - theta7 log(1 + theta6 q); profile over the gas column length.
+  double best = INFINITY, best_column = 0.0;
+  Eigen::VectorXd best_x;
+  for (int k = 0; k <= 200; ++k) {
+    const double column = (y_max + 1e-3) * std::pow(100.0, k / 200.0);  // from just past the stroke to 100x
+    Eigen::MatrixXd b(m, 2);
+    b.col(0).setOnes();
+    for (Eigen::Index i = 0; i < m; ++i) b(i, 1) = -std::log(1.0 - y[i] / column);
+    const double rms = LeastSquares(b, p.array().log().matrix(), x);
+    if (rms < best) best = rms, best_column = column, best_x = x;
+  }
+  set(5, std::exp(best_x[0]), where + ", polytropic fit");
+  set(6, -1.0 / best_column, where + ", polytropic fit");
+  set(7, best_x[1], where + ", polytropic fit");
+}
+
 }  // namespace
 
 ParameterSet InitialValuesFromData(const Model& model, const std::vector<ExperimentData>& data,
@@ -239,58 +308,10 @@ ParameterSet InitialValuesFromData(const Model& model, const std::vector<Experim
     set(11, x[1] - weight, where + ", less the weight of the moving mass");
     const double coulomb = x[2];
     // Gas law from pressure against the measured stroke (its offset theta12 starts at 0).
-    const double y_max = y.maxCoeff();
-    if (model.has_term("heat-exchange")) {
-      // Ideal gas near ambient temperature: 1/p = (1 + theta6 q) / (theta5 T) + theta7 / theta5. Slow
-      // large strokes swing the gas temperature by tens of kelvin, so use the cycle means of the
-      // small-amplitude experiments (gas close to ambient on average) at their static positions.
-      std::vector<std::pair<double, double>> points;  // (mean stroke, mean pressure)
-      for (const ExperimentData& e : data)
-        if (e.amplitude < 0.04 && e.channels.count("stroke") && e.channels.count("pressure"))
-          points.emplace_back(e.channels.at("stroke").mean.mean(), e.channels.at("pressure").mean.mean());
-      double stroke_spread = 0.0;
-      for (const auto& [q, pressure] : points) stroke_spread = std::max(stroke_spread, std::abs(q - points[0].first));
-      Eigen::MatrixXd b;
-      Eigen::VectorXd inverse_pressure;
-      std::string how;
-      if (points.size() >= 2 && stroke_spread > 0.05) {
-        b.resize(static_cast<Eigen::Index>(points.size()), 2);
-        inverse_pressure.resize(b.rows());
-        for (Eigen::Index i = 0; i < b.rows(); ++i) {
-          b(i, 0) = 1.0;
-          b(i, 1) = points[i].first;
-          inverse_pressure[i] = 1.0 / points[i].second;
-        }
-        how = fmt::format("cycle means of {} small-amplitude experiments, gas at ambient temperature", points.size());
-      } else {
-        b.resize(m, 2);
-        b.col(0).setOnes();
-        b.col(1) = y;
-        inverse_pressure = p.cwiseInverse();
-        how = where + ", isothermal gas at ambient temperature";
-      }
-      LeastSquares(b, inverse_pressure, x);
-      const int solubility = values.position_of_index(7);
-      const double theta7 = solubility >= 0 && model.has_term("gas-solubility") ? values.value(solubility) : 0.0;
-      const double theta5 = (1.0 + theta7 * kAmbientK) / (x[0] * kAmbientK);
-      set(5, theta5, how);
-      set(6, x[1] * theta5 * kAmbientK, how);
-    } else {
-      // Polytropic: log p = log theta5 - theta7 log(1 + theta6 q); profile over the gas column length.
-      double best = INFINITY, best_column = 0.0;
-      Eigen::VectorXd best_x;
-      for (int k = 0; k <= 200; ++k) {
-        const double column = (y_max + 1e-3) * std::pow(100.0, k / 200.0);  // from just past the stroke to 100x
-        Eigen::MatrixXd b(m, 2);
-        b.col(0).setOnes();
-        for (Eigen::Index i = 0; i < m; ++i) b(i, 1) = -std::log(1.0 - y[i] / column);
-        const double rms = LeastSquares(b, p.array().log().matrix(), x);
-        if (rms < best) best = rms, best_column = column, best_x = x;
-      }
-      set(5, std::exp(best_x[0]), where + ", polytropic fit");
-      set(6, -1.0 / best_column, where + ", polytropic fit");
-      set(7, best_x[1], where + ", polytropic fit");
-    }
+    if (model.has_term("heat-exchange"))
+      IdealGasStart(model, data, *slow, where, values, set);
+    else
+      PolytropicGasStart(*slow, where, set);
     // Friction: the reversals when they can be fitted, else the static relation's Coulomb level.
     const FrictionEstimate friction = PreidentifyFriction(data);
     if (friction.ok) {

@@ -549,14 +549,14 @@ bool PeriodicSolver::TangentPrediction(const PeriodicSolution& from, std::span<c
                                        Eigen::MatrixXd& z) const {
   // First order in the parameter change: the Newton start is then O(dtheta^2) from the solution
   // instead of O(dtheta). Only when every parameter that changed has its dz/dtheta in `from`.
-  const auto& dz = from.unknown_sensitivities;
+  const auto& dz = from.solver_state.unknown_sensitivities;
   if (from.theta.size() != theta.size() || dz.rows() != z.size() ||
-      dz.cols() != static_cast<Eigen::Index>(from.sensitivity_parameters.size()))
+      dz.cols() != static_cast<Eigen::Index>(from.solver_state.sensitivity_parameters.size()))
     return false;
   Eigen::VectorXd change = Eigen::VectorXd::Zero(dz.cols());
   std::vector<bool> covered(theta.size(), false);
-  for (std::size_t k = 0; k < from.sensitivity_parameters.size(); ++k) {
-    const int i = from.sensitivity_parameters[k];
+  for (std::size_t k = 0; k < from.solver_state.sensitivity_parameters.size(); ++k) {
+    const int i = from.solver_state.sensitivity_parameters[k];
     covered[i] = true;
     change[static_cast<Eigen::Index>(k)] = theta[i] - from.theta[i];
   }
@@ -585,8 +585,8 @@ PeriodicSolution PeriodicSolver::Solve(const PeriodicInput& input, std::span<con
 
   if (warm_start && warm_start->n == n && warm_start->unknowns.rows() == m && warm_start->unknowns.cols() == n) {
     std::shared_ptr<const CyclicBandedLU> lu;
-    if (options_.reuse_contraction > 0 && warm_start->jacobian && warm_start->jacobian->rows() == n * m)
-      lu = warm_start->jacobian;
+    const PeriodicSolverState& carried = warm_start->solver_state;
+    if (options_.reuse_contraction > 0 && carried.jacobian && carried.jacobian->rows() == n * m) lu = carried.jacobian;
     Eigen::MatrixXd predicted = warm_start->unknowns;
     if (TangentPrediction(*warm_start, theta, predicted)) {
       try {
@@ -716,6 +716,15 @@ PeriodicSolution PeriodicSolver::Newton(Eigen::MatrixXd z, std::shared_ptr<const
                                           iteration, norm),
                               norm, iteration);
 
+  SolverCounts counts{iteration, factorizations, g.lpNorm<Eigen::Infinity>(), norm};
+  PeriodicSolverState state{std::move(lu), fresh ? 0.0 : last_contraction, {}, {}};
+  return Solution(std::move(z), input, theta, counts, std::move(state));
+}
+
+PeriodicSolution PeriodicSolver::Solution(Eigen::MatrixXd z, const PeriodicInput& input, std::span<const double> theta,
+                                          const SolverCounts& counts, PeriodicSolverState state) const {
+  const int n = static_cast<int>(input.values.size());
+  const int m = model_.unknown_count();
   PeriodicSolution solution;
   solution.scheme = options_.scheme;
   solution.frequency = input.frequency;
@@ -723,11 +732,10 @@ PeriodicSolution PeriodicSolver::Newton(Eigen::MatrixXd z, std::shared_ptr<const
   solution.unknowns = std::move(z);
   solution.input = input;
   solution.theta.assign(theta.begin(), theta.end());
-  solution.newton_iterations = iteration;
-  solution.factorizations = factorizations;
-  solution.residual_norm = g.lpNorm<Eigen::Infinity>();
-  solution.jacobian = std::move(lu);
-  solution.jacobian_contraction = fresh ? 0.0 : last_contraction;
+  solution.newton_iterations = counts.iterations;
+  solution.factorizations = counts.factorizations;
+  solution.residual_norm = counts.residual_norm;
+  solution.solver_state = std::move(state);
   solution.channels = model_.output_channels();
   solution.outputs.resize(static_cast<int>(solution.channels.size()), n);
   const std::size_t channels = solution.channels.size();
@@ -735,7 +743,7 @@ PeriodicSolution PeriodicSolver::Newton(Eigen::MatrixXd z, std::shared_ptr<const
     model_.Outputs<double>(std::span<const double>(solution.unknowns.col(mu).data(), m), input.values[mu], theta,
                            std::span<double>(solution.outputs.col(mu).data(), channels));
   if (!AllFinite(solution.outputs))
-    throw PeriodicSolverError("periodic solver: non-finite outputs at the solution", norm, iteration);
+    throw PeriodicSolverError("periodic solver: non-finite outputs at the solution", counts.norm, counts.iterations);
   return solution;
 }
 
@@ -841,11 +849,12 @@ void PeriodicSolver::OutputDerivatives(const PeriodicSolution& solution, std::sp
 
 void PeriodicSolver::MakeJacobianCurrent(const PeriodicSolution& solution, const InputRates& rates,
                                          std::span<const double> theta) {
-  if (solution.jacobian && solution.jacobian_contraction == 0.0 && solution.jacobian->rows() == solution.unknowns.size())
+  PeriodicSolverState& state = solution.solver_state;
+  if (state.jacobian && state.jacobian_contraction == 0.0 && state.jacobian->rows() == solution.unknowns.size())
     return;
   // Simplified Newton steps (or a guess) led here: eq. 14 wants the Jacobian at the solution.
-  solution.jacobian = Factorize(solution.unknowns, solution.input, rates, theta, 0, 0.0);
-  solution.jacobian_contraction = 0.0;
+  state.jacobian = Factorize(solution.unknowns, solution.input, rates, theta, 0, 0.0);
+  state.jacobian_contraction = 0.0;
 }
 
 Eigen::MatrixXd PeriodicSolver::InputGradients(const PeriodicSolution& solution, std::span<const double> theta,
@@ -896,7 +905,7 @@ Eigen::MatrixXd PeriodicSolver::InputGradients(const PeriodicSolution& solution,
       }
     }
   }
-  solution.jacobian->SolveTransposed(lambda);
+  solution.solver_state.jacobian->SolveTransposed(lambda);
   // G_u^T lambda: per point the input, rate and acceleration parts, the rate parts through D^T.
   Eigen::MatrixXd a0(columns, n), a1(columns, n), a2(columns, n);
   ResidualJetBatches(model_, z, zd, zdd, input, rates.first, rates.second, jets, true,
@@ -945,8 +954,9 @@ std::vector<Eigen::MatrixXd> PeriodicSolver::InputSensitivities(const PeriodicSo
   const PeriodicInput& input = solution.input;
   Prepare(input);
   const InputRates rates(stencil_, input);
-  const bool close_enough = !exact && solution.jacobian && solution.jacobian->rows() == solution.unknowns.size() &&
-                            solution.jacobian_contraction <= 0.05;
+  const PeriodicSolverState& state = solution.solver_state;
+  const bool close_enough = !exact && state.jacobian && state.jacobian->rows() == solution.unknowns.size() &&
+                            state.jacobian_contraction <= 0.05;
   if (!close_enough) MakeJacobianCurrent(solution, rates, theta);
   using J = StateJet;
   static_assert(kStateDirections >= 3);
@@ -1003,7 +1013,7 @@ std::vector<Eigen::MatrixXd> PeriodicSolver::InputSensitivities(const PeriodicSo
   Eigen::MatrixXd dz(static_cast<Eigen::Index>(m) * n, columns);
   for (int i = 0; i < m; ++i)
     unknown_rows(dz, i) = g0.col(i).asDiagonal() * directions + g1.col(i).asDiagonal() * d1 + g2.col(i).asDiagonal() * d2;
-  solution.jacobian->Solve(dz);
+  solution.solver_state.jacobian->Solve(dz);
   // dy = Y_z dz + Y_u phi: the output derivatives per point once, then unknown by unknown.
   std::vector<Eigen::MatrixXd> derivative(channels, Eigen::MatrixXd(n, m + 1));  // per channel: unknowns, input
   {
@@ -1039,8 +1049,9 @@ std::vector<Eigen::MatrixXd> PeriodicSolver::OutputSensitivities(const PeriodicS
   const int nd = static_cast<int>(wanted.size());
   Prepare(solution.input);
   const InputRates rates(stencil_, solution.input);
-  const bool close_enough = !exact && solution.jacobian && solution.jacobian->rows() == solution.unknowns.size() &&
-                            solution.jacobian_contraction <= 0.05;
+  const PeriodicSolverState& state = solution.solver_state;
+  const bool close_enough = !exact && state.jacobian && state.jacobian->rows() == solution.unknowns.size() &&
+                            state.jacobian_contraction <= 0.05;
   if (!close_enough) MakeJacobianCurrent(solution, rates, theta);
   // d(outputs)/dtheta = df/dz dz/dtheta + df/dtheta (eq. 15), with dz/dtheta from eq. 14. The
   // parameters go through fixed-size Jets, kStateDirections at a time: their unrolled arithmetic over
@@ -1054,15 +1065,15 @@ std::vector<Eigen::MatrixXd> PeriodicSolver::OutputSensitivities(const PeriodicS
     const std::vector<int> part = chunk(first);
     ParameterResiduals<StateJet>(solution, rates, theta, part, dz.middleCols(first, static_cast<Eigen::Index>(part.size())));
   }
-  solution.jacobian->Solve(dz);  // -dG/dtheta became dz/dtheta (eq. 14)
+  solution.solver_state.jacobian->Solve(dz);  // -dG/dtheta became dz/dtheta (eq. 14)
   std::vector<Eigen::MatrixXd> sens(solution.channels.size(), Eigen::MatrixXd(n, nd));
   for (int first = 0; first < nd; first += kStateDirections) {
     const std::vector<int> part = chunk(first);
     OutputDerivatives<StateJet>(solution, theta, part, dz.middleCols(first, static_cast<Eigen::Index>(part.size())), sens,
                                 first);
   }
-  solution.unknown_sensitivities = std::move(dz);
-  solution.sensitivity_parameters = wanted;
+  solution.solver_state.unknown_sensitivities = std::move(dz);
+  solution.solver_state.sensitivity_parameters = wanted;
   return sens;
 }
 

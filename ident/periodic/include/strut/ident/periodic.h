@@ -75,6 +75,26 @@ struct PeriodicSolverOptions {
 };
 
 //! One period of a periodic equilibrium state.
+//! The solver's working state carried by a solution for warm starts and sensitivities: not part
+//! of the answer, which is the same with or without it.
+struct PeriodicSolverState {
+  //! The factorised Newton Jacobian the solution was reached with (null for a guess): warm starts
+  //! take simplified Newton steps with it, and sensitivities (eq. 14) reuse it when it is current
+  //! (`jacobian_contraction` 0).
+  std::shared_ptr<const CyclicBandedLU> jacobian;
+  //! How far `jacobian` is from the one at the solution. 0: it was factorised for the final Newton
+  //! step (at the last iterate but one, a step below the tolerance away), so sensitivities are
+  //! exact with it. Else simplified steps carried an older factorisation along, and this is the
+  //! contraction of the last one (about the relative error of sensitivities computed with it;
+  //! infinite when unknown).
+  double jacobian_contraction = INFINITY;
+  //! dz/dtheta (unknowns of every point stacked, m n rows) for the parameters at these positions,
+  //! when OutputSensitivities computed them: a warm start then begins at the tangent prediction
+  //! z + dz/dtheta (theta_new - theta) when only these parameters changed.
+  Eigen::MatrixXd unknown_sensitivities;
+  std::vector<int> sensitivity_parameters;
+};
+
 struct PeriodicSolution {
   Scheme scheme = Scheme::kBackward2;
   double frequency = 0.0;
@@ -88,23 +108,10 @@ struct PeriodicSolution {
   int factorizations = 0;      //!< Jacobians assembled and factorised on this grid
   double residual_norm = 0.0;  //!< max scaled residual at the last iterate evaluated (before the final correction)
 
-  //! The factorised Newton Jacobian this solution was reached with (null for a guess): warm starts
-  //! from this solution take simplified Newton steps with it, and sensitivities (eq. 14) reuse it
-  //! when it is current (`jacobian_contraction` 0). A cache, so OutputSensitivities may replace it
-  //! by one at the solution (so one solution object must not be passed to two such calls on
-  //! different threads at once).
-  mutable std::shared_ptr<const CyclicBandedLU> jacobian;
-  //! How far `jacobian` is from the one at the solution. 0: it was factorised for the final Newton
-  //! step (at the last iterate but one, a step below the tolerance away), so sensitivities are
-  //! exact with it. Else simplified steps carried an older factorisation along, and this is the
-  //! contraction of the last one (about the relative error of sensitivities computed with it;
-  //! infinite when unknown).
-  mutable double jacobian_contraction = INFINITY;
-  //! dz/dtheta (unknowns of every point stacked, m n rows) for the parameters at these positions,
-  //! when OutputSensitivities computed them: a warm start from this solution then begins at the
-  //! tangent prediction z + dz/dtheta (theta_new - theta) when only these parameters changed.
-  mutable Eigen::MatrixXd unknown_sensitivities;
-  mutable std::vector<int> sensitivity_parameters;
+  //! What the solver carries from this solve to the next (see PeriodicSolverState). A cache that
+  //! OutputSensitivities may replace, so one solution object must not be passed to two such calls
+  //! on different threads at once; fit results hold none (FitSummary clears it).
+  mutable PeriodicSolverState solver_state;
 
   std::vector<double> time() const;  //!< t_mu = mu / (n f), s
   //! Row of `outputs` for a channel; std::out_of_range if absent.
@@ -230,6 +237,15 @@ class PeriodicSolver : public PeriodicPredictor {
   //! Damped Newton from z, starting with the factorisation `lu` when given (simplified steps).
   PeriodicSolution Newton(Eigen::MatrixXd z, std::shared_ptr<const CyclicBandedLU> lu, const PeriodicInput& input,
                           const InputRates& rates, std::span<const double> theta);
+  struct SolverCounts {
+    int iterations = 0;
+    int factorizations = 0;
+    double residual_norm = 0.0;  //!< max scaled residual at the last iterate evaluated
+    double norm = 0.0;           //!< its 2-norm
+  };
+  //! The solution at the converged unknowns z: outputs evaluated, counts and state attached.
+  PeriodicSolution Solution(Eigen::MatrixXd z, const PeriodicInput& input, std::span<const double> theta,
+                            const SolverCounts& counts, PeriodicSolverState state) const;
   //! Static equilibrium at every grid point; `march_start`: only where a start-up march reads it
   //! before marching there (the first point and the stencil's reach before it), the rest copies.
   Eigen::MatrixXd QuasiStaticGuess(const PeriodicInput& input, std::span<const double> theta,

@@ -10,6 +10,7 @@
 #include "output_files.h"
 #include "strut/ident/session_fit.h"
 #include "strut/study/units.h"
+#include "strut/study/units_compare.h"
 
 namespace strut::tools {
 namespace {
@@ -31,6 +32,7 @@ nlohmann::json UnitJson(const study::UnitFit& unit) {
   nlohmann::json row{{"seed", unit.seed}, {"verdict", ident::ToString(unit.verdict)},
                      {"worst_noise_ratio", unit.worst_noise_ratio}};
   for (const auto& [key, z] : unit.z) row["z"][key] = z;
+  for (const auto& [key, v] : unit.estimate) row["estimate"][key] = v;
   if (unit.restarted) row["restart_apart_sd"] = unit.restart_apart_sd;
   return row;
 }
@@ -54,13 +56,40 @@ void PrintSummary(const study::UnitsOptions& o, const study::UnitsStudy& s) {
       1e3 * s.uncalibrated_cpu_median, s.cost_ratio_median);
 }
 
+// A figure's largest difference and its unit, or "-" where the two runs do not both have it.
+std::string Largest(long units, double difference, unsigned long seed) {
+  return units == 0 ? fmt::format("{:<20}", "-") : fmt::format("{:<9.3g} (unit {:4})", difference, seed);
+}
+
+void PrintComparison(const study::UnitsRun& before, const study::UnitsComparison& c) {
+  std::cout << fmt::format("\ncompared with {}: {} units in both, tolerance {:g} relative{}; the largest relative "
+                           "difference per parameter:\n",
+                           before.source, c.units, c.tolerance,
+                           c.before_has_estimates ? "" : " (the earlier run kept no estimates: z alone)");
+  for (const study::ParameterDifference& p : c.parameters)
+    std::cout << fmt::format("  {:<8} estimate {}  z {}\n", p.key, Largest(p.estimate_units, p.estimate, p.estimate_seed),
+                             Largest(p.units, p.z, p.z_seed));
+  if (!c.only_before.empty())
+    std::cout << fmt::format("units only in the earlier run (not compared): {}\n", fmt::join(c.only_before, " "));
+  if (!c.only_now.empty())
+    std::cout << fmt::format("units only in this run (not compared): {}\n", fmt::join(c.only_now, " "));
+  for (const std::string& m : c.missing) std::cout << "  " << m << "\n";
+  std::cout << fmt::format("{} differences above the tolerance, {} figures in one run only: {}\n", c.exceeded,
+                           c.missing.size(), c.same() ? "the same" : "DIFFERENT");
+}
+
 struct BenchUnits {
   study::UnitsOptions options;
   std::string calibration;  //!< the fit's calibration (--calibration of identify); empty: the lab's
   std::string json_path;
+  std::string compare_path;  //!< an earlier run's --json to compare this one with
+  double tolerance = 1e-9;
 
   void Run() {
-    CheckOutputPath("--json", json_path, {});
+    CheckOutputPath("--json", json_path, compare_path.empty() ? std::vector<std::string>{}
+                                                              : std::vector<std::string>{compare_path});
+    // Read before the units run, so that a wrong file costs no study.
+    const study::UnitsRun before = compare_path.empty() ? study::UnitsRun{} : study::ReadUnitsRun(compare_path);
     if (!calibration.empty()) {
       options.gain_sd = ident::ParseGainSd(calibration);
       try {
@@ -83,7 +112,14 @@ struct BenchUnits {
                                fmt::join(options.effects, " and "), options.base);
     const study::UnitsStudy s = study::RunUnitsStudy(options, PrintUnit);
     PrintSummary(options, s);
-    if (json_path.empty()) return;
+    if (!json_path.empty()) WriteJson(s);
+    if (compare_path.empty()) return;
+    const study::UnitsComparison c = study::CompareUnits(before, study::ToRun(s), tolerance);
+    PrintComparison(before, c);
+    if (!c.same()) throw ExitCode(kExitDifferent);
+  }
+
+  void WriteJson(const study::UnitsStudy& s) const {
     nlohmann::json rows = nlohmann::json::array(), coverage = nlohmann::json::object();
     for (const study::UnitFit& unit : s.units) rows.push_back(UnitJson(unit));
     for (const auto& [key, c] : s.coverage)
@@ -136,6 +172,13 @@ void RegisterBenchUnits(CLI::App& bench) {
                   "intervals widened for the misfit. Names as for `strut sim matrix --effect`.")
       ->check(CLI::IsMember({"viscous-damping", "stribeck-friction", "end-stop", "oil-compressibility", "real-gas"}));
   sub->add_option("--json", command->json_path, "Also write the figures as JSON to this file.");
+  sub->add_option("--compare", command->compare_path,
+                  "Compare this run with an earlier one's --json file: per parameter the largest relative difference "
+                  "of the estimates and of z over the units both ran; exit code 6 when one exceeds --tolerance.")
+      ->check(CLI::ExistingFile);
+  sub->add_option("--tolerance", command->tolerance, "The largest relative difference --compare accepts.")
+      ->check(Between(0.0, 1e300))
+      ->capture_default_str();
   sub->callback([command] { command->Run(); });
 }
 

@@ -110,6 +110,7 @@ UnitFit FitUnit(const UnitsOptions& options, const ident::SessionFitOptions& fit
   for (const auto& c : s.channels) unit.worst_noise_ratio = std::max(unit.worst_noise_ratio, c.noise_ratio);
   for (int i : s.estimated_positions) {
     const std::string key = s.parameters.spec(i).key();
+    unit.estimate.emplace_back(key, s.parameters.value(i));
     if (const auto t = truth_values.find(key))
       unit.z.emplace_back(key, (s.parameters.value(i) - truth_values.value(*t)) / s.estimates[i].sd);
   }

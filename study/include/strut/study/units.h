@@ -38,6 +38,7 @@ struct UnitFit {
   double worst_noise_ratio = 0.0;  //!< the largest channel noise ratio
   double seconds = 0.0;            //!< wall time of the entry point (prepare, plan, fit)
   std::vector<std::pair<std::string, double>> z;  //!< (estimate - truth) / sd per estimated key the truth has
+  std::vector<std::pair<std::string, double>> estimate;  //!< per estimated key
   bool restarted = false;  //!< the fit converged, so it was repeated from far off
   bool same_optimum = false;
   double restart_apart_sd = 0.0;  //!< largest |difference| of the two optima in sd

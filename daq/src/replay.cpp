@@ -110,138 +110,175 @@ struct ReplayAcquisition::Track {
   std::size_t size() const { return offset_ns.size(); }
 };
 
+// What the session says about its channels before any is played: the calibrations a recorder
+// stored and the counts channels beside them, and the value range of the others (one derived
+// calibration per channel name for the whole session, so that a CAN receiver can use one).
+struct ReplayAcquisition::Sources {
+  struct Range {
+    double low = std::numeric_limits<double>::infinity(), high = -std::numeric_limits<double>::infinity();
+  };
+  bool by_recorder = false;  //!< the session has a /recording group: its sequence and status channels are the recorder's
+  std::vector<std::map<std::string, Calibration>> stored;  //!< per experiment: channel -> its stored calibration
+  std::vector<std::map<std::string, std::string>> counts_of;  //!< per experiment: channel -> its counts channel
+  std::map<std::string, Range> ranges;  //!< per channel name without a stored calibration
+
+  static Sources Of(const Session& s) {
+    Sources out;
+    out.by_recorder = s.find_metadata("recording") != nullptr;
+    out.stored.resize(s.experiments.size());
+    out.counts_of.resize(s.experiments.size());
+    for (std::size_t k = 0; k < s.experiments.size(); ++k) {
+      const Experiment& e = s.experiments[k];
+      for (const Channel& c : e.channels) {
+        const MetadataGroup* g = StoredCalibration(s, e.label, c.name);
+        if (g == nullptr) continue;
+        const std::string counts = g->text("counts_channel").value_or(c.name + "_counts");
+        if (e.find_channel(counts) == nullptr) {
+          throw SessionError(fmt::format("{}: experiment '{}': channel '{}' has a calibration but no counts channel '{}'",
+                                         FileName(s), e.label, c.name, counts));
+        }
+        out.stored[k][c.name] = ReadCalibration(s, e, c.name, *g);
+        out.counts_of[k][c.name] = counts;
+      }
+    }
+    for (std::size_t k = 0; k < s.experiments.size(); ++k) {
+      for (const Channel& c : s.experiments[k].channels) {
+        if (!out.IsStreamChannel(k, c) || out.stored[k].count(c.name) != 0) continue;
+        Range& r = out.ranges[c.name];
+        for (double v : c.samples) r.low = std::min(r.low, v), r.high = std::max(r.high, v);
+      }
+    }
+    return out;
+  }
+
+  //! A channel the stream carries: not a counts channel, nor the recorder's sequence or status.
+  bool IsStreamChannel(std::size_t k, const Channel& c) const {
+    for (const auto& [name, counts] : counts_of[k])
+      if (c.name == counts) return false;
+    return !(by_recorder && (c.name == "sequence" || c.name == "status") && c.units == "1");
+  }
+};
+
+namespace {
+
+// The experiment as the replay plays it, before its channels: the header without samples nor the
+// recorder's own attributes, how the recording ended it, the stream's source and rate.
+ReplayedExperiment ReplayHeader(const Experiment& e, const std::string& file) {
+  ReplayedExperiment x;
+  x.header = e;
+  x.header.time.clear();
+  x.header.channels.clear();
+  for (const char* name : kRecorderAttributes) x.header.extra_attributes.erase(name);
+  x.samples = e.sample_count();
+  x.periods = e.periods;
+  const auto recording_end = e.extra_attributes.find("recording_end");
+  if (e.status == "aborted") {
+    x.end = EndStatus::kAborted;
+    x.header.periods = 0;
+    if (const auto requested = e.extra_attributes.find("requested_periods"); requested != e.extra_attributes.end()) {
+      try {
+        x.header.periods = std::stol(requested->second);
+      } catch (const std::invalid_argument&) {
+        spdlog::warn("{}: experiment '{}': requested_periods '{}' is no number; replayed without it", file, e.label,
+                     requested->second);
+      } catch (const std::out_of_range&) {
+        spdlog::warn("{}: experiment '{}': requested_periods '{}' is no number; replayed without it", file, e.label,
+                     requested->second);
+      }
+    }
+  } else {
+    x.end = recording_end != e.extra_attributes.end() && recording_end->second == ToString(EndStatus::kNotSteady)
+                ? EndStatus::kNotSteady
+                : EndStatus::kComplete;
+  }
+  x.stream.source = fmt::format("replay:{}", file);
+  x.stream.sample_rate = e.sample_rate;
+  return x;
+}
+
+}  // namespace
+
 ReplayAcquisition::ReplayAcquisition(Session session, ReplayOptions options)
     : session_(std::move(session)), options_(options) {
   std::string why;
   if (!options_.IsValid(&why)) throw std::invalid_argument(fmt::format("replay options: {}", why));
+  if (session_.experiments.empty())
+    throw SessionError(fmt::format("{}: no experiments to replay", FileName(session_)));
+  const Sources sources = Sources::Of(session_);
+  std::int64_t base_ns = 0;  // stream time of the experiment's first set
+  for (std::size_t k = 0; k < session_.experiments.size(); ++k) AddExperiment(sources, k, base_ns);
+}
+
+void ReplayAcquisition::AddExperiment(const Sources& sources, std::size_t k, std::int64_t& base_ns) {
   const Session& s = session_;
   const std::string file = FileName(s);
-  if (s.experiments.empty()) throw SessionError(fmt::format("{}: no experiments to replay", file));
-  const bool by_recorder = s.find_metadata("recording") != nullptr;
-
-  // Which channels carry counts, and the value range of the others (one derived calibration per
-  // channel name for the whole session, so that a CAN receiver can use one).
-  struct Range {
-    double low = std::numeric_limits<double>::infinity(), high = -std::numeric_limits<double>::infinity();
-  };
-  std::map<std::string, Range> ranges;
-  std::vector<std::map<std::string, Calibration>> stored(s.experiments.size());
-  std::vector<std::map<std::string, std::string>> counts_of(s.experiments.size());  // channel -> its counts channel
-  for (std::size_t k = 0; k < s.experiments.size(); ++k) {
-    const Experiment& e = s.experiments[k];
-    for (const Channel& c : e.channels) {
-      const MetadataGroup* g = StoredCalibration(s, e.label, c.name);
-      if (g == nullptr) continue;
-      const std::string counts = g->text("counts_channel").value_or(c.name + "_counts");
-      if (e.find_channel(counts) == nullptr) {
-        throw SessionError(fmt::format("{}: experiment '{}': channel '{}' has a calibration but no counts channel '{}'",
-                                       file, e.label, c.name, counts));
-      }
-      stored[k][c.name] = ReadCalibration(s, e, c.name, *g);
-      counts_of[k][c.name] = counts;
+  const Experiment& e = s.experiments[k];
+  ReplayedExperiment x = ReplayHeader(e, file);
+  Track t;
+  AddStreamChannels(sources, k, x, t);
+  if (x.stream.channels.empty()) {
+    throw SessionError(fmt::format("{}: experiment '{}': no channel to replay", file, e.label));
+  }
+  if (sources.by_recorder) {
+    if (const Channel* c = e.find_channel("sequence"); c != nullptr && c->units == "1") {
+      t.sequence = WholeNumbers<std::uint64_t>(s, e, *c, 0.0, 9007199254740992.0);
+      x.recorded_sequence = true;
+    }
+    if (const Channel* c = e.find_channel("status"); c != nullptr && c->units == "1") {
+      t.status = WholeNumbers<std::uint32_t>(s, e, *c, 0.0, 4294967295.0);
+      x.recorded_status = true;
     }
   }
-  const auto is_stream_channel = [&](std::size_t k, const Channel& c) {
-    for (const auto& [name, counts] : counts_of[k])
-      if (c.name == counts) return false;
-    return !(by_recorder && (c.name == "sequence" || c.name == "status") && c.units == "1");
-  };
-  for (std::size_t k = 0; k < s.experiments.size(); ++k) {
-    for (const Channel& c : s.experiments[k].channels) {
-      if (!is_stream_channel(k, c) || stored[k].count(c.name) != 0) continue;
-      Range& r = ranges[c.name];
-      for (double v : c.samples) r.low = std::min(r.low, v), r.high = std::max(r.high, v);
-    }
-  }
+  ReadTimeAxis(file, e, base_ns, x, t);
+  const std::int64_t period_ns = std::llround(1e9 / e.sample_rate);
+  base_ns = t.offset_ns.back() + period_ns;
+  t.block_sets = options_.block_sets > 0 ? options_.block_sets
+                                         : std::max<std::size_t>(1, static_cast<std::size_t>(e.sample_rate / 100));
+  experiments_.push_back(std::move(x));
+  tracks_.push_back(std::move(t));
+}
 
-  std::int64_t base_ns = 0;  // stream time of the experiment's first set
-  for (std::size_t k = 0; k < s.experiments.size(); ++k) {
-    const Experiment& e = s.experiments[k];
-    ReplayedExperiment x;
-    Track t;
-    x.header = e;
-    x.header.time.clear();
-    x.header.channels.clear();
-    for (const char* name : kRecorderAttributes) x.header.extra_attributes.erase(name);
-    x.samples = e.sample_count();
-    x.periods = e.periods;
-    const auto recording_end = e.extra_attributes.find("recording_end");
-    if (e.status == "aborted") {
-      x.end = EndStatus::kAborted;
-      x.header.periods = 0;
-      if (const auto requested = e.extra_attributes.find("requested_periods"); requested != e.extra_attributes.end()) {
-        try {
-          x.header.periods = std::stol(requested->second);
-        } catch (const std::invalid_argument&) {
-          spdlog::warn("{}: experiment '{}': requested_periods '{}' is no number; replayed without it", file, e.label,
-                       requested->second);
-        } catch (const std::out_of_range&) {
-          spdlog::warn("{}: experiment '{}': requested_periods '{}' is no number; replayed without it", file, e.label,
-                       requested->second);
-        }
-      }
+void ReplayAcquisition::AddStreamChannels(const Sources& sources, std::size_t k, ReplayedExperiment& x,
+                                          Track& t) const {
+  const Session& s = session_;
+  const Experiment& e = s.experiments[k];
+  for (std::size_t c = 0; c < e.channels.size(); ++c) {
+    const Channel& channel = e.channels[c];
+    if (!sources.IsStreamChannel(k, channel)) continue;
+    x.header.channels.push_back({channel.name, channel.units, channel.reference, {}});
+    t.channel.push_back(c);
+    if (const auto cal = sources.stored[k].find(channel.name); cal != sources.stored[k].end()) {
+      x.stream.channels.push_back({channel.name, channel.units, cal->second});
+      x.recorded_counts.push_back(true);
+      t.counts.push_back(WholeNumbers<std::int32_t>(s, e, e.channel(sources.counts_of[k].at(channel.name)),
+                                                    std::numeric_limits<std::int32_t>::min(),
+                                                    std::numeric_limits<std::int32_t>::max()));
     } else {
-      x.end = recording_end != e.extra_attributes.end() && recording_end->second == ToString(EndStatus::kNotSteady)
-                  ? EndStatus::kNotSteady
-                  : EndStatus::kComplete;
+      const Sources::Range& r = sources.ranges.at(channel.name);
+      const Calibration derived = DerivedCalibration(r.low, r.high);
+      x.stream.channels.push_back({channel.name, channel.units, derived});
+      x.recorded_counts.push_back(false);
+      std::vector<std::int32_t> counts(channel.samples.size());
+      for (std::size_t i = 0; i < counts.size(); ++i) counts[i] = derived.ToCounts16(channel.samples[i]);
+      t.counts.push_back(std::move(counts));
     }
-    x.stream.source = fmt::format("replay:{}", file);
-    x.stream.sample_rate = e.sample_rate;
+  }
+}
 
-    for (std::size_t c = 0; c < e.channels.size(); ++c) {
-      const Channel& channel = e.channels[c];
-      if (!is_stream_channel(k, channel)) continue;
-      x.header.channels.push_back({channel.name, channel.units, channel.reference, {}});
-      t.channel.push_back(c);
-      if (const auto cal = stored[k].find(channel.name); cal != stored[k].end()) {
-        x.stream.channels.push_back({channel.name, channel.units, cal->second});
-        x.recorded_counts.push_back(true);
-        t.counts.push_back(WholeNumbers<std::int32_t>(s, e, e.channel(counts_of[k][channel.name]),
-                                                      std::numeric_limits<std::int32_t>::min(),
-                                                      std::numeric_limits<std::int32_t>::max()));
-      } else {
-        const Range& r = ranges.at(channel.name);
-        const Calibration derived = DerivedCalibration(r.low, r.high);
-        x.stream.channels.push_back({channel.name, channel.units, derived});
-        x.recorded_counts.push_back(false);
-        std::vector<std::int32_t> counts(channel.samples.size());
-        for (std::size_t i = 0; i < counts.size(); ++i) counts[i] = derived.ToCounts16(channel.samples[i]);
-        t.counts.push_back(std::move(counts));
-      }
+void ReplayAcquisition::ReadTimeAxis(const std::string& file, const Experiment& e, std::int64_t base_ns,
+                                     ReplayedExperiment& x, Track& t) {
+  // The time axis in whole ns: exact when every time is k / 1e9 (what the recorder writes).
+  t.offset_ns.resize(e.time.size());
+  const std::int64_t first = std::llround(e.time.front() * 1e9);
+  x.exact_time = first == 0;
+  for (std::size_t i = 0; i < e.time.size(); ++i) {
+    const std::int64_t d = std::llround(e.time[i] * 1e9) - first;
+    if (i > 0 && base_ns + d <= t.offset_ns[i - 1]) {
+      throw SessionError(fmt::format("{}: experiment '{}': time step {} s at sample {} is below a nanosecond", file,
+                                     e.label, e.time[i] - e.time[i - 1], i));
     }
-    if (x.stream.channels.empty()) {
-      throw SessionError(fmt::format("{}: experiment '{}': no channel to replay", file, e.label));
-    }
-    if (by_recorder) {
-      if (const Channel* c = e.find_channel("sequence"); c != nullptr && c->units == "1") {
-        t.sequence = WholeNumbers<std::uint64_t>(s, e, *c, 0.0, 9007199254740992.0);
-        x.recorded_sequence = true;
-      }
-      if (const Channel* c = e.find_channel("status"); c != nullptr && c->units == "1") {
-        t.status = WholeNumbers<std::uint32_t>(s, e, *c, 0.0, 4294967295.0);
-        x.recorded_status = true;
-      }
-    }
-
-    // The time axis in whole ns: exact when every time is k / 1e9 (what the recorder writes).
-    t.offset_ns.resize(e.time.size());
-    const std::int64_t first = std::llround(e.time.front() * 1e9);
-    x.exact_time = first == 0;
-    for (std::size_t i = 0; i < e.time.size(); ++i) {
-      const std::int64_t d = std::llround(e.time[i] * 1e9) - first;
-      if (i > 0 && base_ns + d <= t.offset_ns[i - 1]) {
-        throw SessionError(fmt::format("{}: experiment '{}': time step {} s at sample {} is below a nanosecond", file,
-                                       e.label, e.time[i] - e.time[i - 1], i));
-      }
-      if (static_cast<double>(d) / 1e9 != e.time[i]) x.exact_time = false;
-      t.offset_ns[i] = base_ns + d;
-    }
-    const std::int64_t period_ns = std::llround(1e9 / e.sample_rate);
-    base_ns = t.offset_ns.back() + period_ns;
-    t.block_sets = options_.block_sets > 0 ? options_.block_sets
-                                           : std::max<std::size_t>(1, static_cast<std::size_t>(e.sample_rate / 100));
-    experiments_.push_back(std::move(x));
-    tracks_.push_back(std::move(t));
+    if (static_cast<double>(d) / 1e9 != e.time[i]) x.exact_time = false;
+    t.offset_ns[i] = base_ns + d;
   }
 }
 

@@ -181,6 +181,66 @@ Feasibility CheckFeasibility(const Truth& unit, const std::vector<rig::MatrixEnt
   return f;
 }
 
+namespace {
+
+//! What one attempt of DrawUnit draws beside the parameters it sets in place: the gas area, the
+//! compression ratio, the preload fraction, the load cell's zero, and the sizes of the extra effects.
+struct DrawnQuantities {
+  double area = 0.0, ratio = 0.0, fraction = 0.0, zero = 0.0;
+  std::vector<EffectSize> sizes;
+};
+
+bool Has(const ident::ParameterSet& p, int index) { return p.position_of_index(index) >= 0; }
+void Set(ident::ParameterSet& p, int index, double v) { p.values()[p.position_of_index(index)] = v; }
+
+//! One attempt's draws: every spread of DrawSpreads in turn, the parameters among them set in `p`
+//! (the base's values around which they are drawn), the others returned, each around `start`'s.
+DrawnQuantities DrawAttempt(Draws& draws, const UnitDraw& spec, const ident::ParameterSet& base,
+                            const DrawnQuantities& start, ident::ParameterSet& p) {
+  DrawnQuantities d = start;
+  // Every spread takes its random numbers on every attempt, whether it applies or not: the
+  // quantities a base shares with another are then the same for the same seed.
+  for (const DrawSpread& s : DrawSpreads()) {
+    // The stop's position came last and only for units with a stop, so every other unit of a seed
+    // is the one it was before the stop's position was drawn.
+    if (s.quantity == "end_stop_position" &&
+        std::none_of(spec.effects.begin(), spec.effects.end(), [](const EffectRequest& r) { return r.name == "end-stop"; }))
+      continue;
+    const int index = std::stoi(s.sets.substr(5));
+    const double x0 = s.quantity == "compression_ratio" ? start.ratio
+                      : s.quantity == "preload_fraction" ? start.fraction
+                      : s.quantity == "load_cell_zero"   ? start.zero
+                      : s.quantity == "stroke_offset"    ? 0.0  // around the lab's nominal zero
+                      : Has(p, index) ? Value(base, index) : 0.0;
+    const double x = draws.Draw(s, x0);
+    if (s.quantity == "gas_area") {
+      d.area = x;
+    } else if (s.quantity == "compression_ratio") {
+      d.ratio = x;
+    } else if (s.quantity == "preload_fraction") {
+      d.fraction = x;
+    } else if (s.quantity == "load_cell_zero") {
+      d.zero = x;
+    } else if (s.quantity == "polytropic_exponent" || s.quantity == "gas_solubility") {
+      if (Has(p, index) && p.spec(p.position_of_index(index)).name == s.quantity) Set(p, index, x);
+    } else if (s.applies != "all" && s.applies != "heat-exchange" && Contains(kExtraEffects, s.applies)) {
+      const auto request = std::find_if(spec.effects.begin(), spec.effects.end(),
+                                        [&](const EffectRequest& r) { return r.name == s.applies; });
+      if (request == spec.effects.end()) continue;
+      // The first spread of an effect is its size (EffectRequest::size); later ones its shape.
+      const bool sizing = std::none_of(d.sizes.begin(), d.sizes.end(), [&](const EffectSize& e) { return e.effect == s.applies; });
+      const double size = sizing ? request->size.value_or(x) : x;
+      Set(p, index, size);
+      if (sizing) d.sizes.push_back({s.applies, s.sets, size, request->size.has_value()});
+    } else if (Has(p, index)) {
+      Set(p, index, x);
+    }
+  }
+  return d;
+}
+
+}  // namespace
+
 Truth DrawUnit(const UnitDraw& spec, std::uint64_t seed) { return DrawUnit(DefaultTruth(), spec, seed); }
 
 Truth DrawUnit(const Truth& around, const UnitDraw& spec, std::uint64_t seed) {
@@ -221,6 +281,7 @@ Truth DrawUnit(const Truth& around, const UnitDraw& spec, std::uint64_t seed) {
   const double ratio0 = 1.0 / (1.0 + Value(around_values, 6) * kFullStroke);
   const double zero0 = Value(around_values, 11) + kPatm * a0;
 
+  const DrawnQuantities start{a0, ratio0, k0, zero0, {}};
   Draws draws(seed);
   DrawRecord record;
   record.seed = seed;
@@ -229,51 +290,11 @@ Truth DrawUnit(const Truth& around, const UnitDraw& spec, std::uint64_t seed) {
   std::string last_reason;
   for (int attempt = 1; attempt <= spec.max_attempts; ++attempt) {
     ident::ParameterSet p = base;
-    const auto has = [&](int index) { return p.position_of_index(index) >= 0; };
-    const auto set = [&](int index, double v) { p.values()[p.position_of_index(index)] = v; };
-    double area = a0, ratio = ratio0, fraction = k0, zero = zero0;
-    std::vector<EffectSize> sizes;
-    // Every spread takes its random numbers on every attempt, whether it applies or not: the
-    // quantities a base shares with another are then the same for the same seed.
-    for (const DrawSpread& s : DrawSpreads()) {
-      // The stop's position came last and only for units with a stop, so every other unit of a seed
-      // is the one it was before the stop's position was drawn.
-      if (s.quantity == "end_stop_position" &&
-          std::none_of(spec.effects.begin(), spec.effects.end(), [](const EffectRequest& r) { return r.name == "end-stop"; }))
-        continue;
-      const int index = std::stoi(s.sets.substr(5));
-      const double x0 = s.quantity == "compression_ratio" ? ratio0
-                        : s.quantity == "preload_fraction" ? k0
-                        : s.quantity == "load_cell_zero"   ? zero0
-                        : s.quantity == "stroke_offset"    ? 0.0  // around the lab's nominal zero
-                        : has(index) ? Value(base, index) : 0.0;
-      const double x = draws.Draw(s, x0);
-      if (s.quantity == "gas_area") {
-        area = x;
-      } else if (s.quantity == "compression_ratio") {
-        ratio = x;
-      } else if (s.quantity == "preload_fraction") {
-        fraction = x;
-      } else if (s.quantity == "load_cell_zero") {
-        zero = x;
-      } else if (s.quantity == "polytropic_exponent" || s.quantity == "gas_solubility") {
-        if (has(index) && p.spec(p.position_of_index(index)).name == s.quantity) set(index, x);
-      } else if (s.applies != "all" && s.applies != "heat-exchange" && Contains(kExtraEffects, s.applies)) {
-        const auto request = std::find_if(spec.effects.begin(), spec.effects.end(),
-                                          [&](const EffectRequest& r) { return r.name == s.applies; });
-        if (request == spec.effects.end()) continue;
-        // The first spread of an effect is its size (EffectRequest::size); later ones its shape.
-        const bool sizing = std::none_of(sizes.begin(), sizes.end(), [&](const EffectSize& e) { return e.effect == s.applies; });
-        const double size = sizing ? request->size.value_or(x) : x;
-        set(index, size);
-        if (sizing) sizes.push_back({s.applies, s.sets, size, request->size.has_value()});
-      } else if (has(index)) {
-        set(index, x);
-      }
-    }
-    set(4, area);
-    set(6, -(1.0 - 1.0 / ratio) / kFullStroke);
-    set(11, -kPatm * area + zero);
+    DrawnQuantities drawn = DrawAttempt(draws, spec, base, start, p);
+    const double area = drawn.area, fraction = drawn.fraction;
+    Set(p, 4, area);
+    Set(p, 6, -(1.0 - 1.0 / drawn.ratio) / kFullStroke);
+    Set(p, 11, -kPatm * area + drawn.zero);
     // The charge: (p0 - p_atm) A = k (m g - (theta8 + theta9 p0) pi / 2), solved for p0.
     double p0 = 0.0;
     if (drop_rule) {
@@ -288,13 +309,13 @@ Truth DrawUnit(const Truth& around, const UnitDraw& spec, std::uint64_t seed) {
       last_reason = fmt::format("no static state at full extension: {}", e.what());
       continue;
     }
-    std::sort(sizes.begin(), sizes.end(), [](const EffectSize& a, const EffectSize& b) {
+    std::sort(drawn.sizes.begin(), drawn.sizes.end(), [](const EffectSize& a, const EffectSize& b) {
       const auto& n = Truth::EffectNames();
       return std::find(n.begin(), n.end(), a.effect) < std::find(n.begin(), n.end(), b.effect);
     });
     unit.parameters.clear();
     for (int i = 0; i < p.size(); ++i) unit.parameters.emplace_back(p.spec(i).name, p.value(i));
-    record.effects = sizes;
+    record.effects = drawn.sizes;
     record.attempts = attempt;
     unit.drawn = record;
     unit.source = fmt::format("drawn unit (seed {}, {}, around {})", seed, model.composition(), around.source);

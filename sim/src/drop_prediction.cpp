@@ -127,6 +127,149 @@ bool DropPredictionOptions::IsValid(std::string* error) const {
   return true;
 }
 
+namespace {
+
+//! The drop run at any parameter values: the force-input model, the load and the output times of
+//! one prediction.
+class DropRun {
+ public:
+  DropRun(const ident::Model& force_model, double mass, double impact_velocity, const DropPredictionOptions& options)
+      : model_(force_model),
+        simulator_(force_model, Transient(options)),
+        times_(UniformTimes(options.duration, options.output_rate)),
+        gravity_(force_model.defaults().position_of_index(2)),
+        mass_(mass),
+        impact_velocity_(impact_velocity),
+        settle_band_(options.settle_band) {}
+
+  //! Trace and figures at parameter values `p`; the trace, load, steps and time into `out` when given.
+  DropFigures Run(const std::vector<double>& p, DropPrediction* out) const {
+    const DropLoad load{mass_, impact_velocity_, gravity_ >= 0 ? p[gravity_] : 9.81};
+    const auto t0 = Clock::now();
+    const TransientResult r = simulator_.Simulate(p, load, times_);
+    DropTrace trace;
+    trace.time = r.time;
+    trace.stroke.assign(r.unknowns.row(0).begin(), r.unknowns.row(0).end());
+    trace.force.assign(r.input.begin(), r.input.end());
+    const auto channels = model_.output_channels();
+    if (std::find(channels.begin(), channels.end(), "pressure") != channels.end()) {
+      const Eigen::VectorXd v = r.channel("pressure");
+      trace.pressure.assign(v.begin(), v.end());
+    }
+    if (std::find(channels.begin(), channels.end(), "temperature") != channels.end()) {
+      const Eigen::VectorXd v = r.channel("temperature");
+      trace.temperature.assign(v.begin(), v.end());
+    }
+    // Where the stroke ends: at rest under M g, the gas back at ambient temperature.
+    double static_stroke = NAN;
+    try {
+      static_stroke = model_.StaticEquilibrium(load.mass * load.gravity, p)[0];
+    } catch (const ident::ModelError&) {
+      // No equilibrium (the mass bottoms the damper): time_to_static stays undefined.
+    }
+    DropFigures figures = MeasureDrop(trace, static_stroke, settle_band_);
+    if (out) {
+      out->load = load;
+      out->trace = std::move(trace);
+      out->ida_steps = r.steps;
+      out->nominal_seconds = std::chrono::duration<double>(Clock::now() - t0).count();
+    }
+    return figures;
+  }
+
+ private:
+  static TransientOptions Transient(const DropPredictionOptions& options) {
+    TransientOptions transient;
+    transient.rtol = options.rtol;
+    return transient;
+  }
+
+  const ident::Model& model_;
+  const TransientSimulator simulator_;
+  const std::vector<double> times_;
+  const int gravity_;  //!< position of the gravity parameter (-1: none, 9.81 m/s^2)
+  const double mass_, impact_velocity_, settle_band_;
+};
+
+//! The figures' gradients along the estimated parameters the intervals use (central differences
+//! over +- one sd), in prediction.gradient with their keys in interval_parameters; the others named
+//! in interval_notes. Returns the indices into `estimated` of the parameters used.
+std::vector<int> FigureGradients(const DropRun& run, const ident::ParameterSet& specs, const std::vector<double>& theta,
+                                 int fixture, const std::vector<int>& estimated, const Eigen::MatrixXd& covariance,
+                                 DropPrediction& prediction) {
+  const std::vector<double> nominal = FigureValues(prediction.figures);
+  const int nf = static_cast<int>(nominal.size());
+  std::vector<int> used;  // indices into `estimated`
+  std::vector<Eigen::VectorXd> columns;
+  for (int a = 0; a < static_cast<int>(estimated.size()); ++a) {
+    const int i = estimated[a];
+    const std::string key = specs.spec(i).key();
+    const double sd = std::sqrt(covariance(a, a));
+    if (i == fixture) {
+      prediction.interval_notes.push_back(key + ": the fixture mass plays no part in a drop");
+      continue;
+    }
+    if (!std::isfinite(sd) || !(sd > 0)) {
+      prediction.interval_notes.push_back(key + ": no posterior sd in the fit, left out of the intervals");
+      continue;
+    }
+    // Central differences over +- one sd: the scale on which the posterior explores the figure.
+    // A side outside the parameter's physical range is replaced by the nominal value.
+    std::vector<double> plus = theta, minus = theta;
+    plus[i] += sd;
+    minus[i] -= sd;
+    const bool plus_ok = specs.spec(i).range.contains(plus[i]), minus_ok = specs.spec(i).range.contains(minus[i]);
+    if (!plus_ok && !minus_ok) {
+      prediction.interval_notes.push_back(fmt::format(
+          "{}: a run one sd off failed (both sides outside the physical range), left out of the intervals", key));
+      continue;
+    }
+    try {
+      const std::vector<double> up = plus_ok ? FigureValues(run.Run(plus, nullptr)) : nominal;
+      const std::vector<double> down = minus_ok ? FigureValues(run.Run(minus, nullptr)) : nominal;
+      prediction.simulations += plus_ok + minus_ok;
+      const double span = (plus_ok ? sd : 0.0) + (minus_ok ? sd : 0.0);
+      Eigen::VectorXd g(nf);
+      for (int f = 0; f < nf; ++f) g[f] = (up[f] - down[f]) / span;
+      used.push_back(a);
+      columns.push_back(g);
+    } catch (const TransientError& e) {  // the drop is not integrable one sd off
+      prediction.interval_notes.push_back(fmt::format("{}: a run one sd off failed ({}), left out of the intervals", key, e.what()));
+    }
+  }
+  const int nu = static_cast<int>(used.size());
+  prediction.gradient.resize(nf, nu);
+  for (int a = 0; a < nu; ++a) {
+    prediction.gradient.col(a) = columns[a];
+    prediction.interval_parameters.push_back(specs.spec(estimated[used[a]]).key());
+  }
+  return used;
+}
+
+//! Each figure's sd and interval at `level` from the gradients and the covariance of the `used`
+//! parameters (linearised: g' C g).
+void FigureIntervals(const std::vector<int>& used, const Eigen::MatrixXd& covariance, double level,
+                     DropPrediction& prediction) {
+  const std::vector<double> nominal = FigureValues(prediction.figures);
+  const int nu = static_cast<int>(used.size());
+  Eigen::MatrixXd c(nu, nu);
+  for (int a = 0; a < nu; ++a)
+    for (int b = 0; b < nu; ++b) c(a, b) = covariance(used[a], used[b]);
+  const double z = NormalQuantile(level);
+  for (int f = 0; f < static_cast<int>(nominal.size()); ++f) {
+    FigureUncertainty u;
+    const Eigen::VectorXd g = prediction.gradient.row(f).transpose();
+    if (std::isfinite(nominal[f]) && g.allFinite()) {
+      u.sd = std::sqrt(std::max(0.0, g.dot(c * g)));
+      u.lower = nominal[f] - z * u.sd;
+      u.upper = nominal[f] + z * u.sd;
+    }
+    prediction.uncertainty.push_back(u);
+  }
+}
+
+}  // namespace
+
 DropPrediction PredictDrop(const ident::Model& model, std::span<const double> theta_in, double mass,
                            double impact_velocity, const std::vector<int>& estimated, const Eigen::MatrixXd& covariance,
                            const DropPredictionOptions& options) {
@@ -152,111 +295,14 @@ DropPrediction PredictDrop(const ident::Model& model, std::span<const double> th
   std::vector<double> theta(theta_in.begin(), theta_in.end());
   const int fixture = specs.position_of_index(1);
   if (fixture >= 0) theta[fixture] = 0.0;  // no fixture on a drop rig: the dropped mass moves alone
-  const int gravity = specs.position_of_index(2);
 
-  TransientOptions transient;
-  transient.rtol = options.rtol;
-  const TransientSimulator simulator(force_model, transient);
-  const std::vector<double> times = UniformTimes(options.duration, options.output_rate);
-
-  // One run: trace and figures at parameter values p.
-  const auto run = [&](const std::vector<double>& p, DropPrediction* out) {
-    const DropLoad load{mass, impact_velocity, gravity >= 0 ? p[gravity] : 9.81};
-    const auto t0 = Clock::now();
-    const TransientResult r = simulator.Simulate(p, load, times);
-    DropTrace trace;
-    trace.time = r.time;
-    trace.stroke.assign(r.unknowns.row(0).begin(), r.unknowns.row(0).end());
-    trace.force.assign(r.input.begin(), r.input.end());
-    const auto channels = force_model.output_channels();
-    if (std::find(channels.begin(), channels.end(), "pressure") != channels.end()) {
-      const Eigen::VectorXd v = r.channel("pressure");
-      trace.pressure.assign(v.begin(), v.end());
-    }
-    if (std::find(channels.begin(), channels.end(), "temperature") != channels.end()) {
-      const Eigen::VectorXd v = r.channel("temperature");
-      trace.temperature.assign(v.begin(), v.end());
-    }
-    // Where the stroke ends: at rest under M g, the gas back at ambient temperature.
-    double static_stroke = NAN;
-    try {
-      static_stroke = force_model.StaticEquilibrium(load.mass * load.gravity, p)[0];
-    } catch (const ident::ModelError&) {
-      // No equilibrium (the mass bottoms the damper): time_to_static stays undefined.
-    }
-    DropFigures figures = MeasureDrop(trace, static_stroke, options.settle_band);
-    if (out) {
-      out->load = load;
-      out->trace = std::move(trace);
-      out->ida_steps = r.steps;
-      out->nominal_seconds = std::chrono::duration<double>(Clock::now() - t0).count();
-    }
-    return figures;
-  };
-
+  const DropRun run(force_model, mass, impact_velocity, options);
   DropPrediction prediction;
-  prediction.figures = run(theta, &prediction);
+  prediction.figures = run.Run(theta, &prediction);
   prediction.simulations = 1;
   if (options.intervals) {
-    const std::vector<double> nominal = FigureValues(prediction.figures);
-    const int nf = static_cast<int>(nominal.size());
-    std::vector<int> used;  // indices into `estimated`
-    std::vector<Eigen::VectorXd> columns;
-    for (int a = 0; a < ne; ++a) {
-      const int i = estimated[a];
-      const std::string key = specs.spec(i).key();
-      const double sd = std::sqrt(covariance(a, a));
-      if (i == fixture) {
-        prediction.interval_notes.push_back(key + ": the fixture mass plays no part in a drop");
-        continue;
-      }
-      if (!std::isfinite(sd) || !(sd > 0)) {
-        prediction.interval_notes.push_back(key + ": no posterior sd in the fit, left out of the intervals");
-        continue;
-      }
-      // Central differences over +- one sd: the scale on which the posterior explores the figure.
-      // A side outside the parameter's physical range is replaced by the nominal value.
-      std::vector<double> plus = theta, minus = theta;
-      plus[i] += sd;
-      minus[i] -= sd;
-      const bool plus_ok = specs.spec(i).range.contains(plus[i]), minus_ok = specs.spec(i).range.contains(minus[i]);
-      if (!plus_ok && !minus_ok) {
-        prediction.interval_notes.push_back(fmt::format(
-            "{}: a run one sd off failed (both sides outside the physical range), left out of the intervals", key));
-        continue;
-      }
-      try {
-        const std::vector<double> up = plus_ok ? FigureValues(run(plus, nullptr)) : nominal;
-        const std::vector<double> down = minus_ok ? FigureValues(run(minus, nullptr)) : nominal;
-        prediction.simulations += plus_ok + minus_ok;
-        const double span = (plus_ok ? sd : 0.0) + (minus_ok ? sd : 0.0);
-        Eigen::VectorXd g(nf);
-        for (int f = 0; f < nf; ++f) g[f] = (up[f] - down[f]) / span;
-        used.push_back(a);
-        columns.push_back(g);
-      } catch (const TransientError& e) {  // the drop is not integrable one sd off
-        prediction.interval_notes.push_back(fmt::format("{}: a run one sd off failed ({}), left out of the intervals", key, e.what()));
-      }
-    }
-    const int nu = static_cast<int>(used.size());
-    prediction.gradient.resize(nf, nu);
-    Eigen::MatrixXd c(nu, nu);
-    for (int a = 0; a < nu; ++a) {
-      prediction.gradient.col(a) = columns[a];
-      prediction.interval_parameters.push_back(specs.spec(estimated[used[a]]).key());
-      for (int b = 0; b < nu; ++b) c(a, b) = covariance(used[a], used[b]);
-    }
-    const double z = NormalQuantile(options.level);
-    for (int f = 0; f < nf; ++f) {
-      FigureUncertainty u;
-      const Eigen::VectorXd g = prediction.gradient.row(f).transpose();
-      if (std::isfinite(nominal[f]) && g.allFinite()) {
-        u.sd = std::sqrt(std::max(0.0, g.dot(c * g)));
-        u.lower = nominal[f] - z * u.sd;
-        u.upper = nominal[f] + z * u.sd;
-      }
-      prediction.uncertainty.push_back(u);
-    }
+    const std::vector<int> used = FigureGradients(run, specs, theta, fixture, estimated, covariance, prediction);
+    FigureIntervals(used, covariance, options.level, prediction);
   }
   prediction.seconds = std::chrono::duration<double>(Clock::now() - start).count();
   return prediction;

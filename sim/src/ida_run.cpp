@@ -2,6 +2,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <cstdlib>
 #include <fmt/format.h>
 #include <new>
@@ -207,6 +208,24 @@ void IdaRun::Fail(int flag, const std::string& what) {
   throw TransientError(fmt::format("transient: {} failed at t = {:.9g} s with {}{}{}", what, t_, FlagName(flag),
                                    detail.empty() ? "" : ": ", detail),
                        t_, flag);
+}
+
+double PeriodChange(const Eigen::MatrixXd& current, const Eigen::MatrixXd& previous, const Eigen::VectorXd& scale,
+                    double relative_floor) {
+  const Eigen::VectorXd peak = current.cwiseAbs().rowwise().maxCoeff();
+  const Eigen::VectorXd w = scale.cwiseMax(relative_floor * peak);
+  return ((current - previous).cwiseAbs().array().colwise() / w.array()).maxCoeff();
+}
+
+bool PeriodConvergence::Add(double change, double tol) {
+  change_ = change;
+  changes_.push_back(change);
+  const int window = std::min<int>(4, static_cast<int>(changes_.size()) - 1);
+  const double rho = window > 0 && changes_[changes_.size() - 1 - window] > 0
+                         ? std::pow(change / changes_[changes_.size() - 1 - window], 1.0 / window)
+                         : INFINITY;
+  estimate_ = rho < 1.0 ? change * rho / (1.0 - rho) : change;
+  return window > 0 && change <= tol && estimate_ <= tol;
 }
 
 }  // namespace strut::sim::detail

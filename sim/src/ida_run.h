@@ -95,4 +95,26 @@ class IdaRun {
   double tstop_ = NAN;
 };
 
+//! The change of one period's samples (rows: unknowns, columns: grid times) from the previous
+//! period's, each row in the larger of its `scale` and `relative_floor` times its peak: what the
+//! simulator's and the predictor's periodic steady states converge in.
+double PeriodChange(const Eigen::MatrixXd& current, const Eigen::MatrixXd& previous, const Eigen::VectorXd& scale,
+                    double relative_floor);
+
+//! The period changes seen so far and when they are small enough. The slowest mode decays
+//! geometrically, d_k = rho d_{k-1}, so what is left after a period is d_k rho / (1 - rho). rho comes
+//! from the last few periods (one ratio is too noisy once the changes approach the integration
+//! error); rho >= 1 means the changes no longer shrink, and d_k itself is the estimate.
+class PeriodConvergence {
+ public:
+  //! Adds one period's change; true once it and what is left after it are within `tol`.
+  bool Add(double change, double tol);
+  double change() const { return change_; }      //!< the last change (infinity before the first)
+  double estimate() const { return estimate_; }  //!< what is left after it
+
+ private:
+  std::vector<double> changes_;
+  double change_ = INFINITY, estimate_ = INFINITY;
+};
+
 }  // namespace strut::sim::detail

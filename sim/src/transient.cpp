@@ -434,8 +434,7 @@ PeriodicSteadyStateResult TransientSimulator::PeriodicSteadyState(std::span<cons
   const auto grid_time = [&](long period, int mu) { return static_cast<double>(period * n + mu) / (n * f); };
 
   PeriodicSteadyStateResult result;
-  double change = INFINITY, estimate = INFINITY;
-  std::vector<double> changes;
+  detail::PeriodConvergence convergence;
   bool converged = false;
   store(0);
   int period = 0;
@@ -445,22 +444,8 @@ PeriodicSteadyStateResult TransientSimulator::PeriodicSteadyState(std::span<cons
       ida.AdvanceTo(grid_time(period, mu), period_end);
       store(mu);
     }
-    if (period > 0) {
-      const Eigen::VectorXd peak = current.cwiseAbs().rowwise().maxCoeff();
-      const Eigen::VectorXd w = scale.cwiseMax(steady.relative_floor * peak);
-      change = ((current - previous).cwiseAbs().array().colwise() / w.array()).maxCoeff();
-      changes.push_back(change);
-      // The slowest mode decays geometrically, d_k = rho d_{k-1}, so what is left after this
-      // period is d_k rho / (1 - rho). rho comes from the last few periods (one ratio is too noisy
-      // once the changes approach the integration error); rho >= 1 means the changes no longer
-      // shrink, and d_k itself is the estimate.
-      const int window = std::min<int>(4, static_cast<int>(changes.size()) - 1);
-      const double rho = window > 0 && changes[changes.size() - 1 - window] > 0
-                             ? std::pow(change / changes[changes.size() - 1 - window], 1.0 / window)
-                             : INFINITY;
-      estimate = rho < 1.0 ? change * rho / (1.0 - rho) : change;
-      converged = window > 0 && change <= steady.tol && estimate <= steady.tol;
-    }
+    if (period > 0)
+      converged = convergence.Add(detail::PeriodChange(current, previous, scale, steady.relative_floor), steady.tol);
     if (converged) break;
     previous = current;
     ida.AdvanceTo(period_end, period_end);
@@ -469,7 +454,7 @@ PeriodicSteadyStateResult TransientSimulator::PeriodicSteadyState(std::span<cons
   if (!converged)
     throw TransientError(fmt::format("transient: no periodic steady state after {} periods of {:.6g} s: the last "
                                      "change between periods is {:.3g} scaled units (tolerance {:.3g})",
-                                     steady.periods_max, 1.0 / f, change, steady.tol),
+                                     steady.periods_max, 1.0 / f, convergence.change(), steady.tol),
                          ida.time(), 0);
 
   ident::PeriodicSolution& s = result.solution;
@@ -486,8 +471,8 @@ PeriodicSteadyStateResult TransientSimulator::PeriodicSteadyState(std::span<cons
     for (std::size_t c = 0; c < out.size(); ++c) s.outputs(static_cast<int>(c), mu) = out[c];
   }
   result.periods = period + 1;
-  result.last_change = change;
-  result.estimated_error = estimate;
+  result.last_change = convergence.change();
+  result.estimated_error = convergence.estimate();
   result.steps = ida.steps();
   result.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return result;

@@ -194,6 +194,130 @@ ident::PeriodicSolution TransientPredictor::Solve(const ident::PeriodicInput& in
   }
 }
 
+namespace {
+
+//! The positions `wanted` names (every parameter when it is empty), checked against the model.
+std::vector<int> SensitivityParameters(const Model& model, std::span<const int> wanted) {
+  const int np = model.parameter_count();
+  std::vector<int> parameters(wanted.begin(), wanted.end());
+  if (parameters.empty())
+    for (int p = 0; p < np; ++p) parameters.push_back(p);
+  if (std::set<int>(parameters.begin(), parameters.end()).size() != parameters.size())
+    throw std::invalid_argument("transient predictor: a parameter is listed twice");
+  for (int p : parameters)
+    if (p < 0 || p >= np)
+      throw std::invalid_argument(fmt::format("transient predictor: parameter position {} is not one of model '{}'", p,
+                                              model.composition()));
+  if (static_cast<int>(parameters.size()) > ident::kMaxDerivatives)
+    throw std::invalid_argument("transient predictor: too many parameters for the sensitivity Jets");
+  return parameters;
+}
+
+//! IDAS's parameter scales (pbar): the larger of |theta| and the parameter's typical size, 1 for
+//! a parameter that has neither.
+std::vector<double> ParameterScales(const Model& model, std::span<const double> theta,
+                                    const std::vector<int>& parameters) {
+  std::vector<double> pbar(parameters.size());
+  for (std::size_t k = 0; k < parameters.size(); ++k) {
+    const int i = parameters[k];
+    pbar[k] = std::max({std::abs(theta[i]), model.defaults().spec(i).typical_size(), 1e-300});
+    if (pbar[k] == 1e-300) pbar[k] = 1.0;
+  }
+  return pbar;
+}
+
+//! One period of the state (m x n) and of the sensitivities (DaeSystem size x n per parameter) on
+//! the grid, once both repeat.
+struct SensitivityPeriod {
+  Eigen::MatrixXd state;
+  std::vector<Eigen::MatrixXd> sens;
+  int periods = 0;  //!< periods integrated
+};
+
+//! Integrates `ida` (state and sensitivities, at its consistent start) period by period until the
+//! state (as TransientSimulator::PeriodicSteadyState measures it) and the sensitivities (in their
+//! absolute tolerance or a fraction of their peak) repeat: the worse of the two, relative to its
+//! tolerance, must be within it. Throws PeriodicSolverError when they do not within periods_max.
+SensitivityPeriod IntegrateToPeriodic(detail::IdaRun& ida, const Model& model, const DaeSystem& system,
+                                      const TransientPredictorOptions& options, const std::vector<double>& pbar,
+                                      int n, double f) {
+  const int m = model.unknown_count(), size = system.size(), ns = static_cast<int>(pbar.size());
+  SensitivityPeriod p{Eigen::MatrixXd(m, n), std::vector<Eigen::MatrixXd>(ns, Eigen::MatrixXd(size, n)), 0};
+  Eigen::MatrixXd previous_state(m, n);
+  std::vector<Eigen::MatrixXd> previous_sens(ns);
+  const auto store = [&](int mu) {
+    for (int j = 0; j < m; ++j) p.state(j, mu) = ida.y()[j];
+    for (int k = 0; k < ns; ++k)
+      for (int j = 0; j < size; ++j) p.sens[k](j, mu) = ida.s(j, k);
+  };
+  const auto grid_time = [&](long period, int mu) { return static_cast<double>(period * n + mu) / (n * f); };
+  Eigen::VectorXd scale(size);
+  scale = system.scales() * options.integrator.atol_factor;  // absolute tolerances of Y
+  Eigen::VectorXd state_scale(m);
+  for (int j = 0; j < m; ++j) state_scale[j] = model.unknown_spec(j).scale;
+
+  detail::PeriodConvergence convergence;
+  bool converged = false;
+  int period = 0;
+  store(0);
+  for (; period < options.steady.periods_max && !converged; ++period) {
+    const double period_end = grid_time(period + 1, 0);
+    for (int mu = 1; mu < n; ++mu) {
+      ida.AdvanceTo(grid_time(period, mu), period_end);
+      store(mu);
+    }
+    if (period > 0) {
+      double d = detail::PeriodChange(p.state, previous_state, state_scale, options.steady.relative_floor) /
+                 options.steady.tol;
+      for (int k = 0; k < ns; ++k)
+        d = std::max(d, detail::PeriodChange(p.sens[k], previous_sens[k], scale / pbar[k],
+                                             options.sensitivity_relative_tol));
+      converged = convergence.Add(d, 1.0);
+    }
+    if (converged) break;
+    previous_state = p.state;
+    previous_sens = p.sens;
+    ida.AdvanceTo(period_end, period_end);
+    store(0);
+  }
+  if (!converged)
+    throw PeriodicSolverError(fmt::format("transient predictor: the sensitivities are not periodic after {} periods of "
+                                          "{:.6g} s (last change {:.3g} of the tolerance)",
+                                          options.steady.periods_max, 1.0 / f, convergence.change()),
+                              convergence.change(), period);
+  p.periods = period + 1;
+  return p;
+}
+
+//! d yhat / d theta = dOut/dx s_x + dOut/dtheta on the grid (the outputs of PeriodicSolution: grid
+//! input values), one n x parameters matrix per output channel.
+std::vector<Eigen::MatrixXd> OutputJacobians(const Model& model, const ident::PeriodicSolution& solution,
+                                             std::span<const double> theta, const std::vector<int>& parameters,
+                                             const SensitivityPeriod& period) {
+  const int n = solution.n, m = model.unknown_count(), ns = static_cast<int>(parameters.size());
+  const int channels = static_cast<int>(solution.channels.size());
+  std::vector<Eigen::MatrixXd> out(channels, Eigen::MatrixXd(n, ns));
+  std::vector<Jet> theta_jet;
+  for (double v : theta) theta_jet.push_back(ident::MakeConstant(v, ns));
+  for (int k = 0; k < ns; ++k) theta_jet[parameters[k]] = Jet(theta[parameters[k]], DerivativeVector::Unit(ns, k));
+  std::vector<Jet> xs(m), y(channels);
+  for (int mu = 0; mu < n; ++mu) {
+    for (int j = 0; j < m; ++j) {
+      DerivativeVector d(ns);
+      for (int k = 0; k < ns; ++k) d[k] = period.sens[k](j, mu);
+      xs[j] = Jet(period.state(j, mu), d);
+    }
+    model.Outputs<Jet>(xs, ident::MakeConstant(solution.input.values[mu], ns), theta_jet, y);
+    for (int c = 0; c < channels; ++c) {
+      const auto& d = y[c].derivatives();
+      for (int k = 0; k < ns; ++k) out[c](mu, k) = d.size() == ns ? d[k] : 0.0;
+    }
+  }
+  return out;
+}
+
+}  // namespace
+
 std::vector<Eigen::MatrixXd> TransientPredictor::OutputSensitivities(const ident::PeriodicSolution& solution,
                                                                      std::span<const double> theta,
                                                                      std::span<const int> wanted, bool) {
@@ -206,17 +330,7 @@ std::vector<Eigen::MatrixXd> TransientPredictor::OutputSensitivities(const ident
                                             theta.size(), model_.composition(), np));
   if (n < 5 || solution.unknowns.rows() != m || solution.unknowns.cols() != n || !solution.unknowns.allFinite())
     throw std::invalid_argument("transient predictor: sensitivities need a periodic solution of this model");
-  std::vector<int> parameters(wanted.begin(), wanted.end());
-  if (parameters.empty())
-    for (int p = 0; p < np; ++p) parameters.push_back(p);
-  if (std::set<int>(parameters.begin(), parameters.end()).size() != parameters.size())
-    throw std::invalid_argument("transient predictor: a parameter is listed twice");
-  for (int p : parameters)
-    if (p < 0 || p >= np)
-      throw std::invalid_argument(fmt::format("transient predictor: parameter position {} is not one of model '{}'", p,
-                                              model_.composition()));
-  if (static_cast<int>(parameters.size()) > ident::kMaxDerivatives)
-    throw std::invalid_argument("transient predictor: too many parameters for the sensitivity Jets");
+  const std::vector<int> parameters = SensitivityParameters(model_, wanted);
   const int ns = static_cast<int>(parameters.size());
   const double f = solution.frequency;
 
@@ -229,12 +343,7 @@ std::vector<Eigen::MatrixXd> TransientPredictor::OutputSensitivities(const ident
   const bool warm = sensitivity_start_.rows() == size && sensitivity_start_.cols() == ns && sensitivity_frequency_ == f &&
                     sensitivity_start_.allFinite();
   const Eigen::MatrixXd s0 = warm ? sensitivity_start_ : Eigen::MatrixXd::Zero(size, ns);
-  std::vector<double> pbar(ns);
-  for (int k = 0; k < ns; ++k) {
-    const int i = parameters[k];
-    pbar[k] = std::max({std::abs(theta[i]), model_.defaults().spec(i).typical_size(), 1e-300});
-    if (pbar[k] == 1e-300) pbar[k] = 1.0;
-  }
+  const std::vector<double> pbar = ParameterScales(model_, theta, parameters);
 
   const Load load = signal;
   detail::SensitivitySetup setup;
@@ -247,103 +356,24 @@ std::vector<Eigen::MatrixXd> TransientPredictor::OutputSensitivities(const ident
   setup.error_control = options_.sensitivity_error_control;
   Eigen::VectorXd yp0 = Eigen::VectorXd::Zero(size);  // IDACalcIC completes Y'
   if (system.has_stroke_rate()) yp0[0] = y0[m];
-  std::optional<detail::IdaRun> run;
+  std::optional<detail::IdaRun> ida;
+  SensitivityPeriod period;
   try {
-    run.emplace(ida_->ctx, system, options_.integrator, std::span<const double>(y0.data(), size),
+    ida.emplace(ida_->ctx, system, options_.integrator, std::span<const double>(y0.data(), size),
                 std::span<const double>(yp0.data(), size), &setup);
-    run->ConsistentStart(1.0 / (n * f));
+    ida->ConsistentStart(1.0 / (n * f));
+    period = IntegrateToPeriodic(*ida, model_, system, options_, pbar, n, f);
   } catch (const TransientError& e) {
     throw PeriodicSolverError(fmt::format("transient predictor: sensitivities: {}", e.what()), NAN, 0);
   }
-  detail::IdaRun& ida = *run;
-
-  // Samples of one period: state (m x n), all sensitivities (size x n per parameter).
-  Eigen::MatrixXd state(m, n), previous_state(m, n);
-  std::vector<Eigen::MatrixXd> sens(ns, Eigen::MatrixXd(size, n)), previous_sens(ns);
-  const auto store = [&](int mu) {
-    for (int j = 0; j < m; ++j) state(j, mu) = ida.y()[j];
-    for (int k = 0; k < ns; ++k)
-      for (int j = 0; j < size; ++j) sens[k](j, mu) = ida.s(j, k);
-  };
-  const auto grid_time = [&](long period, int mu) { return static_cast<double>(period * n + mu) / (n * f); };
-  Eigen::VectorXd scale(size);
-  scale = system.scales() * options_.integrator.atol_factor;  // absolute tolerances of Y
-  Eigen::VectorXd state_scale(m);
-  for (int j = 0; j < m; ++j) state_scale[j] = model_.unknown_spec(j).scale;
-
-  std::vector<double> changes;
-  double change = INFINITY, estimate = INFINITY;
-  bool converged = false;
-  int period = 0;
-  store(0);
-  try {
-    for (; period < options_.steady.periods_max && !converged; ++period) {
-      const double period_end = grid_time(period + 1, 0);
-      for (int mu = 1; mu < n; ++mu) {
-        ida.AdvanceTo(grid_time(period, mu), period_end);
-        store(mu);
-      }
-      if (period > 0) {
-        // State: as TransientSimulator::PeriodicSteadyState measures it; sensitivities: in their
-        // absolute tolerance or a fraction of their peak. The worse of the two, relative to its tolerance.
-        const Eigen::VectorXd peak = state.cwiseAbs().rowwise().maxCoeff();
-        const Eigen::VectorXd w = state_scale.cwiseMax(options_.steady.relative_floor * peak);
-        double d = ((state - previous_state).cwiseAbs().array().colwise() / w.array()).maxCoeff() / options_.steady.tol;
-        for (int k = 0; k < ns; ++k) {
-          const Eigen::VectorXd speak = sens[k].cwiseAbs().rowwise().maxCoeff();
-          const Eigen::VectorXd ws = (scale / pbar[k]).cwiseMax(options_.sensitivity_relative_tol * speak);
-          d = std::max(d, ((sens[k] - previous_sens[k]).cwiseAbs().array().colwise() / ws.array()).maxCoeff());
-        }
-        change = d;
-        changes.push_back(change);
-        const int window = std::min<int>(4, static_cast<int>(changes.size()) - 1);
-        const double rho = window > 0 && changes[changes.size() - 1 - window] > 0
-                               ? std::pow(change / changes[changes.size() - 1 - window], 1.0 / window)
-                               : INFINITY;
-        estimate = rho < 1.0 ? change * rho / (1.0 - rho) : change;
-        converged = window > 0 && change <= 1.0 && estimate <= 1.0;
-      }
-      if (converged) break;
-      previous_state = state;
-      previous_sens = sens;
-      ida.AdvanceTo(period_end, period_end);
-      store(0);
-    }
-  } catch (const TransientError& e) {
-    throw PeriodicSolverError(fmt::format("transient predictor: sensitivities: {}", e.what()), NAN, 0);
-  }
-  if (!converged)
-    throw PeriodicSolverError(fmt::format("transient predictor: the sensitivities are not periodic after {} periods of "
-                                          "{:.6g} s (last change {:.3g} of the tolerance)",
-                                          options_.steady.periods_max, 1.0 / f, change),
-                              change, period);
 
   sensitivity_start_.resize(size, ns);
-  for (int k = 0; k < ns; ++k) sensitivity_start_.col(k) = sens[k].col(0);
+  for (int k = 0; k < ns; ++k) sensitivity_start_.col(k) = period.sens[k].col(0);
   sensitivity_frequency_ = f;
-
-  // d yhat / d theta = dOut/dx s_x + dOut/dtheta (the outputs of PeriodicSolution: grid input values).
-  const int channels = static_cast<int>(solution.channels.size());
-  std::vector<Eigen::MatrixXd> out(channels, Eigen::MatrixXd(n, ns));
-  std::vector<Jet> theta_jet;
-  for (double v : theta) theta_jet.push_back(ident::MakeConstant(v, ns));
-  for (int k = 0; k < ns; ++k) theta_jet[parameters[k]] = Jet(theta[parameters[k]], DerivativeVector::Unit(ns, k));
-  std::vector<Jet> xs(m), y(channels);
-  for (int mu = 0; mu < n; ++mu) {
-    for (int j = 0; j < m; ++j) {
-      DerivativeVector d(ns);
-      for (int k = 0; k < ns; ++k) d[k] = sens[k](j, mu);
-      xs[j] = Jet(state(j, mu), d);
-    }
-    model_.Outputs<Jet>(xs, ident::MakeConstant(solution.input.values[mu], ns), theta_jet, y);
-    for (int c = 0; c < channels; ++c) {
-      const auto& d = y[c].derivatives();
-      for (int k = 0; k < ns; ++k) out[c](mu, k) = d.size() == ns ? d[k] : 0.0;
-    }
-  }
+  std::vector<Eigen::MatrixXd> out = OutputJacobians(model_, solution, theta, parameters, period);
   ++stats_.sensitivity_runs;
-  stats_.sensitivity_periods += period + 1;
-  stats_.sensitivity_steps += ida.steps();
+  stats_.sensitivity_periods += period.periods;
+  stats_.sensitivity_steps += ida->steps();
   stats_.sensitivity_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return out;
 }

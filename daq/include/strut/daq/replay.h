@@ -96,7 +96,16 @@ class ReplayAcquisition : public AcquisitionModule {
   const std::vector<std::int32_t>& counts(std::size_t experiment, std::size_t channel) const;
 
  private:
-  struct Track;  // one experiment's samples as the stream sends them
+  struct Track;    // one experiment's samples as the stream sends them
+  struct Sources;  // the session's stored calibrations, counts channels and value ranges
+  //! Experiment `k` of the session into experiments_ and tracks_, its stream time from `base_ns`
+  //! (moved past its last set).
+  void AddExperiment(const Sources& sources, std::size_t k, std::int64_t& base_ns);
+  //! The stream channels of experiment `k`: header channel, calibration and counts of each.
+  void AddStreamChannels(const Sources& sources, std::size_t k, ReplayedExperiment& x, Track& t) const;
+  //! The experiment's times as whole ns from `base_ns`; SessionError when a step is below 1 ns.
+  static void ReadTimeAxis(const std::string& file, const Experiment& e, std::int64_t base_ns, ReplayedExperiment& x,
+                           Track& t);
   std::size_t RunLength(const Track& t, std::size_t from) const;
   std::int64_t DueNs(const Track& t, std::size_t i) const;
 

@@ -67,7 +67,7 @@ struct BenchAcquisition {
     report["runs"] = runs;
     report["all_targets_met"] = all_ok;
     if (!json_path.empty()) {
-      WriteTextOutput(json_path, report.dump(1) + "\n");
+      WriteJsonOutput(json_path, report);
     }
   }
 };

@@ -106,7 +106,7 @@ struct BenchConfusion {
                    "left: what the baseline's linearised refit leaves of it; units sorted by the signal in five bins):\n"
                 << detection;
     if (!json_path.empty())
-      WriteTextOutput(json_path, nlohmann::json{{"confusion", rows}, {"sizes", sizes}, {"units", unit_rows}}.dump(1) + "\n");
+      WriteJsonOutput(json_path, nlohmann::json{{"confusion", rows}, {"sizes", sizes}, {"units", unit_rows}});
   }
 };
 

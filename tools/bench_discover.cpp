@@ -41,9 +41,8 @@ struct BenchDiscover {
                              "comparable side by side\n",
                              s.load_before, s.load_after);
     if (!json_path.empty())
-      WriteTextOutput(json_path,
-                      nlohmann::json{{"discover", rows}, {"speedup", speedup}, {"load", {s.load_before, s.load_after}}}
-                              .dump(1) + "\n");
+      WriteJsonOutput(json_path,
+                      nlohmann::json{{"discover", rows}, {"speedup", speedup}, {"load", {s.load_before, s.load_after}}});
   }
 };
 

@@ -7,6 +7,7 @@
 #include <nlohmann/json.hpp>
 
 #include "commands.h"
+#include "drop_bench_options.h"
 #include "option_checks.h"
 #include "output_files.h"
 #include "strut/study/drop.h"
@@ -63,15 +64,14 @@ struct BenchDrop {
     if (json_path.empty()) return;
     nlohmann::json rows = nlohmann::json::array();
     for (const study::DropUnit& u : s.units) rows.push_back(UnitJson(u));
-    WriteTextOutput(json_path, nlohmann::json{{"units", rows},
+    WriteJsonOutput(json_path, nlohmann::json{{"units", rows},
                                               {"figures", summary},
                                               {"at_noise_floor", s.at_floor},
                                               {"within_5_percent", s.within5},
                                               {"prediction_cpu_median_s", s.cpu_median},
                                               {"prediction_wall_median_s", s.wall_median},
                                               {"with_intervals_cpu_median_s", s.intervals_cpu_median},
-                                              {"with_intervals_wall_median_s", s.intervals_wall_median}}
-                                       .dump(1) + "\n");
+                                              {"with_intervals_wall_median_s", s.intervals_wall_median}});
   }
 };
 
@@ -82,13 +82,7 @@ void RegisterBenchDrop(CLI::App& bench) {
   CLI::App* sub = bench.add_subcommand(
       "drop", "Drop prediction from shaker fits of drawn units: errors against the truth's drop, interval coverage, "
               "prediction time.");
-  sub->add_option("--units", command->options.units, "Number of drawn units.")->check(Between(1, 10000))->capture_default_str();
-  sub->add_option("--first-seed", command->options.first_seed, "Seed of the first unit (the others follow).")->capture_default_str();
-  sub->add_option("--mass", command->options.mass, "Dropped mass, kg.")->check(Positive("kg"))->capture_default_str();
-  sub->add_option("--velocity", command->options.velocity, "Stroke velocity at contact, m/s.")
-      ->check(NonNegative())
-      ->capture_default_str();
-  sub->add_option("--duration", command->options.duration, "Seconds from contact.")->check(Between(0.1, 3600.0))->capture_default_str();
+  AddDropBenchOptions(*sub, command->options, "Seconds from contact.");
   sub->add_option("--effect", command->options.effects,
                   "An effect the truth has and the fitted 2dof model lacks (drawn size): oil-compressibility, "
                   "viscous-damping, stribeck-friction, end-stop, real-gas; repeatable.");

@@ -9,6 +9,7 @@
 #include <nlohmann/json.hpp>
 
 #include "commands.h"
+#include "drop_bench_options.h"
 #include "option_checks.h"
 #include "output_files.h"
 #include "strut/study/drop_fit.h"
@@ -97,7 +98,7 @@ struct BenchDropFit {
                       {"shaker", FiguresJson(u.alone)},
                       {"shaker_and_drop", FiguresJson(u.with_drop)},
                       {"theta3_sd_ratio", u.theta3_sd_ratio}});
-    WriteTextOutput(json_path, nlohmann::json{{"units", rows},
+    WriteJsonOutput(json_path, nlohmann::json{{"units", rows},
                                               {"theta3_sd_ratio_median", s.ratio_median},
                                               {"theta3_sd_ratio_min", s.ratio_min},
                                               {"theta3_sd_ratio_max", s.ratio_max},
@@ -106,8 +107,7 @@ struct BenchDropFit {
                                               {"inside_alone", a.inside},
                                               {"inside_with_drop", b.inside},
                                               {"estimated_alone", a.estimated},
-                                              {"estimated_with_drop", b.estimated}}
-                                       .dump(1) + "\n");
+                                              {"estimated_with_drop", b.estimated}});
   }
 };
 
@@ -118,15 +118,7 @@ void RegisterBenchDropFit(CLI::App& bench) {
   CLI::App* sub = bench.add_subcommand(
       "dropfit", "What one drop adds to a shaker fit on drawn units: theta3's sd alone and with the drop, interval "
                  "coverage, and the drop predicted from each fit.");
-  sub->add_option("--units", command->options.units, "Number of drawn units.")->check(Between(1, 10000))->capture_default_str();
-  sub->add_option("--first-seed", command->options.first_seed, "Seed of the first unit (the others follow).")->capture_default_str();
-  sub->add_option("--mass", command->options.mass, "Dropped mass, kg.")->check(Positive("kg"))->capture_default_str();
-  sub->add_option("--velocity", command->options.velocity, "Stroke velocity at contact, m/s.")
-      ->check(NonNegative())
-      ->capture_default_str();
-  sub->add_option("--duration", command->options.duration, "Seconds of the drop record from contact.")
-      ->check(Between(0.1, 3600.0))
-      ->capture_default_str();
+  AddDropBenchOptions(*sub, command->options, "Seconds of the drop record from contact.");
   sub->add_option("--json", command->json_path, "Also write the figures as JSON to this file.");
   sub->callback([command] { command->Run(); });
 }

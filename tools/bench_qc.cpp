@@ -96,7 +96,7 @@ struct BenchQc {
     if (json_path.empty()) return;
     nlohmann::json rows = nlohmann::json::array();
     for (const study::LotUnitResult& u : s.units) rows.push_back(UnitJson(u));
-    WriteTextOutput(json_path, nlohmann::json{{"units", rows},
+    WriteJsonOutput(json_path, nlohmann::json{{"units", rows},
                                               {"confusion", cj},
                                               {"defects_passed", s.defects_passed},
                                               {"good_failed", s.good_failed},
@@ -104,8 +104,7 @@ struct BenchQc {
                                               {"defects", s.defects},
                                               {"coverage", cov},
                                               {"median_decision_seconds", s.median_wall},
-                                              {"median_decision_cpu_seconds", s.median_cpu}}
-                                       .dump(1) + "\n");
+                                              {"median_decision_cpu_seconds", s.median_cpu}});
   }
 };
 

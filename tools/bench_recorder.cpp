@@ -58,7 +58,7 @@ struct BenchRecorder {
                                 {"ratio_to_raw", ratio(f)},
                                 {"cpu_us_per_sample", f.cpu / s.samples * 1e6}});
     out["core_share_at_rate"] = s.core_share;
-    WriteTextOutput(json_path, out.dump(1) + "\n");
+    WriteJsonOutput(json_path, out);
   }
 };
 

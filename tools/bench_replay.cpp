@@ -48,7 +48,7 @@ struct BenchReplay {
                                  {"times_real_time", sets / rate / f.wall}});
     }
     if (!json_path.empty()) {
-      WriteTextOutput(json_path, json.dump(1) + "\n");
+      WriteJsonOutput(json_path, json);
     }
   }
 

@@ -199,7 +199,7 @@ struct BenchRig {
         n, fastest ? fmt::format("{:g}x", *fastest) : "none");
     json["fastest_kept_up"] = fastest ? nlohmann::json(*fastest) : nlohmann::json(nullptr);
     if (!json_path.empty()) {
-      WriteTextOutput(json_path, json.dump(1) + "\n");
+      WriteJsonOutput(json_path, json);
     }
   }
 };

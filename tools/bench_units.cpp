@@ -124,15 +124,14 @@ struct BenchUnits {
     for (const study::UnitFit& unit : s.units) rows.push_back(UnitJson(unit));
     for (const auto& [key, c] : s.coverage)
       coverage[key] = {{"inside", c.inside}, {"total", c.total}, {"mean_z", c.mean_z}, {"sd_z", c.sd_z}};
-    WriteTextOutput(json_path, nlohmann::json{{"units", rows},
+    WriteJsonOutput(json_path, nlohmann::json{{"units", rows},
                                               {"coverage", coverage},
                                               {"pooled_inside", s.pooled_inside},
                                               {"pooled_total", s.pooled_total},
                                               {"converged", s.converged},
                                               {"at_noise_floor", s.at_floor},
                                               {"same_optimum", s.same_optimum},
-                                              {"restarts", s.restarts}}
-                                       .dump(1) + "\n");
+                                              {"restarts", s.restarts}});
   }
 };
 

@@ -384,7 +384,7 @@ struct BenchPeriodic {
     report["time_to_accuracy"] = TimeToAccuracy(b);
 
     if (!json_path.empty()) {
-      WriteTextOutput(json_path, report.dump(1) + "\n");
+      WriteJsonOutput(json_path, report);
     }
   }
 };
@@ -617,7 +617,7 @@ struct BenchIdentify {
     std::cout << fmt::format("\nbench identify: {:.0f} s\n", seconds);
     report["seconds"] = seconds;
     if (!json_path.empty()) {
-      WriteTextOutput(json_path, report.dump(1) + "\n");
+      WriteJsonOutput(json_path, report);
     }
   }
 };
@@ -663,7 +663,7 @@ struct BenchSim {
                       {"time_constant_fit_s", d.thermal_time_constant_fit},
                       {"time_constant_model_s", d.thermal_time_constant_model}};
     if (!json_path.empty()) {
-      WriteTextOutput(json_path, report.dump(1) + "\n");
+      WriteJsonOutput(json_path, report);
     }
   }
 };
@@ -728,7 +728,7 @@ struct BenchSilverbox {
       out["import_seconds"] = import_seconds;
       out["data"] = session.source_path;
       out["test_simulation_check"] = check;
-      WriteTextOutput(json_path, out.dump(1) + "\n");
+      WriteJsonOutput(json_path, out);
     }
     if (!report_path.empty()) {
       study::WriteSilverboxReport(r, options, report_path, notes);

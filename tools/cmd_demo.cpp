@@ -102,7 +102,7 @@ struct DemoCommand {
   }
 
   void WriteFit(const ident::FitSummary& fit, const std::string& stem, const std::string& title) const {
-    WriteTextOutput(stem + ".json", report::FitToJson(fit).dump(1) + "\n");
+    WriteJsonOutput(stem + ".json", report::FitToJson(fit));
     report::WriteFitReport(fit, stem + ".html", title);
     spdlog::info("wrote {}.html", stem);
   }

@@ -34,7 +34,7 @@ struct DiscoverCommand {
     std::cout << result.conclusion << "\n";
     for (const auto& s : result.steps)
       std::cout << fmt::format("  + {:<20} ΔBIC {:+.1f}  {}\n", s.term, s.delta_bic, s.evidence);
-    if (!json_path.empty()) WriteTextOutput(json_path, report::DiscoveryJson(result).dump(1) + "\n");
+    if (!json_path.empty()) WriteJsonOutput(json_path, report::DiscoveryJson(result));
     if (!report_path.empty()) report::WriteDiscoveryReport(result, report_path);
   }
 };
@@ -52,11 +52,7 @@ void RegisterDiscoverCommand(CLI::App& app) {
   command->model.AddSessionFit(*sub);
   sub->add_option("--json", command->json_path, "Write the findings as JSON to this file.");
   sub->add_option("--report", command->report_path, "Write a self-contained HTML report to this file.");
-  sub->add_option("--n", command->n,
-                  "Grid points per period of the periodic solver, at least: the grid is equidistant and holds every "
-                  "recorded sample phase. Default: under stroke input the sample phases, thinned where the model is "
-                  "smooth (200 a period there); under force input 800 (docs/identification.md).")
-      ->check(Between(16, 100000));
+  AddFitGridOption(*sub, command->n);
   sub->add_option("--threads", command->threads, "Threads: candidate refits, cross-validation folds and the experiments of each fit side by side (the answers do not depend on it).")
       ->check(Between(1, 64))
       ->capture_default_str();

@@ -75,7 +75,7 @@ struct IdentifyCommand {
       nlohmann::json j = report::FitToJson(fit.summary);
       j["sessions"] = sessions;
       j["excluded"] = options.exclude;
-      WriteTextOutput(json_path, j.dump(1) + "\n");
+      WriteJsonOutput(json_path, j);
     }
     if (!report_path.empty()) {
       report::WriteFitReport(fit.summary, report_path, "strut identify: " + m.composition());
@@ -112,11 +112,7 @@ void RegisterIdentifyCommand(CLI::App& app) {
   command->model.AddSessionFit(*sub);
   sub->add_option("--json", command->json_path, "Write the fit as JSON to this file.");
   sub->add_option("--report", command->report_path, "Write a self-contained HTML report to this file.");
-  sub->add_option("--n", command->n,
-                  "Grid points per period of the periodic solver, at least: the grid is equidistant and holds every "
-                  "recorded sample phase. Default: under stroke input the sample phases, thinned where the model is "
-                  "smooth (200 a period there); under force input 800 (docs/identification.md).")
-      ->check(Between(16, 100000));
+  AddFitGridOption(*sub, command->n);
   sub->add_option("--scheme", command->scheme,
                   "Difference scheme: backward2, central2, central4 or spectral (default auto: central4 under stroke "
                   "input, backward2 under force input; another scheme without --n gets 800 equidistant points).")

@@ -157,7 +157,7 @@ struct PeriodicCommand {
       std::cout << j.dump(1) << "\n";
       return;
     }
-    WriteTextOutput(json_path, j.dump(1) + "\n");
+    WriteJsonOutput(json_path, j);
   }
 };
 

@@ -127,7 +127,7 @@ struct PredictDropCommand {
       std::cout << fmt::format("the truth has {}, the fitted model not: {}\n", x.term, x.affects);
     std::cout << fmt::format("{} transient run(s), the prediction itself {:.3f} s ({} IDA steps), all {:.3f} s\n",
                              predicted.simulations, predicted.nominal_seconds, predicted.ida_steps, predicted.seconds);
-    if (!json_path.empty()) WriteTextOutput(json_path, report::DropJson(drop).dump(1) + "\n");
+    if (!json_path.empty()) WriteJsonOutput(json_path, report::DropJson(drop));
     if (!report_path.empty()) {
       report::WriteDropReport(drop, report_path);
       spdlog::info("wrote {}", report_path);

@@ -58,7 +58,7 @@ struct QcCommand {
     ident::SessionFit fit;
     const qc::Decision d = qc::RunQc(session, ref, &fit);
     std::cout << qc::Table(d);
-    if (!json_path.empty()) WriteTextOutput(json_path, report::QcToJson(d).dump(1) + "\n");
+    if (!json_path.empty()) WriteJsonOutput(json_path, report::QcToJson(d));
     if (!report_path.empty()) {
       report::WriteQcReport(d, d.fit_verdict.empty() ? nullptr : &fit, report_path);
       spdlog::info("wrote {}", report_path);

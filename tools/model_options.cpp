@@ -5,6 +5,8 @@
 
 #include <algorithm>
 
+#include "option_checks.h"
+
 namespace strut::tools {
 namespace {
 
@@ -85,6 +87,15 @@ ident::SessionFitOptions ModelOptions::FitOptions(int n) const {
     }
   }
   return options;
+}
+
+void AddFitGridOption(CLI::App& command, int& n) {
+  command
+      .add_option("--n", n,
+                  "Grid points per period of the periodic solver, at least: the grid is equidistant and holds every "
+                  "recorded sample phase. Default: under stroke input the sample phases, thinned where the model is "
+                  "smooth (200 a period there); under force input 800 (docs/identification.md).")
+      ->check(Between(16, 100000));
 }
 
 }  // namespace strut::tools

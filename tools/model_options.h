@@ -29,4 +29,8 @@ struct ModelOptions {
   ident::SessionFitOptions FitOptions(int n) const;
 };
 
+//! Adds --n, the fit's grid points per period (0, the default: by causality), to a subcommand that
+//! fits sessions.
+void AddFitGridOption(CLI::App& command, int& n);
+
 }  // namespace strut::tools

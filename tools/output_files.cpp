@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <fmt/format.h>
 #include <fstream>
+#include <nlohmann/json.hpp>
 #include <stdexcept>
 
 #include "strut/daq/atomic_file.h"
@@ -47,5 +48,7 @@ void WriteTextOutput(const std::string& path, const std::string& text) {
   daq::WriteFileAtomically(path, text);
   spdlog::info("wrote {}", path);
 }
+
+void WriteJsonOutput(const std::string& path, const nlohmann::json& json) { WriteTextOutput(path, json.dump(1) + "\n"); }
 
 }  // namespace strut::tools

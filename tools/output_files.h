@@ -4,6 +4,7 @@
 #pragma once
 
 #include <exception>
+#include <nlohmann/json_fwd.hpp>
 #include <string>
 #include <vector>
 
@@ -35,5 +36,7 @@ void CheckOutputPath(const std::string& option, const std::string& path, const s
 
 //! Writes `text` to `path` atomically (daq::WriteFileAtomically) and logs it.
 void WriteTextOutput(const std::string& path, const std::string& text);
+//! Writes `json` as every command's JSON output is laid out (one space of indent, a final newline).
+void WriteJsonOutput(const std::string& path, const nlohmann::json& json);
 
 }  // namespace strut::tools

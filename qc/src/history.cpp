@@ -9,6 +9,8 @@
 #include <nlohmann/json.hpp>
 #include <regex>
 
+#include "strut/daq/session.h"
+
 namespace strut::qc {
 namespace {
 
@@ -91,15 +93,6 @@ bool IsUtcTime(const std::string& text) {
   return std::regex_match(text, std::regex(R"(\d{4}-\d{2}-\d{2}T\d{2}:\d{2}:\d{2}Z)"));
 }
 
-std::string UtcNow() {
-  const std::time_t t = std::time(nullptr);
-  std::tm tm{};
-  gmtime_r(&t, &tm);
-  char buf[32];
-  std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", &tm);
-  return buf;
-}
-
 History::History(const std::string& path) : path_(path) {
   if (sqlite3_open_v2(path.c_str(), &db_, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE, nullptr) != SQLITE_OK) {
     const std::string why = db_ ? sqlite3_errmsg(db_) : "out of memory";
@@ -137,7 +130,7 @@ long History::Record(const Decision& d, const std::string& time) {
                 "INSERT INTO decisions (serial, time, session, reference, model, verdict, reasons) VALUES (?,?,?,?,?,?,?)",
                 path_);
     s.Bind(1, d.serial);
-    s.Bind(2, time.empty() ? UtcNow() : time);
+    s.Bind(2, time.empty() ? daq::UtcNowIso8601() : time);
     s.Bind(3, d.session);
     s.Bind(4, d.reference);
     s.Bind(5, d.model);

@@ -47,33 +47,21 @@ std::string Mm(double metres) { return fmt::format("{:.2f} mm", metres * 1e3); }
 // ---------------------------------------------------------------------------------------------
 // CommandProgram
 
-CommandProgram CommandProgram::Locked(double start) {
-  CommandProgram p;
-  p.kind = Kind::kLocked;
-  p.start = start;
-  return p;
-}
+CommandProgram CommandProgram::Locked(double start) { return {.kind = Kind::kLocked, .start = start}; }
 
 CommandProgram CommandProgram::Move(double start, double from, double to, double rate) {
-  CommandProgram p;
-  p.kind = Kind::kMove;
-  p.start = start;
-  p.from = from;
-  p.to = to;
-  p.rate = rate;
-  return p;
+  return {.kind = Kind::kMove, .start = start, .from = from, .to = to, .rate = rate};
 }
 
 CommandProgram CommandProgram::Sine(double start, double mean, double amplitude, double frequency, int ramp_cycles) {
-  CommandProgram p;
-  p.kind = Kind::kSine;
-  p.start = start;
-  p.mean = mean;
-  p.amplitude = amplitude;
-  p.frequency = frequency;
-  p.ramp_cycles = ramp_cycles;
-  p.from = p.to = mean;
-  return p;
+  return {.kind = Kind::kSine,
+          .start = start,
+          .from = mean,
+          .to = mean,
+          .mean = mean,
+          .amplitude = amplitude,
+          .frequency = frequency,
+          .ramp_cycles = ramp_cycles};
 }
 
 double CommandProgram::Envelope(double t) const {

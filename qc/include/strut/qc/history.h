@@ -69,7 +69,4 @@ std::vector<QuantityTrend> Trends(const std::vector<HistoryEntry>& entries);
 //! True for a UTC time "YYYY-MM-DDTHH:MM:SSZ" (what Record stores).
 bool IsUtcTime(const std::string& text);
 
-//! The current UTC time, ISO 8601 with seconds ("2026-12-02T04:50:00Z").
-std::string UtcNow();
-
 }  // namespace strut::qc

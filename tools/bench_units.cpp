@@ -9,6 +9,7 @@
 #include "option_checks.h"
 #include "output_files.h"
 #include "strut/ident/session_fit.h"
+#include "strut/sim/draw.h"
 #include "strut/study/units.h"
 
 namespace strut::tools {
@@ -134,7 +135,7 @@ void RegisterBenchUnits(CLI::App& bench) {
   sub->add_option("--effect", command->options.effects,
                   "An extra effect the units have and the fitted model lacks (repeat for several): the coverage of the "
                   "intervals widened for the misfit. Names as for `strut sim matrix --effect`.")
-      ->check(CLI::IsMember({"viscous-damping", "stribeck-friction", "end-stop", "oil-compressibility", "real-gas"}));
+      ->check(CLI::IsMember(sim::ExtraEffects()));
   sub->add_option("--json", command->json_path, "Also write the figures as JSON to this file.");
   sub->callback([command] { command->Run(); });
 }

@@ -44,13 +44,13 @@ void PrintSummary(const study::UnitsOptions& o, const study::UnitsStudy& s) {
   const auto [lo, hi] = study::Wilson(s.pooled_inside, s.pooled_total);
   std::cout << fmt::format(
       "  pooled   {}/{} = {:.3f} ({:.3f}-{:.3f}); target 0.90-0.98\n"
-      "converged {}/{}; at the noise floor (every channel's pooled ratio < {}) {}/{}; worst ratio median {:.3f}, "
+      "converged {}/{}; at the noise floor (no channel's pooled ratio above noise at p = {}) {}/{}; worst ratio median {:.3f}, "
       "max {:.3f}\nfrom {:.0f} % off: the same optimum in {}/{}; fit (read to verdict) median {:.3f} s wall\n"
       "CPU medians on one thread: the whole entry point (prepare, plan, fit) {:.0f} ms; the fit from the data's "
       "starting values alone {:.0f} ms (target < 100 ms); the same fit without the calibration {:.0f} ms, unit by "
       "unit {:.3f} times that (median)\n",
       s.pooled_inside, s.pooled_total, double(s.pooled_inside) / s.pooled_total, lo, hi, s.converged, o.units,
-      ident::kNoiseFloorRatio, s.at_floor, o.units, s.worst_ratio_median, s.worst_ratio_max, 100 * o.start_off,
+      ident::kNoiseFloorFalseAlarm, s.at_floor, o.units, s.worst_ratio_median, s.worst_ratio_max, 100 * o.start_off,
       s.same_optimum, s.restarts, s.seconds_median, 1e3 * s.cpu_median, 1e3 * s.estimator_cpu_median,
       1e3 * s.uncalibrated_cpu_median, s.cost_ratio_median);
 }

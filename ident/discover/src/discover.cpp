@@ -68,7 +68,7 @@ bool DiscoverOptions::IsValid(std::string* error) const {
   if (!(bic_threshold >= 0)) return fail("bic_threshold must not be negative");
   if (cv_folds < 0 || cv_folds == 1) return fail("cv_folds must be 0 (off) or at least 2");
   if (!(cv_improvement > 0 && cv_improvement <= 1)) return fail("cv_improvement must be in (0, 1]");
-  if (!(noise_ratio_threshold > 1)) return fail("noise_ratio_threshold must be above 1");
+  if (!(min_improvement > 0 && min_improvement < 1)) return fail("min_improvement must be in (0, 1)");
   if (max_terms < 0 || threads < 1) return fail("max_terms must not be negative and threads at least 1");
   return true;
 }
@@ -339,6 +339,20 @@ double WorstRatio(const std::map<std::string, double>& ratio) {
   return worst;
 }
 
+bool AtNoiseFloor(const FitSummary& fit) {
+  return std::none_of(fit.channels.begin(), fit.channels.end(), [](const FitChannel& c) { return c.AboveNoiseFloor(); });
+}
+
+// Whether some channel's ratio falls from `current` to `candidate` by more than noise moves it.
+bool FallsBeyondNoise(const FitSummary& current, const FitSummary& candidate) {
+  const double z = UpperNormalQuantile(kNoiseFloorFalseAlarm / static_cast<double>(std::max<std::size_t>(1, current.channels.size())));
+  for (const FitChannel& c : current.channels)
+    for (const FitChannel& k : candidate.channels)
+      if (k.name == c.name && c.noise_ratio - k.noise_ratio > z * (std::isfinite(c.noise_ratio_sd) ? c.noise_ratio_sd : 0.0))
+        return true;
+  return false;
+}
+
 double MeanRatio(const std::map<std::string, double>& ratio) {
   double sum = 0.0;
   for (const auto& [c, r] : ratio) sum += r;
@@ -517,7 +531,8 @@ int DiscoveryRun::Select(Round& round, const FitSummary& current, const Model& m
       r.verdict = "no converged fit";
     } else if (r.delta_bic > -options_.bic_threshold) {
       r.verdict = fmt::format("BIC does not fall by {}", options_.bic_threshold);
-    } else if (MeanRatio(r.noise_ratio) > options_.min_improvement * MeanRatio(ratio)) {
+    } else if (MeanRatio(r.noise_ratio) - 1.0 > options_.min_improvement * (MeanRatio(ratio) - 1.0) ||
+               !FallsBeyondNoise(current, round.fits[c])) {
       r.verdict = "noise ratio barely falls";
     } else {
       order.push_back(c);
@@ -573,8 +588,8 @@ DiscoveryStep DiscoveryRun::Step(const Round& round, int best, const FitSummary&
 }
 
 void DiscoveryRun::Conclude(DiscoveryResult& result, bool exhausted, const std::map<std::string, double>& ratio) const {
-  const double final_worst = WorstRatio(ratio);
-  if (final_worst >= options_.noise_ratio_threshold) {
+  const bool at_floor = AtNoiseFloor(result.final_fit);
+  if (!at_floor) {
     for (const Finding& f : LocateMismatch(result.final_fit))
       if (f.score > 5.0) result.unexplained.push_back(f);
   }
@@ -592,7 +607,7 @@ void DiscoveryRun::Conclude(DiscoveryResult& result, bool exhausted, const std::
   result.conclusion = fmt::format(
       "{} left residuals above the noise floor (noise ratios{}). {} Final model {} (noise ratios{}{}).{}", base_, ratios,
       added.empty() ? "No catalogue term explains them." : "Missing: " + added + ".", result.final_model, after,
-      final_worst < options_.noise_ratio_threshold ? ", at the noise floor" : ", still above the noise floor",
+      at_floor ? ", at the noise floor" : ", still above the noise floor",
       result.unexplained.empty()
           ? ""
           : (exhausted ? " What is left matches no catalogue term: "
@@ -612,10 +627,10 @@ DiscoveryResult DiscoveryRun::Run() {
   result.mismatch = LocateMismatch(result.baseline);
   FitSummary current = result.baseline;
   std::map<std::string, double> ratio = PooledNoiseRatio(current);
-  result.nothing_missing = WorstRatio(ratio) < options_.noise_ratio_threshold;
+  result.nothing_missing = AtNoiseFloor(result.baseline);
   if (!result.baseline.converged) Say("the baseline fit did not converge: " + result.baseline.VerdictText());
 
-  for (int number = 1; number <= options_.max_terms && WorstRatio(ratio) >= options_.noise_ratio_threshold; ++number) {
+  for (int number = 1; number <= options_.max_terms && !AtNoiseFloor(current); ++number) {
     const std::vector<Finding> findings = LocateMismatch(current);
     const Model model = Model::Build(current.model, causality_);
     Round round = Candidates(current);

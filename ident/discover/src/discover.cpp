@@ -12,7 +12,6 @@
 
 #include "strut/ident/parallel.h"
 #include "strut/ident/initial_values.h"
-#include "strut/ident/term_start.h"
 #include "strut/ident/catalogue.h"
 
 namespace strut::ident {
@@ -413,26 +412,14 @@ class DiscoveryRun {
 };
 
 // A candidate: the current fit's values and estimated set, plus the new term's own parameters (sizes
-// and shapes estimated, from where the located mismatch puts them: CandidateStartingValues).
+// and shapes estimated, from where the located mismatch puts them: StartWithTerm).
 FitSummary DiscoveryRun::FitCandidate(const std::string& term, const std::string& composition,
                                       const FitSummary& previous) const {
   const EstimatorOptions& estimator = session_options_.estimator;
   const Model model = Model::Build(composition, causality_);
-  ParameterSet start = model.defaults();
-  std::vector<ParameterChoice> choices = DefaultChoices(model);
-  for (int i = 0; i < start.size(); ++i) {
-    const ParameterSpec& spec = start.spec(i);
-    const auto p = previous.parameters.find(spec.key());
-    if (p && previous.parameters.spec(*p).name == spec.name) {
-      start.values()[i] = previous.parameters.value(*p);
-      if (!previous.estimates[*p].estimated) choices[i] = ParameterChoice{};
-    }
-  }
-  if (causality_ == Causality::kStrokeInput) {
-    std::vector<std::string> log;
-    for (const auto& [key, value] : CandidateStartingValues(term, previous, &log)) start.set(key, value);
-    for (const std::string& line : log) spdlog::debug("candidate {}: {}", term, line);
-  }
+  std::vector<std::string> log;
+  auto [start, choices] = StartWithTerm(model, term, previous, &log);
+  for (const std::string& line : log) spdlog::debug("candidate {}: {}", term, line);
   const Estimator fitter(model, estimator);
   FitSummary fit = fitter.Fit(data_.experiments, start, choices, data_.issues);
   // Only a stalled candidate that already explains something (its BIC below the current one by the

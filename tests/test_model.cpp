@@ -232,7 +232,8 @@ TEST(SizeParameters, ZeroSwitchesTheEffectOffAndTheResidualIsLinearThere) {
   // Every size parameter of a candidate term: at 0 the residual is that of the model without the
   // term, and the residual at 0, s/2 and s lie on a line (to a few percent of the change).
   const std::string base = "2dof";
-  for (const char* term : {"viscous-damping", "stribeck-friction", "end-stop", "oil-compressibility", "real-gas"}) {
+  for (const char* term : {"viscous-damping", "stribeck-friction", "end-stop", "oil-compressibility", "real-gas",
+                           "dead-volume", "recoil-damping", "metering-pin", "friction-asymmetry", "pressure-heat-transfer"}) {
     SCOPED_TRACE(term);
     const Model with = Model::Build(base + "+" + term, Causality::kStrokeInput);
     const Model without = Model::Build(base, Causality::kStrokeInput);

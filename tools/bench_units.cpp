@@ -9,6 +9,7 @@
 #include "option_checks.h"
 #include "output_files.h"
 #include "strut/ident/session_fit.h"
+#include "strut/sim/draw.h"
 #include "strut/study/units.h"
 #include "strut/study/units_compare.h"
 
@@ -45,13 +46,13 @@ void PrintSummary(const study::UnitsOptions& o, const study::UnitsStudy& s) {
   const auto [lo, hi] = study::Wilson(s.pooled_inside, s.pooled_total);
   std::cout << fmt::format(
       "  pooled   {}/{} = {:.3f} ({:.3f}-{:.3f}); target 0.90-0.98\n"
-      "converged {}/{}; at the noise floor (every channel's pooled ratio < {}) {}/{}; worst ratio median {:.3f}, "
+      "converged {}/{}; at the noise floor (no channel's pooled ratio above noise at p = {}) {}/{}; worst ratio median {:.3f}, "
       "max {:.3f}\nfrom {:.0f} % off: the same optimum in {}/{}; fit (read to verdict) median {:.3f} s wall\n"
       "CPU medians on one thread: the whole entry point (prepare, plan, fit) {:.0f} ms; the fit from the data's "
       "starting values alone {:.0f} ms (target < 100 ms); the same fit without the calibration {:.0f} ms, unit by "
       "unit {:.3f} times that (median)\n",
       s.pooled_inside, s.pooled_total, double(s.pooled_inside) / s.pooled_total, lo, hi, s.converged, o.units,
-      ident::kNoiseFloorRatio, s.at_floor, o.units, s.worst_ratio_median, s.worst_ratio_max, 100 * o.start_off,
+      ident::kNoiseFloorFalseAlarm, s.at_floor, o.units, s.worst_ratio_median, s.worst_ratio_max, 100 * o.start_off,
       s.same_optimum, s.restarts, s.seconds_median, 1e3 * s.cpu_median, 1e3 * s.estimator_cpu_median,
       1e3 * s.uncalibrated_cpu_median, s.cost_ratio_median);
 }
@@ -169,7 +170,7 @@ void RegisterBenchUnits(CLI::App& bench) {
   sub->add_option("--effect", command->options.effects,
                   "An extra effect the units have and the fitted model lacks (repeat for several): the coverage of the "
                   "intervals widened for the misfit. Names as for `strut sim matrix --effect`.")
-      ->check(CLI::IsMember({"viscous-damping", "stribeck-friction", "end-stop", "oil-compressibility", "real-gas"}));
+      ->check(CLI::IsMember(sim::ExtraEffects()));
   sub->add_option("--json", command->json_path, "Also write the figures as JSON to this file.");
   sub->add_option("--compare", command->compare_path,
                   "Compare this run with an earlier one's --json file: per parameter the largest relative difference "

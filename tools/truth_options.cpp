@@ -25,9 +25,9 @@ void TruthOptions::Add(CLI::App& command, bool with_actuator) {
                     ->capture_default_str();
   effect_option = command.add_option("--effect", effects,
                                      "With --draw: an extra effect the unit has, NAME or NAME=SIZE (the value of "
-                                     "its sizing parameter, SI; without it the size is drawn): "
-                                     "oil-compressibility, viscous-damping, stribeck-friction, end-stop, real-gas. "
-                                     "Repeat the option for several effects.");
+                                     "its sizing parameter, SI; without it the size is drawn): " +
+                                         fmt::format("{}", fmt::join(sim::ExtraEffects(), ", ")) +
+                                         ". Repeat the option for several effects.");
 }
 
 sim::Truth TruthOptions::Load() const {

@@ -53,7 +53,10 @@ nlohmann::json FitToJson(const FitSummary& fit) {
                              {"variance", Number(c.variance)},
                              {"noise_floor_variance", Number(c.noise_floor_variance)},
                              {"rms", Number(c.rms)},
-                             {"noise_ratio", Number(c.noise_ratio)}});
+                             {"noise_ratio", Number(c.noise_ratio)},
+                             {"noise_ratio_sd", Number(c.noise_ratio_sd)},
+                             {"noise_floor_limit", Number(c.noise_floor_limit)},
+                             {"above_noise_floor", c.AboveNoiseFloor()}});
   j["experiments"] = nlohmann::json::array();
   for (const ExperimentFit& e : fit.experiments) {
     nlohmann::json x{{"label", e.label},

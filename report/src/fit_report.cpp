@@ -98,15 +98,17 @@ void AddChannelTable(HtmlReport& report, const FitSummary& fit) {
     rows.push_back({c.name, fmt::format("{:.4g}", c.rms * d.scale), d.unit,
                     fmt::format("{:.4g}", c.variance * d.scale * d.scale),
                     fmt::format("{:.4g}", c.noise_floor_variance * d.scale * d.scale), squared,
-                    fmt::format("{:.3g}", c.noise_ratio)});
+                    fmt::format("{:.3g}", c.noise_ratio), fmt::format("{:.3g}", c.noise_floor_limit)});
   }
   report.AddTable({"channel", "residual rms", "unit", "residual variance v_b", "noise floor variance", "unit of variances",
-                   "noise ratio"},
+                   "noise ratio", "noise alone stays below"},
                   rows,
                   fmt::format("The noise ratio is the residual over the noise variance of the averaged data, pooled "
-                              "over the experiments: about 1 means the model explains all the data can show; above "
-                              "{} physics is missing.",
-                              kNoiseFloorRatio));
+                              "over the experiments: about 1 means the model explains all the data can show. With "
+                              "the model right, noise alone puts a channel above the last column with probability "
+                              "{} (the ratio's sampling distribution: the averaged samples, and the periods the "
+                              "noise is estimated from); above it physics is missing.",
+                              kNoiseFloorFalseAlarm));
 }
 
 void AddResidualBars(HtmlReport& report, const FitSummary& fit) {

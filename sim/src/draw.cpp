@@ -30,8 +30,15 @@ constexpr double kMinCompressionRatio = 5.0, kMaxCompressionRatio = 12.0;
 constexpr int kSignalGrid = 800;
 
 const std::vector<std::string> kBases = {"1dof", "1dof+heat-exchange", "2dof"};
-const std::vector<std::string> kExtraEffects = {"viscous-damping", "stribeck-friction", "end-stop",
-                                                "oil-compressibility", "real-gas"};
+const std::vector<std::string> kExtraEffectNames = {"viscous-damping", "stribeck-friction", "end-stop",
+                                                "oil-compressibility", "real-gas", "dead-volume",
+                                                "recoil-damping", "metering-pin", "friction-asymmetry",
+                                                "pressure-heat-transfer"};
+// Spreads drawn only for units that have their effect (they came after the others, so every other
+// unit of a seed is the one it was before they were added).
+const std::vector<std::string> kDrawnOnlyWithTheEffect = {"end_stop_position", "dead_volume_ratio",
+                                                          "recoil_damping_excess", "metering_pin_gradient",
+                                                          "friction_asymmetry", "heat_transfer_pressure_gain"};
 
 //! Random numbers whose values the C++ standard fixes (mt19937_64 is fully specified; the
 //! library's distributions are not), so a seed gives the same unit with every compiler.
@@ -66,6 +73,8 @@ bool Contains(const std::vector<std::string>& list, std::string_view name) {
 double Value(const ident::ParameterSet& p, int index) { return p.value(p.position_of_index(index)); }
 
 }  // namespace
+
+const std::vector<std::string>& ExtraEffects() { return kExtraEffectNames; }
 
 const std::vector<DrawSpread>& DrawSpreads() {
   using K = SpreadKind;
@@ -102,6 +111,16 @@ const std::vector<DrawSpread>& DrawSpreads() {
       {"end_stop_position", "theta23", K::kUniformOffset, 0.0, 8e-3, "end-stop",
        "§2.9: a top-out snubber of a few mm engages 0-8 mm inside full extension (the matrix's "
        "shallowest experiments come within about 4 mm of it)"},
+      {"dead_volume_ratio", "theta36", K::kUniformFactor, 0.6, 2.0, "dead-volume",
+       "§2.4: V_d 3-10 cm^3 of line, fittings and transducer cavity over V0 1.6 L (nominal 5 cm^3)"},
+      {"recoil_damping_excess", "theta32", K::kUniformFactor, 0.67, 2.67, "recoil-damping",
+       "§2.6: c_ext = (2-5) c_comp from snubber or flapper valves (nominal x2.5)"},
+      {"metering_pin_gradient", "theta33", K::kUniformFactor, 0.5, 2.0, "metering-pin",
+       "§2.7: a pin closing 15-50 % of the orifice area over the stroke (nominal 30 %)"},
+      {"friction_asymmetry", "theta34", K::kUniformFactor, -1.5, 1.5, "friction-asymmetry",
+       "§2.8: compression and extension friction differ by up to +-30 %"},
+      {"heat_transfer_pressure_gain", "theta35", K::kUniformFactor, 0.5, 1.0, "pressure-heat-transfer",
+       "§2.1: natural convection, h growing as (p / p0)^(2/3) (weight 0.5-1 of the full law)"},
   };
   return spreads;
 }
@@ -111,12 +130,19 @@ void UnitDraw::Validate() const {
     throw TruthError(fmt::format("draw: unknown base '{}' (known: 1dof, 1dof+heat-exchange, 2dof)", base));
   std::vector<std::string> seen;
   for (const EffectRequest& e : effects) {
-    if (!Contains(kExtraEffects, e.name))
-      throw TruthError(fmt::format("draw: unknown effect '{}' (known: {})", e.name, fmt::join(kExtraEffects, ", ")));
+    if (!Contains(ExtraEffects(), e.name))
+      throw TruthError(fmt::format("draw: unknown effect '{}' (known: {})", e.name, fmt::join(ExtraEffects(), ", ")));
     if (Contains(seen, e.name)) throw TruthError(fmt::format("draw: effect '{}' given twice", e.name));
     seen.push_back(e.name);
     if (e.size && !(std::isfinite(*e.size) && *e.size > 0))
       throw TruthError(fmt::format("draw: effect '{}': the size must be a positive number, got {}", e.name, *e.size));
+  }
+  std::string composition = base;
+  for (const EffectRequest& e : effects) composition += "+" + e.name;
+  try {
+    ident::Model::Build(composition, ident::Causality::kStrokeInput);
+  } catch (const ident::ModelError& e) {
+    throw TruthError(fmt::format("draw: the base {} cannot have these effects: {}", base, e.what()));
   }
   if (matrix.empty()) throw TruthError("draw: the feasibility matrix has no experiments");
   if (max_attempts < 1) throw TruthError(fmt::format("draw: max_attempts must be at least 1, got {}", max_attempts));
@@ -201,10 +227,8 @@ DrawnQuantities DrawAttempt(Draws& draws, const UnitDraw& spec, const ident::Par
   // Every spread takes its random numbers on every attempt, whether it applies or not: the
   // quantities a base shares with another are then the same for the same seed.
   for (const DrawSpread& s : DrawSpreads()) {
-    // The stop's position came last and only for units with a stop, so every other unit of a seed
-    // is the one it was before the stop's position was drawn.
-    if (s.quantity == "end_stop_position" &&
-        std::none_of(spec.effects.begin(), spec.effects.end(), [](const EffectRequest& r) { return r.name == "end-stop"; }))
+    if (Contains(kDrawnOnlyWithTheEffect, s.quantity) &&
+        std::none_of(spec.effects.begin(), spec.effects.end(), [&](const EffectRequest& r) { return r.name == s.applies; }))
       continue;
     const int index = std::stoi(s.sets.substr(5));
     const double x0 = s.quantity == "compression_ratio" ? start.ratio
@@ -223,7 +247,7 @@ DrawnQuantities DrawAttempt(Draws& draws, const UnitDraw& spec, const ident::Par
       d.zero = x;
     } else if (s.quantity == "polytropic_exponent" || s.quantity == "gas_solubility") {
       if (Has(p, index) && p.spec(p.position_of_index(index)).name == s.quantity) Set(p, index, x);
-    } else if (s.applies != "all" && s.applies != "heat-exchange" && Contains(kExtraEffects, s.applies)) {
+    } else if (s.applies != "all" && s.applies != "heat-exchange" && Contains(ExtraEffects(), s.applies)) {
       const auto request = std::find_if(spec.effects.begin(), spec.effects.end(),
                                         [&](const EffectRequest& r) { return r.name == s.applies; });
       if (request == spec.effects.end()) continue;

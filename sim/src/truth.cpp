@@ -244,8 +244,14 @@ class Reader {
     std::vector<ident::ParameterSet> all;
     for (const char* base : {"1dof", "2dof"}) {
       std::string composition = base;
-      for (const auto& e : Truth::EffectNames())
-        if (e != "heat-exchange" && e != "gas-solubility") composition += "+" + e;
+      for (const auto& e : Truth::EffectNames()) {
+        if (e == "heat-exchange" || e == "gas-solubility") continue;
+        try {  // an effect that needs the gas temperature does not compose with 1dof
+          ident::Model::Build(composition + "+" + e, ident::Causality::kStrokeInput);
+          composition += "+" + e;
+        } catch (const ident::ModelError&) {
+        }
+      }
       all.push_back(ident::Model::Build(composition, ident::Causality::kStrokeInput).defaults());
     }
     for (std::size_t i = 0; i < truth.parameters.size(); ++i) {
@@ -298,9 +304,10 @@ bool AcquisitionOptions::IsValid(std::string* error) const {
 
 const std::vector<std::string>& Truth::EffectNames() {
   // In the catalogue's (evaluation) order.
-  static const std::vector<std::string> names = {"heat-exchange",     "gas-solubility", "viscous-damping",
-                                                 "stribeck-friction", "end-stop",       "oil-compressibility",
-                                                 "real-gas"};
+  static const std::vector<std::string> names = {"heat-exchange",      "gas-solubility",        "viscous-damping",
+                                                 "stribeck-friction",  "end-stop",              "oil-compressibility",
+                                                 "dead-volume",        "real-gas",              "recoil-damping",
+                                                 "metering-pin",       "friction-asymmetry",    "pressure-heat-transfer"};
   return names;
 }
 

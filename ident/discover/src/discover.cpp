@@ -6,12 +6,12 @@
 #include <cmath>
 #include <fmt/format.h>
 #include <numeric>
+#include <numbers>
 #include <optional>
 #include <spdlog/spdlog.h>
 
 #include "strut/ident/parallel.h"
 #include "strut/ident/initial_values.h"
-#include "strut/ident/term_start.h"
 #include "strut/ident/catalogue.h"
 
 namespace strut::ident {
@@ -67,7 +67,7 @@ bool DiscoverOptions::IsValid(std::string* error) const {
   if (!(bic_threshold >= 0)) return fail("bic_threshold must not be negative");
   if (cv_folds < 0 || cv_folds == 1) return fail("cv_folds must be 0 (off) or at least 2");
   if (!(cv_improvement > 0 && cv_improvement <= 1)) return fail("cv_improvement must be in (0, 1]");
-  if (!(noise_ratio_threshold > 1)) return fail("noise_ratio_threshold must be above 1");
+  if (!(min_improvement > 0 && min_improvement < 1)) return fail("min_improvement must be in (0, 1)");
   if (max_terms < 0 || threads < 1) return fail("max_terms must not be negative and threads at least 1");
   return true;
 }
@@ -168,6 +168,58 @@ std::vector<Finding> LocateMismatch(const FitSummary& fit) {
                           fmt::format("{} residual {} with the square of the pressure: t {:+.1f}", channel,
                                       t > 0 ? "grows" : "falls", t)});
     }
+    // Signatures of physics beyond the paper's (damper-physics.md §2): the residual's pooled t
+    // against a regressor that only that physics produces once the baseline's terms are fitted.
+    const auto pooled = [&](auto&& regressor) {
+      double sum = 0.0;
+      for (const Normalised* n : items) {
+        Eigen::VectorXd x(n->z.size());
+        for (Eigen::Index i = 0; i < x.size(); ++i) x[i] = regressor(*n, i);
+        sum += TStatistic(n->z, x);
+      }
+      return sum / std::sqrt(std::max<std::size_t>(1, items.size()));
+    };
+    // Even in the stroke rate: orifice damping that differs between extension and compression (an
+    // odd damping law leaves no residual even in the rate).
+    const double even = pooled([](const Normalised& n, Eigen::Index i) { return n.rate[i] * n.rate[i]; });
+    findings.push_back({"rate-asymmetry", channel, std::abs(even),
+                        fmt::format("{} residual even in the stroke rate (growing with q'^2): pooled t {:+.1f}, more "
+                                    "damping in {} than in {}",
+                                    channel, even, even < 0 ? "extension" : "compression",
+                                    even < 0 ? "compression" : "extension")});
+    // Damping that grows with the stroke: the residual on q q'|q'| (the baseline fitted q'|q'|).
+    const double deep = pooled([](const Normalised& n, Eigen::Index i) {
+      return n.stroke[i] * n.rate[i] * std::abs(n.rate[i]);
+    });
+    findings.push_back({"position-damping", channel, std::abs(deep),
+                        fmt::format("{} residual on stroke times q'|q'|: pooled t {:+.1f}, the damping {} with the "
+                                    "stroke",
+                                    channel, deep, deep > 0 ? "grows" : "falls")});
+    // A friction level that differs with the direction: even in the rate, a step at the reversals
+    // (sliding friction saturates within about 1 % of the peak rate).
+    const double step = pooled([](const Normalised& n, Eigen::Index i) {
+      const double width = 0.01 * std::max(n.rate.cwiseAbs().maxCoeff(), 1e-9);
+      const double a = 2.0 / std::numbers::pi * std::atan(n.rate[i] / width);
+      return a * a;
+    });
+    findings.push_back({"friction-direction", channel, std::abs(step),
+                        fmt::format("{} residual stepping at the reversals, even in the rate: pooled t {:+.1f}, more "
+                                    "friction in {}",
+                                    channel, step, step > 0 ? "compression" : "extension")});
+    // A thermal loop that grows with the pressure: the residual in phase with the rate, times p.
+    if (std::all_of(items.begin(), items.end(), [](const Normalised* n) { return n->pressure.size() == n->z.size(); })) {
+      const double loop = pooled([](const Normalised& n, Eigen::Index i) { return n.pressure[i] * 1e-6 * n.rate[i]; });
+      findings.push_back({"loop-pressure", channel, std::abs(loop),
+                          fmt::format("{} residual in phase with the stroke rate, growing with the pressure: pooled t "
+                                      "{:+.1f}",
+                                      channel, loop)});
+    }
+    // A gas law that softens at deep compression: the residual on the stroke cubed (what the
+    // polytropic and ideal laws with their fitted constants leave).
+    const double cubic = pooled([](const Normalised& n, Eigen::Index i) { return std::pow(n.stroke[i], 3); });
+    findings.push_back({"deep-softening", channel, std::abs(cubic),
+                        fmt::format("{} residual on the stroke cubed: pooled t {:+.1f}, the gas {} at deep compression",
+                                    channel, cubic, cubic < 0 ? "softer" : "stiffer")});
   }
   std::sort(findings.begin(), findings.end(), [](const Finding& a, const Finding& b) { return a.score > b.score; });
   return findings;
@@ -286,6 +338,20 @@ double WorstRatio(const std::map<std::string, double>& ratio) {
   return worst;
 }
 
+bool AtNoiseFloor(const FitSummary& fit) {
+  return std::none_of(fit.channels.begin(), fit.channels.end(), [](const FitChannel& c) { return c.AboveNoiseFloor(); });
+}
+
+// Whether some channel's ratio falls from `current` to `candidate` by more than noise moves it.
+bool FallsBeyondNoise(const FitSummary& current, const FitSummary& candidate) {
+  const double z = UpperNormalQuantile(kNoiseFloorFalseAlarm / static_cast<double>(std::max<std::size_t>(1, current.channels.size())));
+  for (const FitChannel& c : current.channels)
+    for (const FitChannel& k : candidate.channels)
+      if (k.name == c.name && c.noise_ratio - k.noise_ratio > z * (std::isfinite(c.noise_ratio_sd) ? c.noise_ratio_sd : 0.0))
+        return true;
+  return false;
+}
+
 double MeanRatio(const std::map<std::string, double>& ratio) {
   double sum = 0.0;
   for (const auto& [c, r] : ratio) sum += r;
@@ -346,26 +412,14 @@ class DiscoveryRun {
 };
 
 // A candidate: the current fit's values and estimated set, plus the new term's own parameters (sizes
-// and shapes estimated, from where the located mismatch puts them: CandidateStartingValues).
+// and shapes estimated, from where the located mismatch puts them: StartWithTerm).
 FitSummary DiscoveryRun::FitCandidate(const std::string& term, const std::string& composition,
                                       const FitSummary& previous) const {
   const EstimatorOptions& estimator = session_options_.estimator;
   const Model model = Model::Build(composition, causality_);
-  ParameterSet start = model.defaults();
-  std::vector<ParameterChoice> choices = DefaultChoices(model);
-  for (int i = 0; i < start.size(); ++i) {
-    const ParameterSpec& spec = start.spec(i);
-    const auto p = previous.parameters.find(spec.key());
-    if (p && previous.parameters.spec(*p).name == spec.name) {
-      start.values()[i] = previous.parameters.value(*p);
-      if (!previous.estimates[*p].estimated) choices[i] = ParameterChoice{};
-    }
-  }
-  if (causality_ == Causality::kStrokeInput) {
-    std::vector<std::string> log;
-    for (const auto& [key, value] : CandidateStartingValues(term, previous, &log)) start.set(key, value);
-    for (const std::string& line : log) spdlog::debug("candidate {}: {}", term, line);
-  }
+  std::vector<std::string> log;
+  auto [start, choices] = StartWithTerm(model, term, previous, &log);
+  for (const std::string& line : log) spdlog::debug("candidate {}: {}", term, line);
   const Estimator fitter(model, estimator);
   FitSummary fit = fitter.Fit(data_.experiments, start, choices, data_.issues);
   // Only a stalled candidate that already explains something (its BIC below the current one by the
@@ -464,7 +518,8 @@ int DiscoveryRun::Select(Round& round, const FitSummary& current, const Model& m
       r.verdict = "no converged fit";
     } else if (r.delta_bic > -options_.bic_threshold) {
       r.verdict = fmt::format("BIC does not fall by {}", options_.bic_threshold);
-    } else if (MeanRatio(r.noise_ratio) > options_.min_improvement * MeanRatio(ratio)) {
+    } else if (MeanRatio(r.noise_ratio) - 1.0 > options_.min_improvement * (MeanRatio(ratio) - 1.0) ||
+               !FallsBeyondNoise(current, round.fits[c])) {
       r.verdict = "noise ratio barely falls";
     } else {
       order.push_back(c);
@@ -520,8 +575,8 @@ DiscoveryStep DiscoveryRun::Step(const Round& round, int best, const FitSummary&
 }
 
 void DiscoveryRun::Conclude(DiscoveryResult& result, bool exhausted, const std::map<std::string, double>& ratio) const {
-  const double final_worst = WorstRatio(ratio);
-  if (final_worst >= options_.noise_ratio_threshold) {
+  const bool at_floor = AtNoiseFloor(result.final_fit);
+  if (!at_floor) {
     for (const Finding& f : LocateMismatch(result.final_fit))
       if (f.score > 5.0) result.unexplained.push_back(f);
   }
@@ -539,7 +594,7 @@ void DiscoveryRun::Conclude(DiscoveryResult& result, bool exhausted, const std::
   result.conclusion = fmt::format(
       "{} left residuals above the noise floor (noise ratios{}). {} Final model {} (noise ratios{}{}).{}", base_, ratios,
       added.empty() ? "No catalogue term explains them." : "Missing: " + added + ".", result.final_model, after,
-      final_worst < options_.noise_ratio_threshold ? ", at the noise floor" : ", still above the noise floor",
+      at_floor ? ", at the noise floor" : ", still above the noise floor",
       result.unexplained.empty()
           ? ""
           : (exhausted ? " What is left matches no catalogue term: "
@@ -559,10 +614,10 @@ DiscoveryResult DiscoveryRun::Run() {
   result.mismatch = LocateMismatch(result.baseline);
   FitSummary current = result.baseline;
   std::map<std::string, double> ratio = PooledNoiseRatio(current);
-  result.nothing_missing = WorstRatio(ratio) < options_.noise_ratio_threshold;
+  result.nothing_missing = AtNoiseFloor(result.baseline);
   if (!result.baseline.converged) Say("the baseline fit did not converge: " + result.baseline.VerdictText());
 
-  for (int number = 1; number <= options_.max_terms && WorstRatio(ratio) >= options_.noise_ratio_threshold; ++number) {
+  for (int number = 1; number <= options_.max_terms && !AtNoiseFloor(current); ++number) {
     const std::vector<Finding> findings = LocateMismatch(current);
     const Model model = Model::Build(current.model, causality_);
     Round round = Candidates(current);

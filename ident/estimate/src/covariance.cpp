@@ -107,7 +107,7 @@ Eigen::MatrixXd CalibrationCovariance(FitProblem& problem, const EstimatorOption
 CovarianceSummary EstimateCovariance(FitProblem& problem, const ScaledParameters& parameters,
                                      const ScaledPriors& priors, const EstimatorOptions& options,
                                      const MinimizerSummary& minimum, const std::vector<double>& variance,
-                                     const std::vector<double>& ratio) {
+                                     const std::vector<double>& ratio, bool misfit) {
   const int np = static_cast<int>(parameters.scale.size());
   const int l = parameters.size();
   const std::vector<int>& est = parameters.estimated;
@@ -120,8 +120,7 @@ CovarianceSummary EstimateCovariance(FitProblem& problem, const ScaledParameters
   const Posterior posterior = PosteriorCovariance(eq.information, eq.input_noise, priors, eq.inputs);
   out.undetermined = posterior.undetermined;
   Eigen::MatrixXd covariance = posterior.covariance;
-  if (std::any_of(ratio.begin(), ratio.end(), [](double r) { return r >= kNoiseFloorRatio; }))
-    WidenForMisfit(problem, est, ratio, eq, posterior, covariance, out, np);
+  if (misfit) WidenForMisfit(problem, est, ratio, eq, posterior, covariance, out, np);
   if (!options.gain_sd.empty()) {
     const Eigen::MatrixXd calibration = CalibrationCovariance(problem, options, priors, eq, minimum.theta, variance, out);
     covariance += calibration;

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 #include <fmt/format.h>
 #include <numeric>
 #include <spdlog/spdlog.h>
@@ -129,8 +130,12 @@ FitSummary Estimator::Fit(const std::vector<ExperimentData>& data, const Paramet
 
   const std::vector<double> variance = minimum.residuals.Variances(l);
   const std::vector<double> ratios = problem.NoiseRatios();
+  const std::vector<double> ratio_sds = problem.NoiseRatioSds();
+  bool misfit = false;  // the widening for misfit follows the same test as the verdict
+  for (std::size_t b = 0; b < ratios.size(); ++b)
+    misfit = misfit || ratios[b] >= NoiseFloorLimit(ratio_sds[b], ratios.size());
   internal::CovarianceSummary covariance =
-      internal::EstimateCovariance(problem, scaled, priors, options_, minimum, variance, ratios);
+      internal::EstimateCovariance(problem, scaled, priors, options_, minimum, variance, ratios, misfit);
   summary.warnings.insert(summary.warnings.end(), covariance.warnings.begin(), covariance.warnings.end());
   for (std::string& w : internal::CovarianceDiagnostics(covariance, initial, choices, est))
     summary.warnings.push_back(std::move(w));
@@ -178,11 +183,32 @@ const char* ToString(FitVerdict verdict) {
   return "?";
 }
 
+double UpperNormalQuantile(double p) {
+  if (!(p > 0.0 && p < 1.0)) throw std::invalid_argument(fmt::format("UpperNormalQuantile: p = {} is not in (0, 1)", p));
+  // Bisection on the tail 0.5 erfc(z / sqrt 2), which falls monotonically: 200 halvings of
+  // [-40, 40] reach the double's resolution.
+  double low = -40.0, high = 40.0;
+  for (int k = 0; k < 200 && high - low > 1e-15 * std::max(1.0, std::abs(low)); ++k) {
+    const double mid = 0.5 * (low + high);
+    (0.5 * std::erfc(mid / std::numbers::sqrt2) > p ? low : high) = mid;
+  }
+  return 0.5 * (low + high);
+}
+
+double NoiseFloorLimit(double sd, std::size_t channels) {
+  if (!std::isfinite(sd)) return kNoiseFloorRatio;
+  return 1.0 + UpperNormalQuantile(kNoiseFloorFalseAlarm / static_cast<double>(std::max<std::size_t>(1, channels))) * sd;
+}
+
+bool FitChannel::AboveNoiseFloor() const {
+  return noise_ratio >= (std::isfinite(noise_floor_limit) ? noise_floor_limit : kNoiseFloorRatio);
+}
+
 FitVerdict FitSummary::Verdict() const {
   if (!converged || !IsSolutionUsable()) return FitVerdict::kNotConverged;
   // A channel whose noise is unknown (one recorded period) cannot say it is above the floor.
   for (const FitChannel& c : channels)
-    if (c.noise_ratio >= kNoiseFloorRatio) return FitVerdict::kAboveNoiseFloor;
+    if (c.AboveNoiseFloor()) return FitVerdict::kAboveNoiseFloor;
   return FitVerdict::kAtNoiseFloor;
 }
 
@@ -203,17 +229,20 @@ std::string FitSummary::VerdictText() const {
       std::vector<std::pair<double, std::string>> worst;
       for (const ExperimentFit& e : experiments)
         for (const ChannelStatistics& c : e.channels)
-          if (c.fitted && c.noise_ratio >= 2.0 * kNoiseFloorRatio)
+          if (c.fitted && c.noise_ratio >= 2.0)
             worst.emplace_back(c.noise_ratio, fmt::format("{} {} {:.3g}", e.label, c.channel, c.noise_ratio));
       std::sort(worst.rbegin(), worst.rend());
-      std::string where;
+      std::string where, limits;
       for (std::size_t k = 0; k < std::min<std::size_t>(worst.size(), 6); ++k)
         where += (k ? ", " : "") + worst[k].second;
+      for (const FitChannel& c : channels)
+        limits += fmt::format("{}{} {:.3g}", limits.empty() ? "" : ", ", c.name, c.noise_floor_limit);
       return fmt::format(
           "Converged, but ABOVE THE NOISE FLOOR: the model {} does not explain the data (residual over noise "
-          "variance: {}; threshold {}){}. The intervals are widened for the misfit, but estimates of a model that "
-          "lacks physics are biased: run `strut discover` to name what is missing.",
-          model, ratios, kNoiseFloorRatio, where.empty() ? "" : "; worst experiments: " + where);
+          "variance: {}; what noise alone exceeds with probability {}: {}){}. The intervals are widened for the "
+          "misfit, but estimates of a model that lacks physics are biased: run `strut discover` to name what is "
+          "missing.",
+          model, ratios, kNoiseFloorFalseAlarm, limits, where.empty() ? "" : "; worst experiments: " + where);
     }
     case FitVerdict::kNotConverged: {
       std::string why = warnings.empty() ? std::string("no reason recorded") : warnings.front();

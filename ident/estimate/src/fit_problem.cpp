@@ -872,10 +872,42 @@ std::vector<double> FitProblem::NoiseRatios() const {
   return ratio;
 }
 
+std::vector<double> FitProblem::NoiseRatioSds() const {
+  const int all = static_cast<int>(channels_.size());
+  const int nc = periodic_channels_;
+  // var(sum_a S_a / N) = sum_a (2 N_a + 2 N_a^2 / d_a) / N^2 for S_a = chi2(N_a) / (chi2(d_a) / d_a).
+  std::vector<double> variance(all, 0.0), count(all, 0.0);
+  for (const TransientExperiment& t : transients_) {
+    if (!t.active) continue;
+    for (int b = nc; b < all; ++b) {
+      if (!t.fitted(b) || !(t.data->channels.at(t.recorded[b]).noise_variance > 0)) continue;
+      const double n = static_cast<double>(t.Residual(b).size());
+      variance[b] += 2.0 * n;
+      count[b] += n;
+    }
+  }
+  for (const Experiment& s : experiments_) {
+    if (!s.active || s.data->periods < 2) continue;
+    for (int b = 0; b < nc; ++b) {
+      const auto it = s.data->channels.find(channels_[b]);
+      if (!s.channel_fitted[b] || it == s.data->channels.end() || !(it->second.mean_noise_variance > 0)) continue;
+      const double n = static_cast<double>(s.phase_count()) - s.InputDof(b);
+      const double noise_dof = static_cast<double>(s.phase_count()) * static_cast<double>(s.data->periods - 1);
+      variance[b] += 2.0 * n + 2.0 * n * n / noise_dof;
+      count[b] += n;
+    }
+  }
+  std::vector<double> sd(all, NAN);
+  for (int b = 0; b < all; ++b)
+    if (count[b] > 0) sd[b] = std::sqrt(variance[b]) / count[b];
+  return sd;
+}
+
 void FitProblem::Summarise(const ResidualSums& sums, const std::vector<double>& variance,
                            const std::vector<double>& ratio, FitSummary& summary) {
   const int all = static_cast<int>(channels_.size());
   const int nc = periodic_channels_;
+  const std::vector<double> ratio_sd = NoiseRatioSds();
   for (int b = 0; b < all; ++b) {
     FitChannel c;
     c.name = channels_[b];
@@ -898,6 +930,8 @@ void FitProblem::Summarise(const ResidualSums& sums, const std::vector<double>& 
       }
     c.noise_floor_variance = count > 0 ? noise / count : NAN;
     c.noise_ratio = ratio[b];
+    c.noise_ratio_sd = ratio_sd[b];
+    c.noise_floor_limit = NoiseFloorLimit(ratio_sd[b], static_cast<std::size_t>(all));
     summary.channels.push_back(c);
   }
   for (Experiment& s : experiments_) {

@@ -77,11 +77,12 @@ struct CovarianceSummary {
 //! inputs' noise; above the noise floor each sd widened to what the experiments' disagreement
 //! implies (the sandwich over experiments); the transducers' calibration added; what each experiment
 //! contributes.
-//! `variance` and `ratio`: the channels' variances and noise ratios at the minimum.
+//! `variance` and `ratio`: the channels' variances and noise ratios at the minimum; `misfit`: some
+//! channel lies above its noise floor (NoiseFloorLimit), so the sd's are widened.
 CovarianceSummary EstimateCovariance(FitProblem& problem, const ScaledParameters& parameters,
                                      const ScaledPriors& priors, const EstimatorOptions& options,
                                      const MinimizerSummary& minimum, const std::vector<double>& variance,
-                                     const std::vector<double>& ratio);
+                                     const std::vector<double>& ratio, bool misfit);
 
 //! What the covariance says the data cannot tell: parameters whose interval is their prior's,
 //! undetermined directions, strongly correlated groups; one warning each.

@@ -5,12 +5,14 @@
 #include <cmath>
 #include <fmt/format.h>
 #include <fmt/ranges.h>
+#include <optional>
 #include <set>
 #include <spdlog/spdlog.h>
 
 #include "strut/daq/session.h"
 #include "strut/ident/fit_problem.h"
 #include "strut/ident/initial_values.h"
+#include "strut/ident/term_start.h"
 
 #include "strut/ident/assignments.h"
 
@@ -281,6 +283,81 @@ FitPlan PlanFit(const Model& model, const FitData& data, const SessionFitOptions
   return plan;
 }
 
+TermStart StartWithTerm(const Model& model, const std::string& term, const FitSummary& previous,
+                        std::vector<std::string>* log) {
+  TermStart t{model.defaults(), DefaultChoices(model)};
+  for (int i = 0; i < t.start.size(); ++i) {
+    const ParameterSpec& spec = t.start.spec(i);
+    const auto p = previous.parameters.find(spec.key());
+    if (p && previous.parameters.spec(*p).name == spec.name) {
+      t.start.values()[i] = previous.parameters.value(*p);
+      if (!previous.estimates[*p].estimated) t.choices[i] = ParameterChoice{};
+    }
+  }
+  if (model.causality() == Causality::kStrokeInput)
+    for (const auto& [key, value] : CandidateStartingValues(term, previous, log)) t.start.set(key, value);
+  return t;
+}
+
+namespace {
+
+double Objective(const FitSummary& s) {
+  return s.IsSolutionUsable() && !s.history.empty() ? s.history.back().objective : -INFINITY;
+}
+
+// Whether `other` is the better of two fits of the same model: converged where the first is not,
+// else the higher log-posterior.
+bool Better(const FitSummary& other, const FitSummary& than) {
+  return (other.converged && !than.converged) || (other.converged == than.converged && Objective(other) > Objective(than));
+}
+
+// The composition's fit by continuation (FitPrepared): its base from the data, then its terms one
+// at a time. nullopt when the composition is a base, or a step has no usable fit.
+std::optional<FitSummary> FitByContinuation(const FitData& data, const Model& model, const FitPlan& plan,
+                                            const SessionFitOptions& options,
+                                            const std::function<void(const FitProgress&)>& progress) {
+  std::vector<std::string> parts;
+  for (std::size_t start = 0; start <= model.composition().size();) {
+    const std::size_t plus = std::min(model.composition().find('+', start), model.composition().size());
+    parts.push_back(model.composition().substr(start, plus - start));
+    start = plus + 1;
+  }
+  if (parts.size() < 2) return std::nullopt;
+  SessionFitOptions base_options = options;
+  base_options.composition = parts.front();
+  base_options.params_file.clear();  // the user's values are for the whole composition: kept below
+  base_options.assignments.clear();
+  try {
+    FitSummary current = FitPrepared(data, Model::Build(parts.front(), model.causality()), base_options).summary;
+    std::string composition = parts.front();
+    for (std::size_t k = 1; k < parts.size(); ++k) {
+      if (!current.IsSolutionUsable()) return std::nullopt;
+      composition += "+" + parts[k];
+      const Model step = k + 1 == parts.size() ? model : Model::Build(composition, model.causality());
+      std::vector<std::string> log;
+      TermStart t = StartWithTerm(step, parts[k], current, &log);
+      for (const std::string& line : log) spdlog::debug("continuation {}: {}", parts[k], line);
+      for (int i = 0; i < t.start.size(); ++i) {
+        const auto p = plan.start.find(t.start.spec(i).key());
+        if (p && plan.sources[*p] != plan.data_sources[*p]) t.start.values()[i] = plan.start.value(*p);
+      }
+      if (k + 1 == parts.size()) t.choices = plan.choices;
+      current = Estimator(step, options.estimator)
+                    .Fit(data.experiments, t.start, t.choices, data.issues, progress, data.transients);
+      spdlog::debug("continuation: {} {} after {} iterations", composition, ToString(current.Verdict()),
+                    current.iterations);
+    }
+    return current;
+  } catch (const EstimationError& e) {
+    spdlog::debug("continuation of {}: {}", model.composition(), e.what());
+  } catch (const PeriodicSolverError& e) {
+    spdlog::debug("continuation of {}: {}", model.composition(), e.what());
+  }
+  return std::nullopt;
+}
+
+}  // namespace
+
 SessionFit FitPrepared(FitData data, const Model& model, const SessionFitOptions& options,
                        const std::function<void(const FitProgress&)>& progress) {
   FitPlan plan = PlanFit(model, data, options);
@@ -300,19 +377,31 @@ SessionFit FitPlanned(FitData data, const Model& model, FitPlan plan, const Sess
       if (fit.plan.choices[i].prior_sd || !fit.plan.choices[i].estimate) second.values()[i] = fit.plan.start.value(i);
     FitSummary other =
         estimator.Fit(fit.data.experiments, second, fit.plan.choices, fit.data.issues, progress, fit.data.transients);
-    const auto objective = [](const FitSummary& s) {
-      return s.IsSolutionUsable() && !s.history.empty() ? s.history.back().objective : -INFINITY;
-    };
-    const bool better = (other.converged && !fit.summary.converged) ||
-                        (other.converged == fit.summary.converged && objective(other) > objective(fit.summary));
+    const bool better = Better(other, fit.summary);
     spdlog::info("the fit from the given starting values {}; from the data's own: {}{}",
                  ToString(fit.summary.Verdict()), ToString(other.Verdict()), better ? " (kept)" : "");
     if (better) {
       other.warnings.push_back(fmt::format(
           "the fit from the given starting values ended {} (log-posterior {:.6g}); this one, from the data's own "
           "starting values, reached {:.6g}",
-          ToString(fit.summary.Verdict()), objective(fit.summary), objective(other)));
+          ToString(fit.summary.Verdict()), Objective(fit.summary), Objective(other)));
       fit.summary = std::move(other);
+    }
+  }
+  const bool default_choices = options.estimate.empty() || options.estimate == "default";
+  if (fit.summary.Verdict() != FitVerdict::kAtNoiseFloor && default_choices &&
+      fit.model.causality() == Causality::kStrokeInput) {
+    if (std::optional<FitSummary> continued = FitByContinuation(fit.data, fit.model, fit.plan, options, progress)) {
+      const bool better = Better(*continued, fit.summary);
+      spdlog::info("the fit from the data's start {}; by continuation from the base, one term at a time: {}{}",
+                   ToString(fit.summary.Verdict()), ToString(continued->Verdict()), better ? " (kept)" : "");
+      if (better) {
+        continued->warnings.push_back(fmt::format(
+            "the fit from the data's starting values ended {} (log-posterior {:.6g}); this one, reached by "
+            "continuation (the base first, then each term from where the located mismatch puts it), {:.6g}",
+            ToString(fit.summary.Verdict()), Objective(fit.summary), Objective(*continued)));
+        fit.summary = std::move(*continued);
+      }
     }
   }
   for (const std::string& u : fit.plan.undetermined)

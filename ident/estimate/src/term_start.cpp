@@ -216,6 +216,21 @@ double Softplus(double x) { return x > 0 ? x + std::log1p(std::exp(-x)) : std::l
 
 }  // namespace
 
+namespace {
+
+// The sizing parameter (paper index) of a term whose start is one Gauss-Newton step on its size
+// alone (no shape parameter to search), 0 for the other terms.
+int GaussNewtonSizeIndex(const std::string& term) {
+  static const std::pair<const char*, int> sizes[] = {
+      {"oil-compressibility", 26}, {"real-gas", 31},           {"recoil-damping", 32},        {"metering-pin", 33},
+      {"friction-asymmetry", 34},  {"pressure-heat-transfer", 35}, {"dead-volume", 36}};
+  for (const auto& [name, index] : sizes)
+    if (term == name) return index;
+  return 0;
+}
+
+}  // namespace
+
 std::vector<std::pair<std::string, double>> CandidateStartingValues(const std::string& term,
                                                                     const FitSummary& baseline,
                                                                     std::vector<std::string>* log) {
@@ -323,10 +338,10 @@ std::vector<std::pair<std::string, double>> CandidateStartingValues(const std::s
     } else {
       note("end-stop: no position gives a positive stiffness; defaults kept");
     }
-  } else if (term == "oil-compressibility" || term == "real-gas") {
-    // Sizes of the gas law: the pressure (and, through theta4 p, the force) residual on the exact
-    // sensitivity to the size at 0, next to those of the parameters the baseline estimated.
-    const int index = term == "real-gas" ? 31 : 26;
+  } else if (const int index = GaussNewtonSizeIndex(term); index > 0) {
+    // Sizes that act through the gas law, the heat balance or the orifice and friction levels: the
+    // pressure and force residuals on the exact sensitivity to the size at 0, next to those of the
+    // parameters the baseline estimated.
     std::vector<double> theta = baseline_values();
     const int size = candidate.position_of_index(index);
     theta[size] = 0.0;

@@ -3,6 +3,7 @@
 #include "strut/ident/catalogue.h"
 
 #include <cmath>
+#include <numbers>
 
 namespace strut::ident {
 namespace {
@@ -525,6 +526,195 @@ class RealGas final : public Term {
 };
 
 // ---------------------------------------------------------------------------------------------
+// Physics real dampers show beyond the paper's models (damper-physics.md §2.6-§2.8, §2.1, §2.4).
+// Each is sized by one parameter that is 0 where the effect is absent, and smooth enough in every
+// unknown for Newton (continuous first derivatives).
+
+//! Recoil (extension) damping above compression: a snubber or flapper valve closes part of the
+//! orifice in extension, so c_ext = (1 + theta32) theta3. The extra force acts only when the
+//! stroke rate is negative (extension): theta32 theta3 q'|q'| for q' < 0, i.e. -theta32 theta3 q'^2
+//! there and 0 in compression (its derivative is continuous at the reversal). damper-physics.md
+//! §2.6: c_ext = (2-5) c_comp, so theta32 = 1-4.
+class RecoilDamping final : public Term {
+ public:
+  unsigned phases() const override { return kBalancePhase; }
+  std::string_view name() const override { return "recoil-damping"; }
+  void Declare(ModelBuilder& b) override {
+    b.add_parameter({.index = 32, .name = "recoil_damping_excess", .unit = "-", .default_value = 1.5,
+                     .description = "extension over compression orifice damping minus one, c_ext / c_comp - 1 (0: none)",
+                     .typical = 1.0, .sizes_term = true, .range = kNonNegative});
+  }
+  void Bind(const ModelBuilder& b) override {
+    if (!b.has_term("quadratic-damping"))
+      throw ModelError("recoil-damping scales the orifice damping of quadratic-damping, which the model lacks");
+    excess_ = b.parameter_position(32);
+    damping_ = b.parameter_position(3);
+  }
+  template <class S>
+  void Eval(TermContext<S>& c) const {
+    if (c.phase != TermContext<S>::Phase::kBalance) return;
+    const S& v = c.v->stroke_rate;
+    if (Value(v) < 0.0) c.force -= c.theta[excess_] * c.theta[damping_] * v * v;
+  }
+  STRUT_TERM_EVALUATE
+
+ private:
+  int excess_ = -1, damping_ = -1;
+};
+
+//! A metering pin: the orifice's net area shrinks as the pin enters it, so the orifice damping grows
+//! with the stroke, c(q) = theta3 (1 + theta33 q), adding theta33 theta3 q q'|q'|. A 30-70 % area
+//! reduction over the 0.264 m stroke (damper-physics.md §2.7) raises c 2-11 times, theta33 = 4-40 1/m;
+//! a pin that opens the orifice deeper in the stroke is not a metering pin, so theta33 >= 0.
+class MeteringPin final : public Term {
+ public:
+  unsigned phases() const override { return kBalancePhase; }
+  std::string_view name() const override { return "metering-pin"; }
+  void Declare(ModelBuilder& b) override {
+    b.add_parameter({.index = 33, .name = "metering_pin_gradient", .unit = "1/m", .default_value = 3.9,
+                     .description = "relative growth of the orifice damping per stroke, (c(q) / c(0) - 1) / q (0: no pin)",
+                     .typical = 4.0, .sizes_term = true, .range = kNonNegative});
+  }
+  void Bind(const ModelBuilder& b) override {
+    if (!b.has_term("quadratic-damping"))
+      throw ModelError("metering-pin varies the orifice damping of quadratic-damping, which the model lacks");
+    gradient_ = b.parameter_position(33);
+    damping_ = b.parameter_position(3);
+  }
+  template <class S>
+  void Eval(TermContext<S>& c) const {
+    if (c.phase != TermContext<S>::Phase::kBalance) return;
+    const S& v = c.v->stroke_rate;
+    c.force += c.theta[gradient_] * c.theta[damping_] * c.v->stroke * v * Abs(v);
+  }
+  STRUT_TERM_EVALUATE
+
+ private:
+  int gradient_ = -1, damping_ = -1;
+};
+
+//! Seal friction that differs between compression and extension (damper-physics.md §2.8: 10-30 %):
+//! the friction of pressure-friction times 1 + theta34 sgn(q'), with sgn smoothed as the friction
+//! itself is, so the extra force is theta34 (theta8 + theta9 p) (2/pi) atan(theta10 q')^2 (even in
+//! the rate; (2/pi) atan^2 tends to |atan|). |theta34| < 1 keeps the friction opposing the motion
+//! in both directions; positive: more friction in compression.
+class FrictionAsymmetry final : public Term {
+ public:
+  unsigned phases() const override { return kBalancePhase; }
+  std::string_view name() const override { return "friction-asymmetry"; }
+  void Declare(ModelBuilder& b) override {
+    b.add_parameter({.index = 34, .name = "friction_asymmetry", .unit = "-", .default_value = 0.2,
+                     .description = "relative excess of compression over extension friction (0: symmetric)",
+                     .typical = 0.1, .sizes_term = true, .range = {-1.0, 1.0, true, true}});
+  }
+  void Bind(const ModelBuilder& b) override {
+    if (!b.has_term("pressure-friction"))
+      throw ModelError("friction-asymmetry scales the friction of pressure-friction, which the model lacks");
+    asymmetry_ = b.parameter_position(34);
+    base_ = b.parameter_position(8);
+    per_pressure_ = b.parameter_position(9);
+    sharpness_ = b.parameter_position(10);
+    pressure_ = b.state_position("pressure", name());
+  }
+  template <class S>
+  void Eval(TermContext<S>& c) const {
+    if (c.phase != TermContext<S>::Phase::kBalance) return;
+    const S amplitude = c.theta[base_] + c.theta[per_pressure_] * c.v->states[pressure_];
+    const S a = Atan(S(c.theta[sharpness_] * c.v->stroke_rate));
+    c.force += c.theta[asymmetry_] * amplitude * (2.0 / std::numbers::pi) * a * a;
+  }
+  STRUT_TERM_EVALUATE
+
+ private:
+  int asymmetry_ = -1, base_ = -1, per_pressure_ = -1, sharpness_ = -1, pressure_ = -1;
+};
+
+//! Wall heat transfer that grows with pressure (natural convection, damper-physics.md §2.1:
+//! h ∝ (p/T)^(2/3)): the wall conductance of heat-exchange times 1 + theta35 ((p / p_c)^(2/3) - 1),
+//! p_c = theta5 T_amb the charge pressure of an ideal gas at ambient temperature. theta35 = 1 is the
+//! convection law, 0 the paper's conductance. Evaluated after heat-exchange, to whose heat balance
+//! it adds.
+class PressureHeatTransfer final : public Term {
+ public:
+  unsigned phases() const override { return kBalancePhase; }
+  std::string_view name() const override { return "pressure-heat-transfer"; }
+  void Declare(ModelBuilder& b) override {
+    b.add_parameter({.index = 35, .name = "heat_transfer_pressure_gain", .unit = "-", .default_value = 1.0,
+                     .description = "weight of the (p / p_charge)^(2/3) growth of the wall heat conductance (0: none)",
+                     .typical = 1.0, .sizes_term = true, .range = kNonNegative});
+  }
+  void Bind(const ModelBuilder& b) override {
+    if (!b.has_term("heat-exchange"))
+      throw ModelError("pressure-heat-transfer varies the wall heat conductance of heat-exchange, which the model lacks");
+    gain_ = b.parameter_position(35);
+    scale_ = b.parameter_position(5);
+    conductance_ = b.parameter_position(16);
+    minus_ambient_ = b.parameter_position(17);
+    per_stroke_ = b.parameter_position(6);
+    pressure_ = b.state_position("pressure", name());
+    temperature_ = b.state_position("temperature", name());
+  }
+  template <class S>
+  void Eval(TermContext<S>& c) const {
+    if (c.phase != TermContext<S>::Phase::kBalance) return;
+    const auto& v = *c.v;
+    const S charge = -c.theta[scale_] * c.theta[minus_ambient_];
+    const S growth = Pow(S(v.states[pressure_] / charge), S(2.0 / 3.0)) - 1.0;
+    c.state_residuals[temperature_] += c.theta[gain_] * growth * c.theta[conductance_] *
+                                       (1.0 + c.theta[per_stroke_] * v.stroke) *
+                                       (v.states[temperature_] + c.theta[minus_ambient_]);
+  }
+  STRUT_TERM_EVALUATE
+
+ private:
+  int gain_ = -1, scale_ = -1, conductance_ = -1, minus_ambient_ = -1, per_stroke_ = -1, pressure_ = -1,
+      temperature_ = -1;
+};
+
+//! An isothermal dead volume on the pressure line (transducer cavity, fittings: damper-physics.md
+//! §2.4), theta36 = V_d / V0. At the wall temperature it holds gas the main chamber lacks, more at
+//! high pressure: the effective polytropic exponent falls at deep compression. With a gas
+//! temperature (2 dof) the gas law sees the volume V0 (1 + theta6 q) + V_d (T / T_amb - 1) (the
+//! dead volume at ambient temperature is part of V0); without one (the polytropic law, whose
+//! theta5 is the charge pressure) the main chamber loses the gas the dead volume gains,
+//! N -= theta36 (p / theta5 - 1).
+class DeadVolume final : public Term {
+ public:
+  unsigned phases() const override { return kGasStatePhase; }
+  std::string_view name() const override { return "dead-volume"; }
+  void Declare(ModelBuilder& b) override {
+    b.add_parameter({.index = 36, .name = "dead_volume_ratio", .unit = "-", .default_value = 3.0e-3,
+                     .description = "isothermal dead volume of the pressure line over the gas volume at full extension (0: none)",
+                     .typical = 3.0e-3, .sizes_term = true, .range = kNonNegative});
+  }
+  void Bind(const ModelBuilder& b) override {
+    ratio_ = b.parameter_position(36);
+    scale_ = b.parameter_position(5);
+    pressure_ = b.state_position("pressure", name());
+    thermal_ = b.has_term("heat-exchange");
+    if (thermal_) {
+      temperature_ = b.state_position("temperature", name());
+      minus_ambient_ = b.parameter_position(17);
+    } else if (!b.has_term("polytropic-gas")) {
+      throw ModelError("dead-volume needs a gas law (polytropic-gas or heat-exchange)");
+    }
+  }
+  template <class S>
+  void Eval(TermContext<S>& c) const {
+    if (c.phase != TermContext<S>::Phase::kGasState) return;
+    if (thermal_)
+      c.gas_volume -= c.theta[ratio_] * (c.v->states[temperature_] / c.theta[minus_ambient_] + 1.0);
+    else
+      c.gas_amount -= c.theta[ratio_] * (c.v->states[pressure_] / c.theta[scale_] - 1.0);
+  }
+  STRUT_TERM_EVALUATE
+
+ private:
+  int ratio_ = -1, scale_ = -1, pressure_ = -1, temperature_ = -1, minus_ambient_ = -1;
+  bool thermal_ = false;
+};
+
+// ---------------------------------------------------------------------------------------------
 // Generic forced oscillators (docs/silverbox.md): m y'' + d y' + d3 y'^3 + k y + k2 y^2 + k3 y^3 + u0 = u,
 // measured output y + y0. The displacement slot is the output y, the drive slot the input u; both
 // in the units of the record ([y], [u]: volts for the Silverbox circuit). Indices from theta50 on.
@@ -707,8 +897,19 @@ const std::vector<TermEntry>& Catalogue() {
        "residual only near full extension: contact with the top-out stop"},
       {"oil-compressibility", &Make<OilCompressibility>, "", "oil and cylinder compliance theta25..theta27 (theta26 = 1/K_eff)", "pressure-softening",
        "softening that grows with pressure: oil and cylinder compliance"},
+      {"dead-volume", &Make<DeadVolume>, "", "isothermal dead volume of the pressure line theta36 = V_d / V0",
+       "deep-softening", "a gas law that softens at deep compression: an isothermal dead volume on the pressure line"},
       {"real-gas", &Make<RealGas>, "", "virial nitrogen Z(rho, T), theta28..theta31", "pressure-stiffening",
        "stiffening that grows with pressure: real-gas (virial) nitrogen"},
+      {"recoil-damping", &Make<RecoilDamping>, "", "extension orifice damping (1 + theta32) theta3", "rate-asymmetry",
+       "a loop asymmetric in the stroke rate: more orifice damping in extension than in compression"},
+      {"metering-pin", &Make<MeteringPin>, "", "orifice damping growing with stroke theta3 (1 + theta33 q)",
+       "position-damping", "damping at the same stroke rate that grows with the static position: a metering pin"},
+      {"friction-asymmetry", &Make<FrictionAsymmetry>, "", "friction (1 + theta34 sgn q') times pressure-friction",
+       "friction-direction", "a friction level that differs between compression and extension"},
+      {"pressure-heat-transfer", &Make<PressureHeatTransfer>, "",
+       "wall heat conductance growing as (p / p_charge)^(2/3), weight theta35", "loop-pressure",
+       "a thermal loop that grows with the pressure more than one wall conductance allows: natural convection"},
       // Generic oscillators (docs/silverbox.md); no locus yet: discovery does not propose them.
       {"linear-oscillator", &Make<LinearOscillator>, "", "forced oscillator theta50 y'' + theta51 y' + theta52 y = u", "", ""},
       {"quadratic-stiffness", &Make<QuadraticStiffness>, "", "quadratic stiffness theta53 y^2", "", ""},

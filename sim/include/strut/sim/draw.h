@@ -40,9 +40,12 @@ struct DrawSpread {
 //! The spreads, in draw order (the order the random numbers are taken in).
 const std::vector<DrawSpread>& DrawSpreads();
 
+//! The effects a drawn unit may have beside its base (catalogue terms with a sizing parameter).
+const std::vector<std::string>& ExtraEffects();
+
 //! An extra effect of a drawn unit and, optionally, its size (its sizing parameter's value).
 struct EffectRequest {
-  std::string name;            //!< oil-compressibility, viscous-damping, stribeck-friction, end-stop, real-gas
+  std::string name;            //!< one of ExtraEffects()
   std::optional<double> size;  //!< SI; nullopt: drawn (real-gas: the base value, N2's constants)
 };
 

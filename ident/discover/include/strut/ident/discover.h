@@ -16,10 +16,11 @@ namespace strut::ident {
 struct DiscoverOptions {
   //! A term is kept when BIC falls by more than this (10: "very strong" evidence).
   double bic_threshold = 10.0;
-  //! Nothing is missing when every channel's pooled noise ratio is below this (the ratio of a
-  //! correct model scatters around 1): discovery stops there.
-  double noise_ratio_threshold = kNoiseFloorRatio;
-  //! A kept term must also lower the mean noise ratio over the channels to this fraction or less.
+  //! Discovery stops when the fit is at the noise floor: no channel's pooled noise ratio above what
+  //! noise alone reaches (FitChannel::AboveNoiseFloor, kNoiseFloorFalseAlarm).
+  //! A kept term must also take away misfit: the mean over the channels of the noise ratio's excess
+  //! over 1 falls to this fraction or less, and some channel's ratio falls by more than its sampling
+  //! noise puts between two fits (NoiseFloorLimit's z times the ratio's sd).
   double min_improvement = 0.95;
   //! Cross-validation: the experiments are split into this many folds; a kept term must also
   //! predict every fold's experiments, fitted without them, better than the current model does

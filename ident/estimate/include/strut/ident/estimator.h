@@ -156,6 +156,12 @@ struct FitChannel {
   //! noise variance of the averaged data (about 1 at the noise floor; agrees with the per-experiment
   //! ratios, unlike variance / noise_floor_variance when the experiments' noise differs).
   double noise_ratio = NAN;
+  //! The ratio's sampling sd with the model right (NoiseRatioSd), and the limit above which noise
+  //! alone would put it only with probability kNoiseFloorFalseAlarm (NoiseFloorLimit).
+  double noise_ratio_sd = NAN;
+  double noise_floor_limit = NAN;
+  //! The ratio at or above its limit (kNoiseFloorRatio where the limit is unknown).
+  bool AboveNoiseFloor() const;
 };
 
 struct FitIteration {
@@ -165,9 +171,23 @@ struct FitIteration {
   std::vector<double> values;
 };
 
-//! Pooled noise ratio (FitChannel::noise_ratio) below which a fit explains all the data can show:
-//! the ratio of a right model scatters around 1 by a few percent over a standard matrix.
+//! The noise floor is a test, not a number. With the model right, a channel's pooled noise ratio
+//! (FitChannel::noise_ratio) is the ratio of two independent chi-square means: the residuals' (one
+//! per averaged sample, less the fitted input's degrees of freedom) over the noise estimate's (each
+//! experiment's spread between its P periods, n (P - 1) degrees of freedom per n samples). It
+//! scatters around 1 with a sd that falls with the samples (0.016 for a standard matrix of 12,000
+//! samples and 3 periods): a ratio of 1.12 there is seven sd above the floor, 1.03 is not.
+//! A fit is at the floor when no channel lies further above 1 than noise puts it with probability
+//! kNoiseFloorFalseAlarm, shared among the channels (Bonferroni).
+inline constexpr double kNoiseFloorFalseAlarm = 1e-3;
+//! The limit where the ratio's sampling sd is unknown (no experiment with two periods or more).
 inline constexpr double kNoiseFloorRatio = 1.2;
+//! Upper-tail standard normal quantile: z with P(Z > z) = p, for 0 < p < 1.
+double UpperNormalQuantile(double p);
+//! 1 + z sd with z = UpperNormalQuantile(kNoiseFloorFalseAlarm / channels); kNoiseFloorRatio when
+//! `sd` is not finite. The normal approximation of the ratio's F distribution holds for the
+//! thousands of samples of a matrix (its skew moves the limit by under 0.1 sd there).
+double NoiseFloorLimit(double sd, std::size_t channels);
 
 //! What a fit amounts to, in the order a user must hear it.
 enum class FitVerdict {

@@ -141,6 +141,10 @@ class FitProblem {
   //! Per fitted channel: pooled residual mean square over each experiment's noise variance of the
   //! averaged data, sum_a sum_mu e^2 / s_a^2 over the count (about 1 at the noise floor). NaN where
   //! no experiment knows its noise.
+  //! The sampling sd of each NoiseRatios() entry with the model right: the residuals' chi-square
+  //! mean and each experiment's noise estimate (its phases times periods less one degrees of
+  //! freedom; a transient's noise counts as known).
+  std::vector<double> NoiseRatioSds() const;
   std::vector<double> NoiseRatios() const;
   //! Fills the summary's channel and experiment statistics (and moves the solutions into it).
   //! `ratio`: NoiseRatios() of the same solutions.

@@ -95,6 +95,17 @@ struct SessionFit {
   FitSummary summary;
 };
 
+//! The start of `model`, one catalogue term (`term`) beyond the model of `previous` (a fit of the
+//! same data): `previous`'s values and estimated set, the term's own size and shape parameters
+//! estimated from where the located mismatch puts them (CandidateStartingValues; under stroke
+//! input only), the rest at their defaults. `log` (optional) says where the term's values came from.
+struct TermStart {
+  ParameterSet start;
+  std::vector<ParameterChoice> choices;
+};
+TermStart StartWithTerm(const Model& model, const std::string& term, const FitSummary& previous,
+                        std::vector<std::string>* log = nullptr);
+
 //! Reads, plans and fits.
 SessionFit FitSessions(const std::vector<std::string>& sessions, const SessionFitOptions& options,
                        const std::function<void(const FitProgress&)>& progress = {});
@@ -102,6 +113,10 @@ SessionFit FitSessions(const std::vector<std::string>& sessions, const SessionFi
 //! over the data's) is not converged or not at the noise floor and the user's values differ from
 //! the data's, it is repeated from the data's own starting values (the parameters with a prior keep
 //! the user's value, the prior's mean) and the better posterior is kept; the summary says so.
+//! When it is still not at the floor and the composition adds catalogue terms to its base (stroke
+//! input, the default estimated set), it is fitted once more by continuation, as discovery reaches
+//! it: the base from the data's start, then the terms one at a time, each from where the located
+//! mismatch puts it (StartWithTerm), the user's values kept; the better posterior is kept.
 SessionFit FitPrepared(FitData data, const Model& model, const SessionFitOptions& options,
                    const std::function<void(const FitProgress&)>& progress = {});
 //! Fits with a given plan (what FitPrepared does after PlanFit), the second start included: a

@@ -26,8 +26,13 @@ namespace strut::ident {
 //!  - sizes that act through the gas or the friction level: one Gauss-Newton step from the
 //!    baseline with the size at 0 (where the candidate is the baseline, and the residual is nearly
 //!    linear in the size), on the exact periodic sensitivities of the force and pressure channels:
-//!      oil-compressibility  theta26 (pressure-softening locus)
-//!      real-gas             theta31 (pressure-stiffening locus)
+//!      oil-compressibility     theta26 (pressure-softening locus)
+//!      real-gas                theta31 (pressure-stiffening locus)
+//!      dead-volume             theta36 (deep-softening locus)
+//!      recoil-damping          theta32 (rate-asymmetry locus)
+//!      metering-pin            theta33 (position-damping locus)
+//!      friction-asymmetry      theta34 (friction-direction locus)
+//!      pressure-heat-transfer  theta35 (loop-pressure locus)
 //!      stribeck-friction    theta19 at each width theta20 of a log grid (0.5 to 40 mm/s, 20 %
 //!                           apart); the width that leaves the least residual (reversal locus)
 //! Values are clipped into the physical range (a size that regresses negative starts at 0, its

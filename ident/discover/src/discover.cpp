@@ -78,6 +78,66 @@ std::map<std::string, double> PooledNoiseRatio(const FitSummary& fit) {
   return ratio;
 }
 
+namespace {
+
+// Signatures of physics beyond the paper's (damper-physics.md §2): the residual's pooled t
+// against a regressor that only that physics produces once the baseline's terms are fitted.
+void BeyondThePaperFindings(const std::string& channel, const std::vector<const Normalised*>& items,
+                            std::vector<Finding>& findings) {
+  const auto pooled = [&](auto&& regressor) {
+    double sum = 0.0;
+    for (const Normalised* n : items) {
+      Eigen::VectorXd x(n->z.size());
+      for (Eigen::Index i = 0; i < x.size(); ++i) x[i] = regressor(*n, i);
+      sum += TStatistic(n->z, x);
+    }
+    return sum / std::sqrt(std::max<std::size_t>(1, items.size()));
+  };
+  // Even in the stroke rate: orifice damping that differs between extension and compression (an
+  // odd damping law leaves no residual even in the rate).
+  const double even = pooled([](const Normalised& n, Eigen::Index i) { return n.rate[i] * n.rate[i]; });
+  findings.push_back({"rate-asymmetry", channel, std::abs(even),
+                      fmt::format("{} residual even in the stroke rate (growing with q'^2): pooled t {:+.1f}, more "
+                                  "damping in {} than in {}",
+                                  channel, even, even < 0 ? "extension" : "compression",
+                                  even < 0 ? "compression" : "extension")});
+  // Damping that grows with the stroke: the residual on q q'|q'| (the baseline fitted q'|q'|).
+  const double deep = pooled([](const Normalised& n, Eigen::Index i) {
+    return n.stroke[i] * n.rate[i] * std::abs(n.rate[i]);
+  });
+  findings.push_back({"position-damping", channel, std::abs(deep),
+                      fmt::format("{} residual on stroke times q'|q'|: pooled t {:+.1f}, the damping {} with the "
+                                  "stroke",
+                                  channel, deep, deep > 0 ? "grows" : "falls")});
+  // A friction level that differs with the direction: even in the rate, a step at the reversals
+  // (sliding friction saturates within about 1 % of the peak rate).
+  const double step = pooled([](const Normalised& n, Eigen::Index i) {
+    const double width = 0.01 * std::max(n.rate.cwiseAbs().maxCoeff(), 1e-9);
+    const double a = 2.0 / std::numbers::pi * std::atan(n.rate[i] / width);
+    return a * a;
+  });
+  findings.push_back({"friction-direction", channel, std::abs(step),
+                      fmt::format("{} residual stepping at the reversals, even in the rate: pooled t {:+.1f}, more "
+                                  "friction in {}",
+                                  channel, step, step > 0 ? "compression" : "extension")});
+  // A thermal loop that grows with the pressure: the residual in phase with the rate, times p.
+  if (std::all_of(items.begin(), items.end(), [](const Normalised* n) { return n->pressure.size() == n->z.size(); })) {
+    const double loop = pooled([](const Normalised& n, Eigen::Index i) { return n.pressure[i] * 1e-6 * n.rate[i]; });
+    findings.push_back({"loop-pressure", channel, std::abs(loop),
+                        fmt::format("{} residual in phase with the stroke rate, growing with the pressure: pooled t "
+                                    "{:+.1f}",
+                                    channel, loop)});
+  }
+  // A gas law that softens at deep compression: the residual on the stroke cubed (what the
+  // polytropic and ideal laws with their fitted constants leave).
+  const double cubic = pooled([](const Normalised& n, Eigen::Index i) { return std::pow(n.stroke[i], 3); });
+  findings.push_back({"deep-softening", channel, std::abs(cubic),
+                      fmt::format("{} residual on the stroke cubed: pooled t {:+.1f}, the gas {} at deep compression",
+                                  channel, cubic, cubic < 0 ? "softer" : "stiffer")});
+}
+
+}  // namespace
+
 std::vector<Finding> LocateMismatch(const FitSummary& fit) {
   const std::vector<Normalised> all = Collect(fit);
   std::vector<Finding> findings;
@@ -168,58 +228,7 @@ std::vector<Finding> LocateMismatch(const FitSummary& fit) {
                           fmt::format("{} residual {} with the square of the pressure: t {:+.1f}", channel,
                                       t > 0 ? "grows" : "falls", t)});
     }
-    // Signatures of physics beyond the paper's (damper-physics.md §2): the residual's pooled t
-    // against a regressor that only that physics produces once the baseline's terms are fitted.
-    const auto pooled = [&](auto&& regressor) {
-      double sum = 0.0;
-      for (const Normalised* n : items) {
-        Eigen::VectorXd x(n->z.size());
-        for (Eigen::Index i = 0; i < x.size(); ++i) x[i] = regressor(*n, i);
-        sum += TStatistic(n->z, x);
-      }
-      return sum / std::sqrt(std::max<std::size_t>(1, items.size()));
-    };
-    // Even in the stroke rate: orifice damping that differs between extension and compression (an
-    // odd damping law leaves no residual even in the rate).
-    const double even = pooled([](const Normalised& n, Eigen::Index i) { return n.rate[i] * n.rate[i]; });
-    findings.push_back({"rate-asymmetry", channel, std::abs(even),
-                        fmt::format("{} residual even in the stroke rate (growing with q'^2): pooled t {:+.1f}, more "
-                                    "damping in {} than in {}",
-                                    channel, even, even < 0 ? "extension" : "compression",
-                                    even < 0 ? "compression" : "extension")});
-    // Damping that grows with the stroke: the residual on q q'|q'| (the baseline fitted q'|q'|).
-    const double deep = pooled([](const Normalised& n, Eigen::Index i) {
-      return n.stroke[i] * n.rate[i] * std::abs(n.rate[i]);
-    });
-    findings.push_back({"position-damping", channel, std::abs(deep),
-                        fmt::format("{} residual on stroke times q'|q'|: pooled t {:+.1f}, the damping {} with the "
-                                    "stroke",
-                                    channel, deep, deep > 0 ? "grows" : "falls")});
-    // A friction level that differs with the direction: even in the rate, a step at the reversals
-    // (sliding friction saturates within about 1 % of the peak rate).
-    const double step = pooled([](const Normalised& n, Eigen::Index i) {
-      const double width = 0.01 * std::max(n.rate.cwiseAbs().maxCoeff(), 1e-9);
-      const double a = 2.0 / std::numbers::pi * std::atan(n.rate[i] / width);
-      return a * a;
-    });
-    findings.push_back({"friction-direction", channel, std::abs(step),
-                        fmt::format("{} residual stepping at the reversals, even in the rate: pooled t {:+.1f}, more "
-                                    "friction in {}",
-                                    channel, step, step > 0 ? "compression" : "extension")});
-    // A thermal loop that grows with the pressure: the residual in phase with the rate, times p.
-    if (std::all_of(items.begin(), items.end(), [](const Normalised* n) { return n->pressure.size() == n->z.size(); })) {
-      const double loop = pooled([](const Normalised& n, Eigen::Index i) { return n.pressure[i] * 1e-6 * n.rate[i]; });
-      findings.push_back({"loop-pressure", channel, std::abs(loop),
-                          fmt::format("{} residual in phase with the stroke rate, growing with the pressure: pooled t "
-                                      "{:+.1f}",
-                                      channel, loop)});
-    }
-    // A gas law that softens at deep compression: the residual on the stroke cubed (what the
-    // polytropic and ideal laws with their fitted constants leave).
-    const double cubic = pooled([](const Normalised& n, Eigen::Index i) { return std::pow(n.stroke[i], 3); });
-    findings.push_back({"deep-softening", channel, std::abs(cubic),
-                        fmt::format("{} residual on the stroke cubed: pooled t {:+.1f}, the gas {} at deep compression",
-                                    channel, cubic, cubic < 0 ? "softer" : "stiffer")});
+    BeyondThePaperFindings(channel, items, findings);
   }
   std::sort(findings.begin(), findings.end(), [](const Finding& a, const Finding& b) { return a.score > b.score; });
   return findings;

@@ -218,6 +218,26 @@ double Softplus(double x) { return x > 0 ? x + std::log1p(std::exp(-x)) : std::l
 
 namespace {
 
+// The end stop's stiffness regressed at each position from 2 mm outside the least stroke `q_min` to
+// 30 mm inside it, 0.1 mm apart: the stop position is the largest stroke from which down the
+// extension-end force residual grows. Returns the regression with the least residual and its position.
+std::pair<Regression, double> EndStopSearch(const std::vector<Sample>& samples, const Values& v, double q_min,
+                                            double smoothing, double dissipation) {
+  Regression best;
+  double position = NAN;
+  for (double x = q_min - 2e-3; x <= q_min + 30e-3; x += 1e-4) {
+    const Column shape = [=](const Sample& s) {
+      const double d = smoothing * Softplus((x - s.q) / smoothing);
+      return -d * (1.0 - dissipation * s.rate);
+    };
+    std::vector<Column> columns = ForceNuisance(v);
+    columns.insert(columns.begin(), shape);
+    const Regression r = Regress(samples, columns);
+    if (r.ok && r.coefficient > 0 && r.rss < best.rss) best = r, position = x;
+  }
+  return {best, position};
+}
+
 // The sizing parameter (paper index) of a term whose start is one Gauss-Newton step on its size
 // alone (no shape parameter to search), 0 for the other terms.
 int GaussNewtonSizeIndex(const std::string& term) {
@@ -316,22 +336,10 @@ std::vector<std::pair<std::string, double>> CandidateStartingValues(const std::s
       note("stribeck-friction: no width gives a positive excess; defaults kept");
     }
   } else if (term == "end-stop") {
-    const double smoothing = own(24, 1e-4), dissipation = own(22, 0.0);
     double q_min = INFINITY;
     for (const Sample& s : samples)
       if (s.force_weight > 0) q_min = std::min(q_min, s.q);
-    Regression best;
-    double position = NAN;
-    // Positions from 2 mm outside the least stroke to 30 mm inside it, 0.1 mm apart: the stop
-    // position is the largest stroke from which down the extension-end force residual grows.
-    for (double x = q_min - 2e-3; x <= q_min + 30e-3; x += 1e-4) {
-      const Column shape = [=](const Sample& s) {
-        const double d = smoothing * Softplus((x - s.q) / smoothing);
-        return -d * (1.0 - dissipation * s.rate);
-      };
-      const Regression r = Regress(samples, with(shape, ForceNuisance(v)));
-      if (r.ok && r.coefficient > 0 && r.rss < best.rss) best = r, position = x;
-    }
+    const auto [best, position] = EndStopSearch(samples, v, q_min, own(24, 1e-4), own(22, 0.0));
     if (best.ok) {
       give(23, position, fmt::format("least residual over stop positions near the least stroke {:.4f} m", q_min));
       give(21, best.coefficient, fmt::format("force equation error on the penetration, t {:+.1f}", best.t));

@@ -18,9 +18,6 @@
 #include <stdexcept>
 
 #include "strut/daq/session.h"
-#include "strut/ident/model.h"
-#include "strut/rig/test_matrix.h"
-#include "strut/sim/periodic_session.h"
 
 namespace strut::test {
 
@@ -45,15 +42,6 @@ CommandResult RunStrut(const std::string& args) {
   const int status = pclose(pipe);
   result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
   return result;
-}
-
-void WriteTwoDofSession(const std::string& path, const std::string& labels) {
-  std::vector<rig::MatrixEntry> matrix;
-  for (const auto& e : rig::StandardMatrix())
-    if (labels.find(e.label) != std::string::npos) matrix.push_back(e);
-  const ident::ParameterSet truth =
-      ident::Model::Build("2dof", ident::Causality::kStrokeInput).defaults();
-  daq::WriteSession(path, sim::SimulatePeriodicSession("2dof", truth.values(), matrix, {}));
 }
 
 bool ChromiumAvailable() { return access(kChromium, X_OK) == 0; }

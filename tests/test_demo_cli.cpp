@@ -6,7 +6,7 @@
 #include <fstream>
 #include <string>
 
-#include "test_support.h"
+#include "strut_cli.h"
 
 namespace strut {
 namespace {

@@ -192,27 +192,5 @@ TEST(DropFit, ShakerMatrixPlusOneDropRecoversADrawnUnitsTruth) {
   EXPECT_GT(j["contributions"].back()["sd_without"]["theta3"].get<double>(), 2.0 * s.estimates[theta3].sd);
 }
 
-// strut identify end to end: a drawn unit's matrix and drop as two sessions, the drop fitted beside
-// the matrix (its pressure channel excluded by the user), the drop and its contribution in the JSON.
-TEST(IdentifyCli, FitsADropBesideTheMatrix) {
-  test::TempDir dir;
-  const std::string m = dir.file("m.h5"), d = dir.file("d.h5"), json = dir.file("fit.json");
-  ASSERT_EQ(test::RunStrut("sim matrix --draw 1003 --seed 1003 -o " + m).exit_code, 0);
-  ASSERT_EQ(test::RunStrut("sim drop --draw 1003 --seed 1003 --duration 5 --label hop -o " + d).exit_code, 0);
-  const auto r = test::RunStrut("identify " + m + " " + d + " --exclude hop:pressure --no-progress --json " + json);
-  EXPECT_LE(r.exit_code, 3) << r.output;  // at the noise floor or above it: either way a fit
-  EXPECT_NE(r.output.find("plus the drops hop;"), std::string::npos) << r.output;
-  EXPECT_NE(r.output.find("drop 'hop' adds:"), std::string::npos) << r.output;
-  const nlohmann::json j = nlohmann::json::parse(test::ReadFile(json));
-  ASSERT_EQ(j["transient_experiments"].size(), 1u);
-  EXPECT_EQ(j["transient_experiments"][0]["label"], "hop");
-  EXPECT_TRUE(j["transient_experiments"][0].contains("stroke"));
-  EXPECT_FALSE(j["transient_experiments"][0].contains("pressure"));
-  EXPECT_EQ(j["contributions"].back()["kind"], "drop");
-  bool drop_channel = false;
-  for (const auto& c : j["channels"]) drop_channel = drop_channel || c["name"] == "drop:stroke";
-  EXPECT_TRUE(drop_channel);
-}
-
 }  // namespace
 }  // namespace strut::sim

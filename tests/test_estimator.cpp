@@ -2,25 +2,18 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
-#include <fstream>
-#include <nlohmann/json.hpp>
 #include <map>
 #include <numeric>
 #include <random>
 
 #include "strut/ident/estimator.h"
 #include "strut/sim/periodic_session.h"
-#include "test_support.h"
+#include "session_fixtures.h"
 
 namespace strut::ident {
 namespace {
 
-std::vector<rig::MatrixEntry> Pick(const std::string& labels) {
-  std::vector<rig::MatrixEntry> out;
-  for (const auto& e : rig::StandardMatrix())
-    if (labels.find(e.label) != std::string::npos) out.push_back(e);
-  return out;
-}
+using test::StandardExperiments;
 
 ParameterSet Truth(const std::string& composition) {
   ParameterSet truth = Model::Build(composition, Causality::kStrokeInput).defaults();
@@ -113,7 +106,7 @@ TEST(Estimator, ForceDrivenFitsStartFromTheMeasuredStroke) {
   // Near the record's parameters the first solves start from the measured stroke (less the sensor
   // offset, 2 mm here) and reach the cold start's solutions; from 20 % off they start cold.
   const ParameterSet truth = Truth("2dof");
-  const daq::Session session = sim::SimulatePeriodicSession("2dof", truth.values(), Pick("bfl"), {});
+  const daq::Session session = sim::SimulatePeriodicSession("2dof", truth.values(), StandardExperiments("bfl"), {});
   const Model model = Model::Build("2dof", Causality::kForceInput);
   const auto data = PrepareExperiments(session, model.causality(), 800);
   const auto choices = ChoicesFromList(model.defaults(), "theta4,theta6,theta16");
@@ -147,7 +140,7 @@ TEST(Estimator, NinetyFivePercentIntervalsHoldTheTruthAtTheirRate) {
   options.sample_rate = 100.0;
   options.periods = 2;
   options.noise = {0.0, 0.0, 0.0};
-  const daq::Session clean = sim::SimulatePeriodicSession("2dof", truth.values(), Pick("bhk"), options);
+  const daq::Session clean = sim::SimulatePeriodicSession("2dof", truth.values(), StandardExperiments("bhk"), options);
   const Model model = Model::Build("2dof", Causality::kStrokeInput);
   const std::vector<ParameterChoice> choices = ChoicesFromList(model.defaults(), "theta4,theta6,theta16");
   // central4 at n = 400: its discretisation error (1e-9) is far below the parameter uncertainty,
@@ -185,7 +178,7 @@ TEST(Estimator, IntervalsCarryTheMeasuredInputsNoise) {
   options.sample_rate = 100.0;
   options.periods = 3;
   options.noise = {0.0, 0.0, 0.0};
-  const daq::Session clean = sim::SimulatePeriodicSession("2dof", truth.values(), Pick("def"), options);
+  const daq::Session clean = sim::SimulatePeriodicSession("2dof", truth.values(), StandardExperiments("def"), options);
   const Model model = Model::Build("2dof", Causality::kStrokeInput);
   const std::vector<ParameterChoice> choices = ChoicesFromList(model.defaults(), "theta4,theta6,theta16");
   EstimatorOptions with_input;
@@ -304,7 +297,7 @@ TEST(Estimator, ReportsBadDataAndStillFitsTheRest) {
   const ParameterSet truth = Truth("2dof");
   sim::PeriodicSessionOptions options;
   options.seed = 9;
-  daq::Session session = sim::SimulatePeriodicSession("2dof", truth.values(), Pick("bdghl"), options);
+  daq::Session session = sim::SimulatePeriodicSession("2dof", truth.values(), StandardExperiments("bdghl"), options);
   // d: force clipped by a saturated ADC; g: pressure spikes; h: a stroke dropout.
   for (auto& e : session.experiments) {
     if (e.label == "d")
@@ -343,7 +336,7 @@ TEST(Estimator, ReportsBadDataAndStillFitsTheRest) {
 TEST(Estimator, AnExperimentWithoutPeriodicSolutionIsNamedAndTheOthersFit) {
   const ParameterSet truth = Truth("1dof");
   sim::PeriodicSessionOptions options;
-  const daq::Session session = sim::SimulatePeriodicSession("1dof", truth.values(), Pick("bhl"), options);
+  const daq::Session session = sim::SimulatePeriodicSession("1dof", truth.values(), StandardExperiments("bhl"), options);
   const Model model = Model::Build("1dof", Causality::kStrokeInput);
   EstimatorOptions estimator_options;
   estimator_options.n = 200;
@@ -364,7 +357,7 @@ TEST(Estimator, WarnsAboutParametersTheDataCannotDetermine) {
   // theta1 (moving mass) and theta2 (gravity) enter only as theta1 (q'' + theta2): with gravity
   // estimated too, a slow test cannot tell them apart.
   const ParameterSet truth = Truth("1dof");
-  const daq::Session session = sim::SimulatePeriodicSession("1dof", truth.values(), Pick("a"), {});
+  const daq::Session session = sim::SimulatePeriodicSession("1dof", truth.values(), StandardExperiments("a"), {});
   const Model model = Model::Build("1dof", Causality::kStrokeInput);
   EstimatorOptions estimator_options;
   estimator_options.n = 200;
@@ -375,54 +368,6 @@ TEST(Estimator, WarnsAboutParametersTheDataCannotDetermine) {
   EXPECT_TRUE(std::any_of(fit.warnings.begin(), fit.warnings.end(), [](const std::string& w) {
     return w.find("theta2") != std::string::npos && w.find("theta11") != std::string::npos;
   })) << fit.FullReport();
-}
-
-TEST(IdentifyCommand, WritesTheFitAsJson) {
-  test::TempDir dir;
-  const ParameterSet truth = Truth("2dof");
-  daq::WriteSession(dir.file("s.h5"),
-                    sim::SimulatePeriodicSession("2dof", truth.values(), Pick("bhl"), sim::PeriodicSessionOptions{}));
-  const auto r = test::RunStrut("identify " + dir.file("s.h5") + " --model 2dof --input stroke --n 400 --json " +
-                                dir.file("fit.json") + " --no-progress --estimate paper");
-  ASSERT_EQ(r.exit_code, 0) << r.output;
-  std::ifstream in(dir.file("fit.json"));
-  const nlohmann::json j = nlohmann::json::parse(in);
-  for (const char* key : {"model", "converged", "verdict", "verdict_text", "iterations", "parameters", "channels",
-                          "experiments", "loglik", "aic", "bic", "warnings"})
-    EXPECT_TRUE(j.contains(key)) << key;
-  EXPECT_EQ(j["model"], "2dof");
-  EXPECT_TRUE(j["converged"].get<bool>());
-  int estimated = 0;
-  for (const auto& p : j["parameters"]) {
-    for (const char* key : {"index", "name", "unit", "value", "sd", "estimated"}) EXPECT_TRUE(p.contains(key)) << key;
-    estimated += p["estimated"].get<bool>();
-  }
-  EXPECT_EQ(estimated, 5);  // theta4, theta6, theta16 and the two offsets
-  ASSERT_EQ(j["experiments"].size(), 3u);
-  for (const char* key : {"mean", "sd", "rms", "noise_ratio"}) EXPECT_TRUE(j["experiments"][0]["force"].contains(key));
-  for (const auto& c : j["channels"])
-    for (const char* key : {"name", "variance", "noise_floor_variance", "rms", "noise_ratio"}) EXPECT_TRUE(c.contains(key)) << key;
-  // The calibration the intervals hold: the lab's (the stroke, the input here, included), or what
-  // --calibration names; the input's gain alone moves the estimate too.
-  EXPECT_EQ(j["calibration"], (nlohmann::json{{"force", 0.002}, {"pressure", 0.002}, {"stroke", 0.001}}));
-  const auto lvdt = test::RunStrut("identify " + dir.file("s.h5") + " --model 2dof --n 400 --json " +
-                                   dir.file("lvdt.json") + " --no-progress --estimate paper --calibration stroke=0.1%");
-  ASSERT_EQ(lvdt.exit_code, 0) << lvdt.output;
-  EXPECT_NE(lvdt.output.find("gain sd stroke 0.1 %"), std::string::npos) << lvdt.output;
-  std::ifstream lvdt_in(dir.file("lvdt.json"));
-  const nlohmann::json k = nlohmann::json::parse(lvdt_in);
-  EXPECT_EQ(k["calibration"], (nlohmann::json{{"stroke", 0.001}}));
-  double largest = 0.0;  // the calibration part over the sd
-  for (const auto& p : k["parameters"])
-    if (p["estimated"].get<bool>()) largest = std::max(largest, p["sd_calibration"].get<double>() / p["sd"].get<double>());
-  EXPECT_GT(largest, 0.1) << k["parameters"].dump();
-  const auto bad = test::RunStrut("identify " + dir.file("s.h5") + " --model 2dof --estimate theta99 --no-progress");
-  EXPECT_NE(bad.exit_code, 0);
-  EXPECT_NE(bad.output.find("theta99"), std::string::npos) << bad.output;
-  // A misspelt transducer would silently leave its gain out of every interval: refused, named.
-  const auto misspelt = test::RunStrut("identify " + dir.file("s.h5") + " --model 2dof --calibration forse=0.2% --no-progress");
-  EXPECT_NE(misspelt.exit_code, 0);
-  EXPECT_NE(misspelt.output.find("'forse' is not a channel of the model 2dof"), std::string::npos) << misspelt.output;
 }
 
 }  // namespace

@@ -5,7 +5,7 @@
 
 #include "strut/daq/fake_controller.h"
 #include "strut/daq/modbus_controller.h"
-#include "test_support.h"
+#include "strut_cli.h"
 
 namespace strut::daq {
 namespace {

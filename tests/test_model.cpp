@@ -219,15 +219,6 @@ TEST(ParameterRanges, SetAndFilesRefuseAValueOutsideTheRange) {
   EXPECT_NE(p.RangeViolation()->find("theta1 moving_mass = 0 kg"), std::string::npos);
 }
 
-TEST(ParameterRanges, CommandRefusesAValueOutsideTheRange) {
-  const auto r = test::RunStrut("periodic --model 2dof --input stroke --frequency 1 --amplitude 0.02 --static 0.1 "
-                                "--n 100 --set theta4=-1");
-  EXPECT_NE(r.exit_code, 0);
-  EXPECT_NE(r.output.find("theta4 gas_area = -1 m^2 is outside its physical range (0, inf)"), std::string::npos)
-      << r.output;
-  EXPECT_EQ(r.output.find("static equilibrium"), std::string::npos) << r.output;
-}
-
 TEST(SizeParameters, ZeroSwitchesTheEffectOffAndTheResidualIsLinearThere) {
   // Every size parameter of a candidate term: at 0 the residual is that of the model without the
   // term, and the residual at 0, s/2 and s lie on a line (to a few percent of the change).

@@ -2,10 +2,10 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
-#include <fstream>
-#include <nlohmann/json.hpp>
 #include <numbers>
 #include <random>
+#include <span>
+#include <utility>
 
 #include "strut/ident/periodic.h"
 #include "test_support.h"
@@ -21,6 +21,40 @@ PeriodicInput ForceOf(const PeriodicSolution& s) {
   const Eigen::VectorXd f = s.channel("force");
   in.values.assign(f.data(), f.data() + f.size());
   return in;
+}
+
+// The input of the 2dof model with `causality` on n points: experiment h's stroke, or the force
+// the stroke-driven solution at `theta` needs for that stroke.
+PeriodicInput TwoDofInput(Causality causality, std::span<const double> theta, int n) {
+  const PeriodicInput stroke = StrokeH(n);
+  if (causality == Causality::kStrokeInput) return stroke;
+  return ForceOf(PeriodicSolver(Model::Build("2dof", Causality::kStrokeInput)).Solve(stroke, theta));
+}
+
+// Input directions on n points (columns): a mean shift, the first cosine, the sine of `harmonic`.
+Eigen::MatrixXd InputDirections(int n, int harmonic) {
+  Eigen::MatrixXd directions(n, 3);
+  for (int mu = 0; mu < n; ++mu) {
+    directions(mu, 0) = 1.0;
+    directions(mu, 1) = std::cos(2 * std::numbers::pi * mu / n);
+    directions(mu, 2) = std::sin(2 * std::numbers::pi * harmonic * mu / n);
+  }
+  return directions;
+}
+
+// The solutions for the input moved by +step and by -step (per point), warm-started at `base`.
+std::pair<PeriodicSolution, PeriodicSolution> SolveMovedBothWays(PeriodicSolver& solver, const PeriodicInput& input,
+                                                                 std::span<const double> theta,
+                                                                 const PeriodicSolution& base,
+                                                                 const Eigen::VectorXd& step) {
+  PeriodicInput plus = input, minus = input;
+  for (int mu = 0; mu < step.size(); ++mu) {
+    plus.values[mu] += step(mu);
+    minus.values[mu] -= step(mu);
+  }
+  PeriodicSolution up = solver.Solve(plus, theta, &base);
+  PeriodicSolution down = solver.Solve(minus, theta, &base);
+  return {std::move(up), std::move(down)};
 }
 
 TEST(PeriodicSolver, ForceDrivenRunReproducesTheStrokeDrivenSolution) {
@@ -220,21 +254,14 @@ TEST(PeriodicSolver, InputGradientsMatchFiniteDifferencesOfTheSolver) {
       SCOPED_TRACE(std::string(ToString(causality)) + " " + std::string(ToString(scheme)));
       const Model model = Model::Build("2dof", causality);
       const auto theta = model.defaults().values();
-      PeriodicInput input = StrokeH(200);
-      if (causality == Causality::kForceInput)
-        input = ForceOf(PeriodicSolver(Model::Build("2dof", Causality::kStrokeInput)).Solve(input, theta));
+      const int n = 200;
+      const PeriodicInput input = TwoDofInput(causality, theta, n);
       PeriodicSolverOptions tight;
       tight.tolerance = 1e-2;
       tight.scheme = scheme;
       PeriodicSolver solver(model, tight);
       const PeriodicSolution base = solver.Solve(input, theta);
-      const int n = 200;
-      Eigen::MatrixXd directions(n, 3);
-      for (int mu = 0; mu < n; ++mu) {
-        directions(mu, 0) = 1.0;
-        directions(mu, 1) = std::cos(2 * std::numbers::pi * mu / n);
-        directions(mu, 2) = std::sin(2 * std::numbers::pi * 3 * mu / n);
-      }
+      const Eigen::MatrixXd directions = InputDirections(n, 3);
       // Two functionals: smooth weights on every output, and a single point of the first one.
       const int channels = static_cast<int>(base.channels.size());
       std::vector<Eigen::MatrixXd> weights(channels, Eigen::MatrixXd::Zero(n, 2));
@@ -248,12 +275,7 @@ TEST(PeriodicSolver, InputGradientsMatchFiniteDifferencesOfTheSolver) {
       ASSERT_EQ(gradient.cols(), 2);
       const double h = causality == Causality::kForceInput ? 1.0 : 1e-6;  // N, m
       for (int k = 0; k < 3; ++k) {
-        PeriodicInput plus = input, minus = input;
-        for (int mu = 0; mu < n; ++mu) {
-          plus.values[mu] += h * directions(mu, k);
-          minus.values[mu] -= h * directions(mu, k);
-        }
-        const PeriodicSolution sp = solver.Solve(plus, theta, &base), sm = solver.Solve(minus, theta, &base);
+        const auto [sp, sm] = SolveMovedBothWays(solver, input, theta, base, h * directions.col(k));
         for (int b = 0; b < 2; ++b) {
           // Tolerance relative to the sum's terms before they cancel.
           double numeric = 0.0, terms = 0.0;
@@ -279,31 +301,19 @@ TEST(PeriodicSolver, InputSensitivitiesMatchFiniteDifferencesOfTheSolver) {
       SCOPED_TRACE(std::string(ToString(causality)) + " " + std::string(ToString(scheme)));
       const Model model = Model::Build("2dof", causality);
       const auto theta = model.defaults().values();
-      PeriodicInput input = StrokeH(200);
-      if (causality == Causality::kForceInput)
-        input = ForceOf(PeriodicSolver(Model::Build("2dof", Causality::kStrokeInput)).Solve(input, theta));
+      const int n = 200;
+      const PeriodicInput input = TwoDofInput(causality, theta, n);
       PeriodicSolverOptions tight;
       tight.tolerance = 1e-2;
       tight.scheme = scheme;
       PeriodicSolver solver(model, tight);
       const PeriodicSolution base = solver.Solve(input, theta);
-      const int n = 200;
-      Eigen::MatrixXd directions(n, 3);
-      for (int mu = 0; mu < n; ++mu) {
-        directions(mu, 0) = 1.0;
-        directions(mu, 1) = std::cos(2 * std::numbers::pi * mu / n);
-        directions(mu, 2) = std::sin(2 * std::numbers::pi * 17 * mu / n);
-      }
+      const Eigen::MatrixXd directions = InputDirections(n, 17);
       const auto sens = solver.InputSensitivities(base, theta, directions);
       ASSERT_EQ(sens.size(), base.channels.size());
       const double h = causality == Causality::kForceInput ? 0.25 : 1e-6;  // N, m (1 N: truncation 9e-4 in T)  // N, m
       for (int k = 0; k < 3; ++k) {
-        PeriodicInput plus = input, minus = input;
-        for (int mu = 0; mu < n; ++mu) {
-          plus.values[mu] += h * directions(mu, k);
-          minus.values[mu] -= h * directions(mu, k);
-        }
-        const PeriodicSolution sp = solver.Solve(plus, theta, &base), sm = solver.Solve(minus, theta, &base);
+        const auto [sp, sm] = SolveMovedBothWays(solver, input, theta, base, h * directions.col(k));
         for (std::size_t c = 0; c < base.channels.size(); ++c) {
           const int row = static_cast<int>(c);
           const Eigen::VectorXd numeric = (sp.outputs.row(row) - sm.outputs.row(row)).transpose() / (2 * h);
@@ -417,30 +427,6 @@ TEST(PeriodicInput, PeriodAveragingRecoversTheWaveformFromANoisyRecord) {
     EXPECT_NEAR(in.values[mu], expected, 4e-4);
   }
   EXPECT_THROW(PeriodicInput::FromRecord(std::vector<double>(10, 0.0), fs, f, periods, 100), std::invalid_argument);
-}
-
-TEST(PeriodicCommand, WritesOnePeriodAsJson) {
-  test::TempDir dir;
-  const auto r = test::RunStrut("periodic --model 2dof --input stroke --frequency 0.5 --amplitude 0.034 --static 0.133 "
-                                "--n 200 --scheme central4 --set theta16=3 --json " + dir.file("p.json"));
-  ASSERT_EQ(r.exit_code, 0) << r.output;
-  std::ifstream in(dir.file("p.json"));
-  const nlohmann::json j = nlohmann::json::parse(in);
-  for (const char* key : {"time", "stroke", "force", "pressure", "temperature"}) {
-    ASSERT_TRUE(j.contains(key)) << key;
-    EXPECT_EQ(j[key].size(), 200u) << key;
-  }
-  EXPECT_DOUBLE_EQ(j["time"][0].get<double>(), 0.0);
-  EXPECT_GT(j["newton_iterations"].get<int>(), 0);
-  EXPECT_LT(j["residual_norm"].get<double>(), 1.0);
-  EXPECT_NEAR(j["stroke"][50].get<double>(), 0.133 + 0.034, 1e-12);  // quarter period: the sine's crest
-  bool found = false;
-  for (const auto& p : j["parameters"])
-    if (p["index"] == "theta16") found = p["value"].get<double>() == 3.0;
-  EXPECT_TRUE(found);
-  const auto bad = test::RunStrut("periodic --model 2dof+nonsense --frequency 1");
-  EXPECT_NE(bad.exit_code, 0);
-  EXPECT_NE(bad.output.find("nonsense"), std::string::npos) << bad.output;
 }
 
 }  // namespace

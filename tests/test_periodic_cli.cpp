@@ -1,13 +1,15 @@
-// strut periodic as a user hits it: inputs outside their range are refused before solving, and a
-// state the model cannot have (ident::PhysicalViolation) is not passed off as a solution.
+// strut periodic as a user hits it: inputs and parameters outside their range are refused before
+// solving, a state the model cannot have (ident::PhysicalViolation) is not passed off as a solution,
+// and one period is written as JSON.
 #include <gtest/gtest.h>
 
 #include <fstream>
 #include <iterator>
+#include <nlohmann/json.hpp>
 #include <string>
 
 #include "strut/ident/periodic.h"
-#include "test_support.h"
+#include "strut_cli.h"
 
 namespace strut::ident {
 namespace {
@@ -130,6 +132,39 @@ TEST(PeriodicPhysicalViolation, NegativeAbsolutePressureTemperatureAndStroke) {
   v = PhysicalViolation(model, bad, theta);
   ASSERT_TRUE(v.has_value());
   EXPECT_NE(v->find("1 + theta6 q"), std::string::npos) << *v;
+}
+
+TEST(ParameterRanges, CommandRefusesAValueOutsideTheRange) {
+  const auto r = test::RunStrut("periodic --model 2dof --input stroke --frequency 1 --amplitude 0.02 --static 0.1 "
+                                "--n 100 --set theta4=-1");
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.output.find("theta4 gas_area = -1 m^2 is outside its physical range (0, inf)"), std::string::npos)
+      << r.output;
+  EXPECT_EQ(r.output.find("static equilibrium"), std::string::npos) << r.output;
+}
+
+TEST(PeriodicCommand, WritesOnePeriodAsJson) {
+  test::TempDir dir;
+  const auto r = test::RunStrut("periodic --model 2dof --input stroke --frequency 0.5 --amplitude 0.034 --static 0.133 "
+                                "--n 200 --scheme central4 --set theta16=3 --json " + dir.file("p.json"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  std::ifstream in(dir.file("p.json"));
+  const nlohmann::json j = nlohmann::json::parse(in);
+  for (const char* key : {"time", "stroke", "force", "pressure", "temperature"}) {
+    ASSERT_TRUE(j.contains(key)) << key;
+    EXPECT_EQ(j[key].size(), 200u) << key;
+  }
+  EXPECT_DOUBLE_EQ(j["time"][0].get<double>(), 0.0);
+  EXPECT_GT(j["newton_iterations"].get<int>(), 0);
+  EXPECT_LT(j["residual_norm"].get<double>(), 1.0);
+  EXPECT_NEAR(j["stroke"][50].get<double>(), 0.133 + 0.034, 1e-12);  // quarter period: the sine's crest
+  bool found = false;
+  for (const auto& p : j["parameters"])
+    if (p["index"] == "theta16") found = p["value"].get<double>() == 3.0;
+  EXPECT_TRUE(found);
+  const auto bad = test::RunStrut("periodic --model 2dof+nonsense --frequency 1");
+  EXPECT_NE(bad.exit_code, 0);
+  EXPECT_NE(bad.output.find("nonsense"), std::string::npos) << bad.output;
 }
 
 }  // namespace

@@ -19,6 +19,7 @@
 #include "strut/daq/recorder.h"
 #include "strut/daq/session.h"
 #include "strut/rig/matrix_runner.h"
+#include "session_events.h"
 #include "test_support.h"
 
 namespace strut::rig {

@@ -23,7 +23,8 @@
 #include "strut/daq/modbus_controller.h"
 #include "strut/daq/recorder.h"
 #include "strut/daq/session.h"
-#include "test_support.h"
+#include "session_events.h"
+#include "strut_cli.h"
 
 extern char** environ;
 

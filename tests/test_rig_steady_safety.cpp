@@ -9,7 +9,7 @@
 #include <nlohmann/json.hpp>
 #include <numbers>
 
-#include "strut/report/fit_report.h"
+#include "strut/ident/fit_record.h"
 #include "strut/ident/model.h"
 #include "strut/ident/periodic.h"
 #include "strut/rig/channel_file.h"

@@ -1,5 +1,5 @@
 // Session files: round trips, files from other writers (h5py, MATLAB-style), one test per defect
-// the reader must name, the writer's crash safety, and `strut info`.
+// the reader must name, and the writer's crash safety (`strut info`: test_info_cli.cpp).
 #include <gtest/gtest.h>
 #include <hdf5.h>
 #include <spdlog/sinks/ringbuffer_sink.h>
@@ -19,9 +19,10 @@
 #include <string>
 #include <vector>
 
+#include "python_peer.h"
+#include "session_file_fixtures.h"
 #include "strut/daq/session.h"
 #include "test_support.h"
-#include "python_peer.h"
 
 namespace {
 
@@ -33,84 +34,23 @@ using strut::daq::Session;
 using strut::daq::SessionError;
 using strut::daq::WriteOptions;
 using strut::daq::WriteSession;
+using strut::test::ExpectMentions;
+using strut::test::FileEditor;
 using strut::test::FileSizeLimit;
+using strut::test::MakeDrop;
+using strut::test::MakePeriodic;
+using strut::test::MakeSession;
+using strut::test::MakeStatic;
 using strut::test::PythonWithH5py;
 using strut::test::RunPython;
 using strut::test::TempDir;
+using strut::test::TimeAxis;
+using strut::test::WriteGoodFile;
 
 constexpr double kTwoPi = 2 * std::numbers::pi;
 
 // ---------------------------------------------------------------------------------------------
 // Sessions in memory
-
-std::vector<double> TimeAxis(std::size_t n, double sample_rate) {
-  std::vector<double> t(n);
-  for (std::size_t i = 0; i < n; ++i) t[i] = static_cast<double>(i) / sample_rate;
-  return t;
-}
-
-Channel MakeChannel(std::string name, std::string units, const std::vector<double>& t, double mean,
-                    double swing, double frequency, std::string reference = "") {
-  Channel c{std::move(name), std::move(units), std::move(reference), {}};
-  for (double ti : t) c.samples.push_back(mean + swing * std::sin(kTwoPi * frequency * ti));
-  return c;
-}
-
-// Periodic: 200 Hz, 2 Hz, 3 periods = 300 samples, with a further `temperature` channel.
-Experiment MakePeriodic(std::string label) {
-  Experiment e;
-  e.label = std::move(label);
-  e.kind = ExperimentKind::kPeriodic;
-  e.sample_rate = 200;
-  e.frequency = 2;
-  e.amplitude = 0.01;
-  e.static_position = 0.1;
-  e.periods = 3;
-  e.group = "high";
-  e.time = TimeAxis(300, e.sample_rate);
-  e.channels = {MakeChannel("stroke", "m", e.time, 0.1, 0.01, 2),
-                MakeChannel("force", "N", e.time, 5000, 2000, 2),
-                MakeChannel("pressure", "Pa", e.time, 2e6, 1e5, 2, "absolute"),
-                MakeChannel("temperature", "K", e.time, 293.15, 0.5, 0.1)};
-  e.extra_attributes = {{"operator", "jd"}, {"shaker", "MTS-1"}};
-  return e;
-}
-
-Experiment MakeDrop(std::string label) {
-  Experiment e;
-  e.label = std::move(label);
-  e.kind = ExperimentKind::kDrop;
-  e.sample_rate = 1000;
-  e.drop_mass = 500;
-  e.impact_velocity = 2.5;
-  e.time = TimeAxis(250, e.sample_rate);
-  e.channels = {MakeChannel("stroke", "m", e.time, 0.05, 0.05, 1),
-                MakeChannel("force", "N", e.time, 1e4, 1e4, 1),
-                MakeChannel("pressure", "Pa", e.time, 1e5, 5e4, 1, "gauge")};
-  return e;
-}
-
-Experiment MakeStatic(std::string label) {
-  Experiment e;
-  e.label = std::move(label);
-  e.kind = ExperimentKind::kStatic;
-  e.status = "aborted";
-  e.sample_rate = 10;
-  e.time = TimeAxis(50, e.sample_rate);
-  e.channels = {MakeChannel("stroke", "m", e.time, 0.2, 0.001, 0.1),
-                MakeChannel("force", "N", e.time, 3e4, 10, 0.1),
-                MakeChannel("pressure", "Pa", e.time, 3e6, 1e3, 0.1, "absolute")};
-  return e;
-}
-
-Session MakeSession() {
-  Session s;
-  s.created_utc = "2026-11-22T05:32:50Z";
-  s.damper_serial = "MLG-0042";
-  s.rig = "shaker-2";
-  s.experiments = {MakePeriodic("a"), MakeDrop("b"), MakeStatic("c")};
-  return s;
-}
 
 void ExpectSameExperiment(const Experiment& expected, const Experiment& actual) {
   SCOPED_TRACE("experiment " + expected.label);
@@ -151,12 +91,6 @@ void ExpectSameSession(const Session& expected, const Session& actual) {
 // ---------------------------------------------------------------------------------------------
 // Files
 
-std::string WriteGoodFile(const TempDir& dir, const std::string& name = "session.h5") {
-  const std::string path = dir.file(name);
-  WriteSession(path, MakeSession());
-  return path;
-}
-
 // The message of the SessionError ReadSession throws (a test failure when it does not throw).
 std::string ReadError(const std::string& path) {
   try {
@@ -168,132 +102,10 @@ std::string ReadError(const std::string& path) {
   return {};
 }
 
-void ExpectMentions(const std::string& message, std::initializer_list<std::string> parts) {
-  for (const std::string& part : parts) {
-    EXPECT_NE(message.find(part), std::string::npos)
-        << "message does not mention \"" << part << "\":\n"
-        << message;
-  }
-}
-
 std::size_t LineCount(const std::string& text) {
   return text.empty() ? 0
                       : static_cast<std::size_t>(std::count(text.begin(), text.end(), '\n')) + 1;
 }
-
-void Require(long long status, const char* what) {
-  if (status < 0) throw std::runtime_error(std::string("HDF5 call failed in test: ") + what);
-}
-
-// Opens a file for surgery with the HDF5 C API: the defect tests break a good file in one place.
-class FileEditor {
- public:
-  explicit FileEditor(const std::string& path)
-      : file_(H5Fopen(path.c_str(), H5F_ACC_RDWR, H5P_DEFAULT)) {
-    Require(file_, "H5Fopen");
-  }
-  ~FileEditor() { H5Fclose(file_); }
-  FileEditor(const FileEditor&) = delete;
-  FileEditor& operator=(const FileEditor&) = delete;
-
-  void RemoveAttribute(const std::string& object, const std::string& name) {
-    Require(H5Adelete_by_name(file_, object.c_str(), name.c_str(), H5P_DEFAULT), "H5Adelete");
-  }
-
-  //! A string attribute, variable-length (as h5py writes str) or fixed-length with `pad`.
-  void SetString(const std::string& object, const std::string& name, const std::string& value,
-                 bool variable = false, H5T_str_t pad = H5T_STR_NULLTERM) {
-    const hid_t type = H5Tcopy(H5T_C_S1);
-    if (variable) {
-      H5Tset_size(type, H5T_VARIABLE);
-      H5Tset_cset(type, H5T_CSET_UTF8);
-    } else {
-      H5Tset_size(type, std::max<std::size_t>(value.size(), 1));
-      H5Tset_strpad(type, pad);
-    }
-    const hid_t space = H5Screate(H5S_SCALAR);
-    const hid_t attribute = Recreate(object, name, type, space);
-    const char* text = value.c_str();
-    std::string fixed = value;
-    fixed.resize(std::max<std::size_t>(value.size(), 1), '\0');
-    Require(variable ? H5Awrite(attribute, type, &text) : H5Awrite(attribute, type, fixed.data()),
-            "H5Awrite");
-    H5Aclose(attribute);
-    H5Sclose(space);
-    H5Tclose(type);
-  }
-
-  //! A numeric attribute of `file_type`, scalar or (as MATLAB writes) of shape `dims`.
-  void SetNumber(const std::string& object, const std::string& name, double value,
-                 hid_t file_type = H5T_IEEE_F64LE, std::vector<hsize_t> dims = {}) {
-    const hid_t space = dims.empty()
-                            ? H5Screate(H5S_SCALAR)
-                            : H5Screate_simple(static_cast<int>(dims.size()), dims.data(), nullptr);
-    const hid_t attribute = Recreate(object, name, file_type, space);
-    Require(H5Awrite(attribute, H5T_NATIVE_DOUBLE, &value), "H5Awrite");
-    H5Aclose(attribute);
-    H5Sclose(space);
-  }
-
-  void Remove(const std::string& link) {
-    Require(H5Ldelete(file_, link.c_str(), H5P_DEFAULT), "H5Ldelete");
-  }
-
-  //! Replaces (or creates) a dataset with `values` in shape `dims` and optional units/reference.
-  void SetDataset(const std::string& path, const std::vector<double>& values,
-                  std::vector<hsize_t> dims, const char* units, const char* reference = nullptr,
-                  hid_t file_type = H5T_IEEE_F64LE) {
-    if (H5Lexists(file_, path.c_str(), H5P_DEFAULT) > 0) Remove(path);
-    const hid_t space = H5Screate_simple(static_cast<int>(dims.size()), dims.data(), nullptr);
-    const hid_t dataset =
-        H5Dcreate2(file_, path.c_str(), file_type, space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
-    Require(dataset, "H5Dcreate2");
-    if (!values.empty()) {
-      Require(H5Dwrite(dataset, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, values.data()),
-              "H5Dwrite");
-    }
-    H5Dclose(dataset);
-    H5Sclose(space);
-    if (units != nullptr) SetString(path, "units", units);
-    if (reference != nullptr) SetString(path, "reference", reference);
-  }
-
-  //! Overwrites the samples of an existing dataset (same length).
-  void Overwrite(const std::string& path, const std::vector<double>& values) {
-    const hid_t dataset = H5Dopen2(file_, path.c_str(), H5P_DEFAULT);
-    Require(dataset, "H5Dopen2");
-    Require(H5Dwrite(dataset, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, values.data()),
-            "H5Dwrite");
-    H5Dclose(dataset);
-  }
-
-  //! Rewrites the four contract datasets of an experiment with `n` samples.
-  void Resize(const std::string& experiment, std::size_t n, double sample_rate,
-              const char* reference) {
-    const std::vector<double> t = TimeAxis(n, sample_rate);
-    const std::vector<double> ones(n, 1.0);
-    const std::vector<hsize_t> dims = {n};
-    SetDataset(experiment + "/time", t, dims, "s");
-    SetDataset(experiment + "/stroke", ones, dims, "m");
-    SetDataset(experiment + "/force", ones, dims, "N");
-    SetDataset(experiment + "/pressure", ones, dims, "Pa", reference);
-  }
-
-  hid_t get() const { return file_; }
-
- private:
-  hid_t Recreate(const std::string& object, const std::string& name, hid_t type, hid_t space) {
-    if (H5Aexists_by_name(file_, object.c_str(), name.c_str(), H5P_DEFAULT) > 0) {
-      RemoveAttribute(object, name);
-    }
-    const hid_t attribute = H5Acreate_by_name(file_, object.c_str(), name.c_str(), type, space,
-                                              H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
-    Require(attribute, "H5Acreate_by_name");
-    return attribute;
-  }
-
-  hid_t file_;
-};
 
 // Replaces the default logger while alive and keeps what was logged.
 class CapturedLog {
@@ -1054,73 +866,6 @@ TEST(SessionFiles, UtcNowIsIso8601WithZuluSuffix) {
   EXPECT_EQ(now[4], '-');
   EXPECT_EQ(now[10], 'T');
   EXPECT_EQ(now.back(), 'Z');
-}
-
-// ---------------------------------------------------------------------------------------------
-// strut info
-
-TEST(SessionFiles, InfoJsonListsTheSessionInSiUnits) {
-  TempDir dir;
-  const std::string path = WriteGoodFile(dir);
-  const auto result = strut::test::RunStrut("info " + path + " --json");
-  ASSERT_EQ(result.exit_code, 0) << result.output;
-  const nlohmann::json j = nlohmann::json::parse(result.output);
-  EXPECT_EQ(j["file"], path);
-  EXPECT_EQ(j["format_version"], 1);
-  EXPECT_EQ(j["created_utc"], "2026-11-22T05:32:50Z");
-  EXPECT_EQ(j["damper_serial"], "MLG-0042");
-  EXPECT_EQ(j["rig"], "shaker-2");
-  EXPECT_EQ(j["valid"], true);
-  ASSERT_EQ(j["experiments"].size(), 3u);
-  const nlohmann::json& a = j["experiments"][0];
-  EXPECT_EQ(a["label"], "a");
-  EXPECT_EQ(a["kind"], "periodic");
-  EXPECT_EQ(a["status"], "complete");
-  EXPECT_EQ(a["group"], "high");
-  EXPECT_EQ(a["frequency"], 2.0);
-  EXPECT_EQ(a["amplitude"], 0.01);
-  EXPECT_EQ(a["static_position"], 0.1);
-  EXPECT_EQ(a["periods"], 3);
-  EXPECT_EQ(a["samples"], 300);
-  EXPECT_EQ(a["sample_rate"], 200.0);
-  ASSERT_EQ(a["channels"].size(), 4u);
-  EXPECT_EQ(a["channels"][2]["name"], "pressure");
-  EXPECT_EQ(a["channels"][2]["units"], "Pa");
-  EXPECT_EQ(a["channels"][2]["reference"], "absolute");
-  EXPECT_FALSE(a["channels"][0].contains("reference"));
-  const nlohmann::json& b = j["experiments"][1];
-  EXPECT_EQ(b["kind"], "drop");
-  EXPECT_TRUE(b["frequency"].is_null());
-  EXPECT_EQ(b["channels"][2]["reference"], "gauge");
-}
-
-TEST(SessionFiles, InfoPrintsAnAlignedTable) {
-  TempDir dir;
-  const std::string path = WriteGoodFile(dir);
-  const auto result = strut::test::RunStrut("info " + path);
-  ASSERT_EQ(result.exit_code, 0) << result.output;
-  ExpectMentions(result.output,
-                 {path, "MLG-0042", "ampl [mm]", "periodic", "pressure[Pa, absolute]",
-                  "pressure[Pa, gauge]", "temperature[K]"});
-}
-
-TEST(SessionFiles, InfoOnADefectiveFileExitsWithOneAndNamesTheFile) {
-  TempDir dir;
-  const std::string path = WriteGoodFile(dir);
-  {
-    FileEditor edit(path);
-    edit.RemoveAttribute("/experiments/a", "periods");
-    edit.SetString("/experiments/b/stroke", "units", "mm");
-  }
-  const auto result = strut::test::RunStrut("info " + path);
-  EXPECT_EQ(result.exit_code, 1);
-  ExpectMentions(result.output, {path + ": experiment 'a': attribute 'periods': missing",
-                                 path + ": experiment 'b': channel 'stroke'"});
-  const auto json = strut::test::RunStrut("info " + path + " --json");
-  EXPECT_EQ(json.exit_code, 1);
-  const nlohmann::json j = nlohmann::json::parse(json.output);
-  EXPECT_EQ(j["valid"], false);
-  EXPECT_EQ(j["errors"].size(), 2u);
 }
 
 }  // namespace

@@ -202,33 +202,6 @@ TEST(SessionFit, CalibrationPartOfEachSdIsWhatAGainErrorMovesTheEstimateBy) {
   }
 }
 
-TEST(SessionFit, CalibrationOptionReadsPercentOrFractionAndNamesBadItems) {
-  EXPECT_EQ(ParseGainSd("force=0.1%,pressure=0.002"), (std::map<std::string, double>{{"force", 0.001}, {"pressure", 0.002}}));
-  EXPECT_EQ(ParseGainSd(" force = 0.1% , pressure=0.002"), ParseGainSd("force=0.1%,pressure=0.002"));
-  EXPECT_TRUE(ParseGainSd("none").empty());
-  for (const char* bad : {"force", "force=", "force=-1%", "force=0.1%%", "=0.1", "force=0.1,"}) {
-    SCOPED_TRACE(bad);
-    EXPECT_THROW(ParseGainSd(bad), std::invalid_argument);
-  }
-  // An empty item is refused naming the whole text, as --set does (docs/parameters.md).
-  for (const char* bad : {"force=0.1%,,pressure=0.2%", ",force=0.1%", "force=0.1%, "}) {
-    SCOPED_TRACE(bad);
-    try {
-      ParseGainSd(bad);
-      ADD_FAILURE() << "accepted";
-    } catch (const std::invalid_argument& e) {
-      EXPECT_NE(std::string(e.what()).find(std::string("calibration: '") + bad + "' has an empty item"),
-                std::string::npos)
-          << e.what();
-    }
-  }
-  test::TempDir dir;
-  std::ofstream(dir.file("s.h5")) << "not read: the option is refused first";
-  const auto r = test::RunStrut("identify " + dir.file("s.h5") + " --calibration force=abc");
-  EXPECT_NE(r.exit_code, 0);
-  EXPECT_NE(r.output.find("--calibration: calibration 'force=abc'"), std::string::npos) << r.output;
-}
-
 TEST(SessionFit, WhatNoExperimentReachesIsFixedAndNamed) {
   // An end stop 30 mm outside the stroke the matrix uses: nothing in the data can size it.
   const daq::Session session = DrawnSession(23);
@@ -275,21 +248,6 @@ TEST(SessionFit, ExcludeLeavesOutExperimentsAndChannelsAndNamesMistakes) {
   }
 }
 
-TEST(IdentifyCommand, ExitCodesSayWhetherTheFitReachedTheNoiseFloor) {
-  test::TempDir dir;
-  // 2 dof data: 2dof reaches the floor (0), 1dof does not (3).
-  test::WriteTwoDofSession(dir.file("s.h5"), "bcghkl");
-  const auto good = test::RunStrut("identify " + dir.file("s.h5") + " --no-progress --json " + dir.file("fit.json"));
-  EXPECT_EQ(good.exit_code, 0) << good.output;
-  std::ifstream in(dir.file("fit.json"));
-  const nlohmann::json j = nlohmann::json::parse(in);
-  EXPECT_EQ(j["verdict"], "at-noise-floor");
-  const auto poor = test::RunStrut("identify " + dir.file("s.h5") + " --model 1dof --no-progress");
-  EXPECT_EQ(poor.exit_code, 3) << poor.output;
-  EXPECT_NE(poor.output.find("ABOVE THE NOISE FLOOR"), std::string::npos) << poor.output;
-  EXPECT_NE(poor.output.find("strut discover"), std::string::npos);
-}
-
 TEST(SessionFit, AnExperimentWithoutWholeSamplesPerPeriodKeepsEightHundredPoints) {
   // Another tool's record at 0.3003 Hz and 200 Hz, 666.0007 samples a period: it is resampled onto
   // an equidistant grid, 800 points by default (as before the thinned grid), while 0.1 Hz (2000
@@ -318,25 +276,6 @@ TEST(SessionFit, AnExperimentWithoutWholeSamplesPerPeriodKeepsEightHundredPoints
   EXPECT_EQ(PrepareFitData(session, "drawn", model, 300).experiments[1].input.values.size(), 300u);
 }
 
-TEST(IdentifyCommand, AnotherSchemeWithoutNTakesTheEquidistantPaperGrid) {
-  // --scheme backward2 alone must not run backward2 on the thinned grid made for central4: it is
-  // the fit with --n 800, to the last digit.
-  test::TempDir dir;
-  test::WriteTwoDofSession(dir.file("s.h5"), "bh");
-  const auto estimates = [&](const std::string& options, const std::string& name) {
-    const auto run = test::RunStrut("identify " + dir.file("s.h5") + " --no-progress " + options + " --json " + dir.file(name));
-    EXPECT_EQ(run.exit_code, 0) << run.output;
-    std::ifstream in(dir.file(name));
-    const nlohmann::json fit = nlohmann::json::parse(in);
-    std::map<std::string, double> values;
-    for (const auto& p : fit["parameters"]) values[p["index"].get<std::string>()] = p["value"].get<double>();
-    return values;
-  };
-  const auto alone = estimates("--scheme backward2", "a.json");
-  EXPECT_GE(alone.size(), 10u);
-  EXPECT_EQ(alone, estimates("--scheme backward2 --n 800", "b.json"));
-}
-
 TEST(SessionFit, AFitStoppedBeforeItConvergedSaysSoAndWhatToTry) {
   // One iteration from 20 % off cannot converge: the verdict (identify's exit code 2) says so.
   const daq::Session session = DrawnSession(25);
@@ -352,24 +291,6 @@ TEST(SessionFit, AFitStoppedBeforeItConvergedSaysSoAndWhatToTry) {
   EXPECT_EQ(fit.Verdict(), FitVerdict::kNotConverged);
   EXPECT_NE(fit.VerdictText().find("NOT CONVERGED"), std::string::npos) << fit.VerdictText();
   EXPECT_NE(fit.VerdictText().find("--params"), std::string::npos);
-}
-
-TEST(IdentifyCommand, OutputsNeverReplaceAnInputOrASession) {
-  test::TempDir dir;
-  test::WriteTwoDofSession(dir.file("a.h5"), "bh");
-  test::WriteTwoDofSession(dir.file("b.h5"), "bh");
-  const std::string before = test::ReadFile(dir.file("a.h5"));
-  // The natural slip: --json A.h5 B.h5 (info --json is a switch, identify --json takes a file).
-  const auto slip = test::RunStrut("identify --json " + dir.file("a.h5") + " " + dir.file("b.h5") + " --no-progress");
-  EXPECT_EQ(slip.exit_code, 1) << slip.output;
-  EXPECT_NE(slip.output.find("a.h5"), std::string::npos) << slip.output;
-  EXPECT_EQ(test::ReadFile(dir.file("a.h5")), before);
-  const auto same = test::RunStrut("identify " + dir.file("a.h5") + " --report " + dir.file("a.h5") + " --no-progress");
-  EXPECT_EQ(same.exit_code, 1);
-  EXPECT_EQ(test::ReadFile(dir.file("a.h5")), before);
-  const auto missing = test::RunStrut("identify " + dir.file("a.h5") + " --json " + dir.file("no/such/dir/f.json"));
-  EXPECT_EQ(missing.exit_code, 1);
-  EXPECT_NE(missing.output.find("does not exist"), std::string::npos) << missing.output;
 }
 
 }  // namespace

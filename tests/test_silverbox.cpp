@@ -15,6 +15,7 @@
 #include "strut/study/oscillator.h"
 #include "strut/study/silverbox.h"
 #include "strut/sim/transient.h"
+#include "silverbox_data.h"
 #include "test_support.h"
 
 namespace strut::ident {
@@ -22,15 +23,10 @@ namespace {
 using namespace strut::daq;
 using namespace strut::study;
 
-const std::string kData = std::string(STRUT_SHARED_DIR) + "/data/silverbox";
-const std::string kCsv = kData + "/SNLS80mV.csv";
-const std::string kMat = kData + "/SNLS80mV.mat";
+using test::kSilverboxCsv;
+using test::kSilverboxData;
+using test::kSilverboxMat;
 constexpr long kRows = 131072;
-
-bool HaveData() { return std::filesystem::exists(kMat) && std::filesystem::exists(kCsv); }
-
-#define REQUIRE_DATA() \
-  if (!HaveData()) GTEST_SKIP() << "no Silverbox data in " << kData
 
 // The error text of f(), "" when it does not throw ImportError.
 template <class F>
@@ -51,8 +47,8 @@ void WriteText(const std::string& path, const std::string& text) {
 // Import
 
 TEST(SilverboxImport, CsvAndMatHoldTheSameRecordWithTheReadmeSizes) {
-  REQUIRE_DATA();
-  const Record csv = ReadCsvRecord(kCsv), mat = ReadMatRecord(kMat);
+  REQUIRE_SILVERBOX_DATA();
+  const Record csv = ReadCsvRecord(kSilverboxCsv), mat = ReadMatRecord(kSilverboxMat);
   // CSV: header "V1","V2", with a trailing comma on every line and a blank last line.
   EXPECT_EQ(csv.names, (std::vector<std::string>{"V1", "V2"}));
   // MAT: V2, V1 in file order (1 x 131072 double); the 1 x 1 Ovld flags are not signals.
@@ -67,8 +63,8 @@ TEST(SilverboxImport, CsvAndMatHoldTheSameRecordWithTheReadmeSizes) {
 }
 
 TEST(SilverboxImport, PresetSegmentsTheTenPeriodsAndTheArrowAsTheReadmeSays) {
-  REQUIRE_DATA();
-  const Record mat = ReadMatRecord(kMat);
+  REQUIRE_SILVERBOX_DATA();
+  const Record mat = ReadMatRecord(kSilverboxMat);
   const daq::Session s = BuildSession(mat, ImportSpec::Silverbox());
   EXPECT_EQ(s.profile, "generic");
   ASSERT_EQ(s.experiments.size(), 12u);
@@ -115,9 +111,9 @@ TEST(SilverboxImport, PresetSegmentsTheTenPeriodsAndTheArrowAsTheReadmeSays) {
 }
 
 TEST(SilverboxImport, SessionFileRoundTripKeepsEverySample) {
-  REQUIRE_DATA();
+  REQUIRE_SILVERBOX_DATA();
   test::TempDir dir;
-  const daq::Session s = BuildSession(ReadCsvRecord(kCsv), ImportSpec::Silverbox());
+  const daq::Session s = BuildSession(ReadCsvRecord(kSilverboxCsv), ImportSpec::Silverbox());
   daq::WriteSession(dir.file("silverbox.h5"), s);
   const daq::Session back = daq::ReadSession(dir.file("silverbox.h5"));
   EXPECT_EQ(back.profile, "generic");
@@ -136,28 +132,6 @@ TEST(SilverboxImport, SessionFileRoundTripKeepsEverySample) {
       EXPECT_EQ(a.channels[c].samples, b.channels[c].samples);
     }
   }
-}
-
-TEST(SilverboxImport, CommandLineImportsTheMatFileWithThePreset) {
-  REQUIRE_DATA();
-  test::TempDir dir;
-  const auto r = test::RunStrut("import mat '" + kMat + "' --preset silverbox -o '" + dir.file("sb.h5") + "'");
-  ASSERT_EQ(r.exit_code, 0) << r.output;
-  EXPECT_NE(r.output.find("119214"), std::string::npos) << r.output;
-  const daq::Session s = daq::ReadSession(dir.file("sb.h5"));
-  EXPECT_EQ(s.experiments.size(), 12u);
-  const auto info = test::RunStrut("info '" + dir.file("sb.h5") + "'");
-  EXPECT_EQ(info.exit_code, 0) << info.output;
-  // A column mapping of its own: only the input, two experiments of two periods each.
-  const auto own = test::RunStrut("import csv '" + kCsv + "' --column drive=V1:V --sample-rate 610.3515625 "
-                                  "--periodic prefix=p,start=40986,period=4096,periods=2,count=2,stride=8692 -o '" +
-                                  dir.file("own.h5") + "'");
-  ASSERT_EQ(own.exit_code, 0) << own.output;
-  const daq::Session o = daq::ReadSession(dir.file("own.h5"));
-  ASSERT_EQ(o.experiments.size(), 2u);
-  EXPECT_EQ(o.experiments[1].label, "p1");
-  EXPECT_EQ(o.experiments[1].periods, 2);
-  EXPECT_EQ(o.experiments[1].extra_attributes.at("first_sample"), std::to_string(40986 + 8692));
 }
 
 TEST(ImportErrors, NameTheFileLineAndColumn) {
@@ -195,10 +169,10 @@ TEST(ImportErrors, NameTheFileLineAndColumn) {
 }
 
 TEST(ImportErrors, AWrongSampleCountIsNamed) {
-  REQUIRE_DATA();
+  REQUIRE_SILVERBOX_DATA();
   // The real CSV cut short: the Silverbox reader names the file and both counts.
   test::TempDir dir;
-  std::ifstream in(kCsv);
+  std::ifstream in(kSilverboxCsv);
   std::ofstream out(dir.file("SNLS80mV.csv"));
   std::string line;
   for (int i = 0; i < 1001 && std::getline(in, line); ++i) out << line << "\n";
@@ -435,12 +409,12 @@ TEST(OscillatorModel, SimulationFromRestAgreesWithIda) {
 // The protocol on the real data
 
 TEST(SilverboxProtocol, TheDuffingFitKeepsItsArrowTestRms) {
-  REQUIRE_DATA();
+  REQUIRE_SILVERBOX_DATA();
   // The full classic-split protocol (9 periods estimated, realisation 9 validated, the whole arrow
   // simulated), as `strut bench silverbox` runs it for the chosen model. Bounds: the measured values
   // (docs/silverbox.md: estimation 0.2426, validation 0.2569, arrow 0.3822, no extrapolation
   // 0.2598 mV) plus about 2 %.
-  const daq::Session session = ReadSilverbox(kData);
+  const daq::Session session = ReadSilverbox(kSilverboxData);
   const SilverboxResult r = RunSilverbox(session);
   const SilverboxCandidate& best = r.best();
   EXPECT_EQ(best.model, kSilverboxModel);

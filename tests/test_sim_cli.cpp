@@ -5,7 +5,9 @@
 #include <nlohmann/json.hpp>
 
 #include "strut/daq/session.h"
-#include "test_support.h"
+#include "strut/ident/model.h"
+#include "strut/sim/recorded_truth.h"
+#include "strut_cli.h"
 
 namespace strut {
 namespace {
@@ -115,6 +117,32 @@ TEST(SimCli, BenchReportsSimulatedSecondsPerWallSecond) {
   EXPECT_GT(j["matrix"]["simulated_per_wall"].get<double>(), 0.0);
   EXPECT_EQ(j["matrix"]["experiments"].size(), 14u);
   EXPECT_GT(j["drop"]["time_constant_fit_s"].get<double>(), 10.0);
+}
+
+TEST(SimDraw, CliMatrixWithDrawRecordsATruthThatDiffersFromTheDefaults) {
+  test::TempDir dir;
+  std::ofstream(dir.file("m.toml")) << "periods = 1\n[[experiment]]\nlabel = \"j\"\n"
+                                       "frequency = 2.0\nstatic_position = 0.133\namplitude = 0.01\n";
+  const auto r = test::RunStrut("sim matrix --draw 7 --effect viscous-damping=200 --matrix " + dir.file("m.toml") +
+                                " -o " + dir.file("d.h5"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const auto truth = sim::ReadRecordedTruth(daq::ReadSession(dir.file("d.h5")));
+  ASSERT_TRUE(truth);
+  ASSERT_TRUE(truth->drawn);
+  EXPECT_EQ(truth->drawn->seed, 7u);
+  EXPECT_EQ(truth->composition, "2dof+viscous-damping");
+  EXPECT_EQ(truth->parameters.get("viscous_damping"), 200.0);
+  const ident::ParameterSet defaults =
+      ident::Model::Build(truth->composition, ident::Causality::kStrokeInput).defaults();
+  for (const char* name : {"moving_mass", "gas_area", "volume_per_stroke", "pressure_per_temperature", "friction_base"})
+    EXPECT_NE(truth->parameters.get(name), defaults.get(name)) << name;
+
+  const auto shown = test::RunStrut("sim truth --draw 7 --base 1dof");
+  ASSERT_EQ(shown.exit_code, 0) << shown.output;
+  EXPECT_NE(shown.output.find("drawn: seed 7, base 1dof"), std::string::npos) << shown.output;
+  const auto refused = test::RunStrut("sim truth --effect end-stop");
+  EXPECT_NE(refused.exit_code, 0);
+  EXPECT_NE(refused.output.find("need --draw"), std::string::npos) << refused.output;
 }
 
 }  // namespace

@@ -7,17 +7,13 @@
 #include <sys/resource.h>
 #include <sys/wait.h>
 
-#include <array>
 #include <csignal>
-#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <unistd.h>
 #include <stdexcept>
-
-#include "strut/daq/session.h"
 
 namespace strut::test {
 
@@ -30,18 +26,6 @@ TempDir::TempDir() {
 TempDir::~TempDir() {
   std::error_code ec;
   std::filesystem::remove_all(path_, ec);
-}
-
-CommandResult RunStrut(const std::string& args) {
-  CommandResult result;
-  const std::string command = std::string(STRUT_BINARY) + " " + args + " 2>&1";
-  FILE* pipe = popen(command.c_str(), "r");
-  if (pipe == nullptr) throw std::runtime_error("popen failed: " + command);
-  std::array<char, 4096> buffer{};
-  while (std::fgets(buffer.data(), buffer.size(), pipe) != nullptr) result.output += buffer.data();
-  const int status = pclose(pipe);
-  result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return result;
 }
 
 bool ChromiumAvailable() { return access(kChromium, X_OK) == 0; }
@@ -87,15 +71,6 @@ std::size_t Count(const std::string& haystack, const std::string& needle) {
   for (std::size_t at = haystack.find(needle); at != std::string::npos; at = haystack.find(needle, at + needle.size()))
     ++n;
   return n;
-}
-
-std::vector<std::pair<std::string, std::string>> SessionEvents(const daq::Session& session) {
-  std::vector<std::pair<std::string, std::string>> out;
-  const daq::MetadataGroup* recording = session.find_metadata("recording");
-  const daq::MetadataGroup* events = recording ? recording->find_group("events") : nullptr;
-  if (events == nullptr) return out;
-  for (const daq::MetadataGroup& e : events->groups) out.emplace_back(*e.text("kind"), *e.text("text"));
-  return out;
 }
 
 int FreeLoopbackPort(int type) {

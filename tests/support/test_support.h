@@ -1,11 +1,10 @@
-// Helpers shared by the tests: temporary directories and running the strut binary.
+// Helpers every test may use: temporary directories, files, shell commands, Chromium, loopback ports.
+// They stand on no strut library, so that linking them adds no layer to a test (tests/CMakeLists.txt).
 #pragma once
 
 #include <string>
 #include <utility>
 #include <vector>
-
-#include "strut/daq/session.h"
 
 namespace strut::test {
 
@@ -22,18 +21,6 @@ class TempDir {
  private:
   std::string path_;
 };
-
-struct CommandResult {
-  int exit_code = -1;
-  std::string output;  //!< stdout and stderr together
-};
-
-//! Runs the built strut binary with the given argument string (shell-quoted by the caller).
-CommandResult RunStrut(const std::string& args);
-
-//! A session of the standard matrix's experiments named in `labels` (e.g. "bcghkl"), simulated by
-//! the stroke-driven 2dof model at its defaults (sim::SimulatePeriodicSession), written to `path`.
-void WriteTwoDofSession(const std::string& path, const std::string& labels);
 
 //! Debian's Chromium, which renders reports in the tests (scripts/install-deps.sh installs it).
 inline constexpr const char* kChromium = "/usr/bin/chromium";
@@ -52,9 +39,6 @@ std::string ChromiumCommand(const std::string& profile_dir);
 
 //! The whole file as a string ("" when it cannot be read).
 std::string ReadFile(const std::string& path);
-
-//! The events a recorded session holds (/recording/events): (kind, text), oldest first.
-std::vector<std::pair<std::string, std::string>> SessionEvents(const daq::Session& session);
 
 //! Occurrences of `needle` in `haystack`.
 std::size_t Count(const std::string& haystack, const std::string& needle);

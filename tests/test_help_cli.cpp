@@ -11,7 +11,7 @@
 #include <vector>
 
 #include "strut/ident/model.h"
-#include "test_support.h"
+#include "strut_cli.h"
 
 namespace strut {
 namespace {

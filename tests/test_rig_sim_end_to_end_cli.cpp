@@ -23,7 +23,7 @@
 
 #include "strut/daq/session.h"
 #include "strut/sim/recorded_truth.h"
-#include "test_support.h"
+#include "strut_cli.h"
 
 extern char** environ;
 

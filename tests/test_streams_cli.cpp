@@ -9,11 +9,8 @@
 #include <string>
 #include <vector>
 
-#include "strut/daq/session.h"
-#include "strut/ident/model.h"
-#include "strut/rig/test_matrix.h"
-#include "strut/sim/periodic_session.h"
-#include "test_support.h"
+#include "session_fixtures.h"
+#include "strut_cli.h"
 
 namespace strut {
 namespace {
@@ -36,11 +33,7 @@ bool HasLogLine(const std::string& text) {
 // A 2 dof session of experiments b and h of the standard matrix, exactly the model (no noise model
 // error), so that 2dof fits it to the noise floor.
 std::string TwoDofSession(const test::TempDir& dir) {
-  std::vector<rig::MatrixEntry> matrix;
-  for (const auto& e : rig::StandardMatrix())
-    if (e.label == "b" || e.label == "h") matrix.push_back(e);
-  const ident::ParameterSet truth = ident::Model::Build("2dof", ident::Causality::kStrokeInput).defaults();
-  daq::WriteSession(dir.file("s.h5"), sim::SimulatePeriodicSession("2dof", truth.values(), matrix, {}));
+  test::WriteTwoDofSession(dir.file("s.h5"), "bh");
   return dir.file("s.h5");
 }
 

@@ -1,0 +1,24 @@
+#include "session_fixtures.h"
+
+#include "strut/daq/session.h"
+#include "strut/ident/model.h"
+#include "strut/sim/periodic_session.h"
+
+namespace strut::test {
+
+std::vector<rig::MatrixEntry> StandardExperiments(const std::string& labels) {
+  std::vector<rig::MatrixEntry> matrix;
+  for (const auto& e : rig::StandardMatrix())
+    if (labels.find(e.label) != std::string::npos) matrix.push_back(e);
+  return matrix;
+}
+
+void WriteTwoDofSession(const std::string& path, const std::string& labels, const ident::ParameterSet& truth) {
+  daq::WriteSession(path, sim::SimulatePeriodicSession("2dof", truth.values(), StandardExperiments(labels), {}));
+}
+
+void WriteTwoDofSession(const std::string& path, const std::string& labels) {
+  WriteTwoDofSession(path, labels, ident::Model::Build("2dof", ident::Causality::kStrokeInput).defaults());
+}
+
+}  // namespace strut::test

@@ -1,0 +1,24 @@
+// Recorded sessions made by the simulator, the independent reference the fit is checked against:
+// one set of fixtures for every test that needs a session of known truth (strut_test_sessions,
+// on strut_sim).
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "strut/ident/parameters.h"
+#include "strut/rig/test_matrix.h"
+
+namespace strut::test {
+
+//! The standard matrix's experiments whose labels are in `labels` (e.g. "bcghkl"), in matrix order.
+std::vector<rig::MatrixEntry> StandardExperiments(const std::string& labels);
+
+//! A session of the standard matrix's experiments named in `labels`, simulated by the stroke-driven
+//! 2dof model at `truth` (sim::SimulatePeriodicSession, no noise), written to `path`.
+void WriteTwoDofSession(const std::string& path, const std::string& labels, const ident::ParameterSet& truth);
+
+//! The same at the 2dof model's defaults, which 2dof fits to the noise floor.
+void WriteTwoDofSession(const std::string& path, const std::string& labels);
+
+}  // namespace strut::test

@@ -29,17 +29,6 @@ std::string BinaryBytes(std::size_t size) {
   return bytes;
 }
 
-// The message of the FileWriteError that `write` throws, or "(no error)".
-template <typename F>
-std::string ErrorOf(F write) {
-  try {
-    write();
-  } catch (const FileWriteError& e) {
-    return e.what();
-  }
-  return "(no error)";
-}
-
 TEST(AtomicFile, WritesTheBytesExactlyAndLeavesNoPartialFile) {
   TempDir dir;
   const std::string path = dir.file("out.bin");
@@ -62,6 +51,9 @@ TEST(AtomicFile, ReplacesAnExistingFileLongerOrShorter) {
   EXPECT_EQ(ReadFile(path), std::string(5000, 'y'));
   EXPECT_FALSE(fs::exists(path + ".partial"));
 }
+
+// The message of the FileWriteError a write throws ("" when none).
+constexpr auto ErrorOf = [](auto&& call) { return strut::test::ErrorOf<FileWriteError>(call); };
 
 TEST(AtomicFile, IntoAMissingFolderNamesThePathAndTheStepAndCreatesNothing) {
   TempDir dir;

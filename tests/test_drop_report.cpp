@@ -5,12 +5,10 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
-#include <filesystem>
-#include <fstream>
-#include <sstream>
 #include <string>
 
 #include "strut/report/drop_report.h"
+#include "test_support.h"
 
 namespace strut::report {
 namespace {
@@ -96,16 +94,13 @@ TEST(DropReport, TheJsonHasTheFiguresInSiWithErrorsAndNulls) {
 }
 
 TEST(DropReport, TheReportPlotsInTheSameUnits) {
-  const std::string path = (std::filesystem::temp_directory_path() / "strut-test-drop-report.html").string();
-  WriteDropReport(Comparison(), path);
-  std::ifstream in(path);
-  std::stringstream html;
-  html << in.rdbuf();
-  std::filesystem::remove(path);
+  const test::TempDir dir;
+  WriteDropReport(Comparison(), dir.file("drop.html"));
+  const std::string html = test::ReadFile(dir.file("drop.html"));
   for (const char* text : {"Axle force, impact", "force [kN]", "stroke [mm]", "absolute pressure [MPa]",
                            "time from contact [s]", "4.000 kN"})
-    EXPECT_NE(html.str().find(text), std::string::npos) << text;
-  EXPECT_EQ(html.str().find("bar)"), std::string::npos);
+    EXPECT_NE(html.find(text), std::string::npos) << text;
+  EXPECT_EQ(html.find("bar)"), std::string::npos);
 }
 
 }  // namespace

@@ -29,6 +29,16 @@ daq::Session WithSensorNoise(const daq::Session& clean, std::mt19937_64& rng) {
   return noisy;
 }
 
+//! A noise-free 2dof session of the standard matrix's `labels` at 100 Hz, `periods` periods each:
+//! small and fast, for the tests that add many noise realisations to it.
+daq::Session SmallCleanSession(const ParameterSet& truth, const std::string& labels, long periods) {
+  sim::PeriodicSessionOptions options;
+  options.sample_rate = 100.0;
+  options.periods = periods;
+  options.noise = {0.0, 0.0, 0.0};
+  return sim::SimulatePeriodicSession("2dof", truth.values(), StandardExperiments(labels), options);
+}
+
 void ExpectRecovered(const FitSummary& fit, const ParameterSet& truth, double within_sd) {
   ASSERT_TRUE(fit.converged) << fit.FullReport();
   for (int i : fit.estimated_positions) {
@@ -136,11 +146,7 @@ TEST(Estimator, ForceDrivenFitsStartFromTheMeasuredStroke) {
 TEST(Estimator, NinetyFivePercentIntervalsHoldTheTruthAtTheirRate) {
   // 100 noise realisations of a small fast problem (the full run is `strut bench identify`).
   const ParameterSet truth = Truth("2dof");
-  sim::PeriodicSessionOptions options;
-  options.sample_rate = 100.0;
-  options.periods = 2;
-  options.noise = {0.0, 0.0, 0.0};
-  const daq::Session clean = sim::SimulatePeriodicSession("2dof", truth.values(), StandardExperiments("bhk"), options);
+  const daq::Session clean = SmallCleanSession(truth, "bhk", 2);
   const Model model = Model::Build("2dof", Causality::kStrokeInput);
   const std::vector<ParameterChoice> choices = ChoicesFromList(model.defaults(), "theta4,theta6,theta16");
   // central4 at n = 400: its discretisation error (1e-9) is far below the parameter uncertainty,
@@ -174,11 +180,7 @@ TEST(Estimator, IntervalsCarryTheMeasuredInputsNoise) {
   // covariance, both ways (the input estimated with the parameters, the default; or the thresholded
   // series with the noise as a sandwich), and exceeds the output-noise sd without it.
   const ParameterSet truth = Truth("2dof");
-  sim::PeriodicSessionOptions options;
-  options.sample_rate = 100.0;
-  options.periods = 3;
-  options.noise = {0.0, 0.0, 0.0};
-  const daq::Session clean = sim::SimulatePeriodicSession("2dof", truth.values(), StandardExperiments("def"), options);
+  const daq::Session clean = SmallCleanSession(truth, "def", 3);
   const Model model = Model::Build("2dof", Causality::kStrokeInput);
   const std::vector<ParameterChoice> choices = ChoicesFromList(model.defaults(), "theta4,theta6,theta16");
   EstimatorOptions with_input;

@@ -103,6 +103,20 @@ std::vector<double> Rms(const std::vector<Error>& e) {
   return v;
 }
 
+constexpr bool kRmsNorm = true, kMaxNorm = false;
+
+// The order the errors of `scheme` on ns converge at, in the RMS or the max norm: printed as the
+// docs quote it, and expected within (low, high).
+void ExpectOrder(Scheme scheme, const std::vector<int>& ns, const std::vector<Error>& errors, bool rms, double low,
+                 double high) {
+  const std::string name(ToString(scheme));
+  SCOPED_TRACE(name);
+  const double order = FittedOrder(ns, rms ? Rms(errors) : Max(errors));
+  std::printf("  %s order (%s) %.2f\n", name.c_str(), rms ? "rms" : "max", order);
+  EXPECT_GT(order, low);
+  EXPECT_LT(order, high);
+}
+
 PeriodicInput StrokeSine(int n) { return PeriodicInput::Sine(kFrequency, kStatic, kAmplitude, n); }
 
 // The force of a stroke-driven periodic solution (spectral, 64 points) as a smooth force input:
@@ -140,18 +154,12 @@ void CheckStrokeDriven(const std::string& composition, double spectral_bound) {
 
   const std::vector<int> backward_n = {400, 800, 1600};
   const auto backward = Errors(model, Scheme::kBackward2, backward_n, StrokeSine, reference);
-  const double backward_order = FittedOrder(backward_n, Rms(backward));
-  std::printf("  backward2 order (rms) %.2f\n", backward_order);
-  EXPECT_GT(backward_order, 1.7);
-  EXPECT_LT(backward_order, 2.3);
+  ExpectOrder(Scheme::kBackward2, backward_n, backward, kRmsNorm, 1.7, 2.3);
   EXPECT_LT(backward[1].max, 5e-6) << "the paper's n = 800";
 
   const std::vector<int> central_n = {50, 100, 200};
   const auto central = Errors(model, Scheme::kCentral4, central_n, StrokeSine, reference);
-  const double central_order = FittedOrder(central_n, Max(central));
-  std::printf("  central4 order (max) %.2f\n", central_order);
-  EXPECT_GT(central_order, 3.6);
-  EXPECT_LT(central_order, 4.4);
+  ExpectOrder(Scheme::kCentral4, central_n, central, kMaxNorm, 3.6, 4.4);
 
   // Spectral: exact derivatives of the sine input, a smooth temperature; at the reference's own
   // error from 32 points on.
@@ -177,17 +185,11 @@ TEST(PeriodicVsTransient, ForceDriven2dofConvergesAtTheOrderOfEachScheme) {
   const std::vector<int> ns = {800, 1600, 3200};
 
   const auto backward = Errors(model, Scheme::kBackward2, ns, input, reference);
-  const double backward_order = FittedOrder(ns, Rms(backward));
-  std::printf("  backward2 order (rms) %.2f\n", backward_order);
-  EXPECT_GT(backward_order, 1.7);
-  EXPECT_LT(backward_order, 2.3);
+  ExpectOrder(Scheme::kBackward2, ns, backward, kRmsNorm, 1.7, 2.3);
   EXPECT_LT(backward[0].max, 5e-4) << "the paper's n = 800";
 
   const auto central = Errors(model, Scheme::kCentral4, ns, input, reference);
-  const double central_order = FittedOrder(ns, Rms(central));
-  std::printf("  central4 order (rms) %.2f\n", central_order);
-  EXPECT_GT(central_order, 3.4);
-  EXPECT_LT(central_order, 4.6);
+  ExpectOrder(Scheme::kCentral4, ns, central, kRmsNorm, 3.4, 4.6);
 }
 
 TEST(PeriodicVsTransient, ForceDriven1dofBackwardSchemeConvergesAtSecondOrder) {
@@ -197,10 +199,7 @@ TEST(PeriodicVsTransient, ForceDriven1dofBackwardSchemeConvergesAtSecondOrder) {
   PrintReference("1dof force", reference);
   const std::vector<int> ns = {800, 1600, 3200};
   const auto backward = Errors(model, Scheme::kBackward2, ns, input, reference);
-  const double order = FittedOrder(ns, Rms(backward));
-  std::printf("  backward2 order (rms) %.2f\n", order);
-  EXPECT_GT(order, 1.7);
-  EXPECT_LT(order, 2.3);
+  ExpectOrder(Scheme::kBackward2, ns, backward, kRmsNorm, 1.7, 2.3);
 }
 
 TEST(PeriodicVsTransient, SteadyStateDoesNotDependOnTheStart) {

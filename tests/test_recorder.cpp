@@ -302,16 +302,8 @@ TEST(Recorder, RefusesToOverwriteASessionOrAJournalUnlessForced) {
   EXPECT_EQ(ReadSession(path).experiment("a").sample_count(), 100u);
 }
 
-// The message of the RecorderError `call` throws ("" when it does not throw).
-template <typename F>
-std::string ErrorOf(F call) {
-  try {
-    call();
-  } catch (const RecorderError& e) {
-    return e.what();
-  }
-  return "";
-}
+// The message of the RecorderError a call throws ("" when none).
+constexpr auto ErrorOf = [](auto&& call) { return strut::test::ErrorOf<RecorderError>(call); };
 
 TEST(Recorder, BadCallsGetErrorsNamingTheExperimentAndChannel) {
   TempDir dir;

@@ -11,6 +11,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <initializer_list>
 #include <limits>
 #include <nlohmann/json.hpp>
@@ -106,6 +107,20 @@ std::size_t LineCount(const std::string& text) {
   return text.empty() ? 0
                       : static_cast<std::size_t>(std::count(text.begin(), text.end(), '\n')) + 1;
 }
+
+// A good session file broken by `edit` in a temporary directory, and the error the reader names.
+struct BrokenFile {
+  explicit BrokenFile(const std::function<void(FileEditor&)>& edit) : path(WriteGoodFile(dir)) {
+    {
+      FileEditor editor(path);
+      edit(editor);
+    }
+    error = ReadError(path);
+  }
+  TempDir dir;
+  std::string path;
+  std::string error;
+};
 
 // Replaces the default logger while alive and keeps what was logged.
 class CapturedLog {
@@ -471,242 +486,182 @@ TEST(SessionFiles, RejectsATruncatedFile) {
 // One test per defect: the message names the file, the experiment and the item
 
 TEST(SessionFiles, RejectsAWrongFormatName) {
-  TempDir dir;
-  const std::string path = WriteGoodFile(dir);
-  FileEditor(path).SetString("/", "format", "other-format");
-  ExpectMentions(ReadError(path), {path, "attribute 'format'", "other-format", "damper-session"});
+  const BrokenFile f([](FileEditor& edit) { edit.SetString("/", "format", "other-format"); });
+  ExpectMentions(f.error, {f.path, "attribute 'format'", "other-format", "damper-session"});
 }
 
 TEST(SessionFiles, RejectsAnUnsupportedFormatVersion) {
-  TempDir dir;
-  const std::string path = WriteGoodFile(dir);
-  FileEditor(path).SetNumber("/", "format_version", 2, H5T_STD_I32LE);
-  ExpectMentions(ReadError(path), {path, "attribute 'format_version'", "unsupported version 2"});
+  const BrokenFile f([](FileEditor& edit) { edit.SetNumber("/", "format_version", 2, H5T_STD_I32LE); });
+  ExpectMentions(f.error, {f.path, "attribute 'format_version'", "unsupported version 2"});
 }
 
 TEST(SessionFiles, RejectsAMissingRootAttribute) {
-  TempDir dir;
-  const std::string path = WriteGoodFile(dir);
-  FileEditor(path).RemoveAttribute("/", "damper_serial");
-  EXPECT_EQ(ReadError(path), path + ": attribute 'damper_serial': missing");
+  const BrokenFile f([](FileEditor& edit) { edit.RemoveAttribute("/", "damper_serial"); });
+  EXPECT_EQ(f.error, f.path + ": attribute 'damper_serial': missing");
 }
 
 TEST(SessionFiles, RejectsAFileWithoutExperimentsGroup) {
-  TempDir dir;
-  const std::string path = WriteGoodFile(dir);
-  FileEditor(path).Remove("/experiments");
-  EXPECT_EQ(ReadError(path), path + ": group '/experiments': missing");
+  const BrokenFile f([](FileEditor& edit) { edit.Remove("/experiments"); });
+  EXPECT_EQ(f.error, f.path + ": group '/experiments': missing");
 }
 
 TEST(SessionFiles, RejectsAMissingExperimentAttribute) {
-  TempDir dir;
-  const std::string path = WriteGoodFile(dir);
-  FileEditor(path).RemoveAttribute("/experiments/b", "sample_rate");
-  EXPECT_EQ(ReadError(path), path + ": experiment 'b': attribute 'sample_rate': missing");
+  const BrokenFile f([](FileEditor& edit) { edit.RemoveAttribute("/experiments/b", "sample_rate"); });
+  EXPECT_EQ(f.error, f.path + ": experiment 'b': attribute 'sample_rate': missing");
 }
 
 TEST(SessionFiles, RejectsAStringWhereANumberIsRequired) {
-  TempDir dir;
-  const std::string path = WriteGoodFile(dir);
-  FileEditor(path).SetString("/experiments/a", "frequency", "2.0", true);
-  EXPECT_EQ(ReadError(path), path +
-                                 ": experiment 'a': attribute 'frequency': expected a number, "
-                                 "found a string (\"2.0\")");
+  const BrokenFile f([](FileEditor& edit) { edit.SetString("/experiments/a", "frequency", "2.0", true); });
+  EXPECT_EQ(f.error, f.path +
+                       ": experiment 'a': attribute 'frequency': expected a number, "
+                       "found a string (\"2.0\")");
 }
 
 TEST(SessionFiles, RejectsANumberWhereAStringIsRequired) {
-  TempDir dir;
-  const std::string path = WriteGoodFile(dir);
-  FileEditor(path).SetNumber("/experiments/c", "kind", 1, H5T_STD_I8LE);
-  EXPECT_EQ(ReadError(path),
-            path + ": experiment 'c': attribute 'kind': expected a string, found an integer");
+  const BrokenFile f([](FileEditor& edit) { edit.SetNumber("/experiments/c", "kind", 1, H5T_STD_I8LE); });
+  EXPECT_EQ(f.error,
+            f.path + ": experiment 'c': attribute 'kind': expected a string, found an integer");
 }
 
 TEST(SessionFiles, RejectsAnUnknownKind) {
-  TempDir dir;
-  const std::string path = WriteGoodFile(dir);
-  FileEditor(path).SetString("/experiments/c", "kind", "ramp");
-  EXPECT_EQ(ReadError(path), path +
-                                 ": experiment 'c': attribute 'kind': 'ramp' is not "
-                                 "\"periodic\", \"drop\" or \"static\"");
+  const BrokenFile f([](FileEditor& edit) { edit.SetString("/experiments/c", "kind", "ramp"); });
+  EXPECT_EQ(f.error, f.path +
+                       ": experiment 'c': attribute 'kind': 'ramp' is not "
+                       "\"periodic\", \"drop\" or \"static\"");
 }
 
 TEST(SessionFiles, RejectsAnUnknownStatus) {
-  TempDir dir;
-  const std::string path = WriteGoodFile(dir);
-  FileEditor(path).SetString("/experiments/b", "status", "running");
-  ExpectMentions(ReadError(path), {path, "experiment 'b'", "attribute 'status'", "'running'"});
+  const BrokenFile f([](FileEditor& edit) { edit.SetString("/experiments/b", "status", "running"); });
+  ExpectMentions(f.error, {f.path, "experiment 'b'", "attribute 'status'", "'running'"});
 }
 
 TEST(SessionFiles, RejectsANonPositiveSampleRate) {
-  TempDir dir;
-  const std::string path = WriteGoodFile(dir);
-  FileEditor(path).SetNumber("/experiments/c", "sample_rate", -10);
-  EXPECT_EQ(ReadError(path),
-            path + ": experiment 'c': attribute 'sample_rate': must be > 0, found -10");
+  const BrokenFile f([](FileEditor& edit) { edit.SetNumber("/experiments/c", "sample_rate", -10); });
+  EXPECT_EQ(f.error,
+            f.path + ": experiment 'c': attribute 'sample_rate': must be > 0, found -10");
 }
 
 TEST(SessionFiles, RejectsANonPositiveFrequency) {
-  TempDir dir;
-  const std::string path = WriteGoodFile(dir);
-  FileEditor(path).SetNumber("/experiments/a", "frequency", 0);
-  EXPECT_EQ(ReadError(path),
-            path + ": experiment 'a': attribute 'frequency': must be > 0, found 0");
+  const BrokenFile f([](FileEditor& edit) { edit.SetNumber("/experiments/a", "frequency", 0); });
+  EXPECT_EQ(f.error,
+            f.path + ": experiment 'a': attribute 'frequency': must be > 0, found 0");
 }
 
 TEST(SessionFiles, RejectsANonPositiveAmplitude) {
-  TempDir dir;
-  const std::string path = WriteGoodFile(dir);
-  FileEditor(path).SetNumber("/experiments/a", "amplitude", -0.01);
-  ExpectMentions(ReadError(path), {path, "experiment 'a'", "attribute 'amplitude'", "must be > 0"});
+  const BrokenFile f([](FileEditor& edit) { edit.SetNumber("/experiments/a", "amplitude", -0.01); });
+  ExpectMentions(f.error, {f.path, "experiment 'a'", "attribute 'amplitude'", "must be > 0"});
 }
 
 TEST(SessionFiles, RejectsAMissingStaticPosition) {
-  TempDir dir;
-  const std::string path = WriteGoodFile(dir);
-  FileEditor(path).RemoveAttribute("/experiments/a", "static_position");
-  EXPECT_EQ(ReadError(path), path + ": experiment 'a': attribute 'static_position': missing");
+  const BrokenFile f([](FileEditor& edit) { edit.RemoveAttribute("/experiments/a", "static_position"); });
+  EXPECT_EQ(f.error, f.path + ": experiment 'a': attribute 'static_position': missing");
 }
 
 TEST(SessionFiles, RejectsANegativeStaticPosition) {
-  TempDir dir;
-  const std::string path = WriteGoodFile(dir);
-  FileEditor(path).SetNumber("/experiments/a", "static_position", -0.1);
-  ExpectMentions(ReadError(path), {path, "experiment 'a'", "attribute 'static_position'", ">= 0"});
+  const BrokenFile f([](FileEditor& edit) { edit.SetNumber("/experiments/a", "static_position", -0.1); });
+  ExpectMentions(f.error, {f.path, "experiment 'a'", "attribute 'static_position'", ">= 0"});
 }
 
 TEST(SessionFiles, RejectsAMissingWaveform) {
-  TempDir dir;
-  const std::string path = WriteGoodFile(dir);
-  FileEditor(path).RemoveAttribute("/experiments/a", "waveform");
-  EXPECT_EQ(ReadError(path), path + ": experiment 'a': attribute 'waveform': missing");
+  const BrokenFile f([](FileEditor& edit) { edit.RemoveAttribute("/experiments/a", "waveform"); });
+  EXPECT_EQ(f.error, f.path + ": experiment 'a': attribute 'waveform': missing");
 }
 
 TEST(SessionFiles, RejectsFractionalPeriods) {
-  TempDir dir;
-  const std::string path = WriteGoodFile(dir);
-  FileEditor(path).SetNumber("/experiments/a", "periods", 2.5);
-  EXPECT_EQ(ReadError(path),
-            path + ": experiment 'a': attribute 'periods': must be a whole number, found 2.5");
+  const BrokenFile f([](FileEditor& edit) { edit.SetNumber("/experiments/a", "periods", 2.5); });
+  EXPECT_EQ(f.error,
+            f.path + ": experiment 'a': attribute 'periods': must be a whole number, found 2.5");
 }
 
 TEST(SessionFiles, RejectsZeroPeriodsInACompleteExperiment) {
-  TempDir dir;
-  const std::string path = WriteGoodFile(dir);
-  FileEditor(path).SetNumber("/experiments/a", "periods", 0, H5T_STD_I64LE);
-  EXPECT_EQ(ReadError(path), path + ": experiment 'a': attribute 'periods': must be >= 1, found 0");
+  const BrokenFile f([](FileEditor& edit) { edit.SetNumber("/experiments/a", "periods", 0, H5T_STD_I64LE); });
+  EXPECT_EQ(f.error, f.path + ": experiment 'a': attribute 'periods': must be >= 1, found 0");
 }
 
 TEST(SessionFiles, RejectsASampleCountThatDoesNotMatchThePeriods) {
-  TempDir dir;
-  const std::string path = WriteGoodFile(dir);
-  FileEditor(path).Resize("/experiments/a", 310, 200, "absolute");
-  EXPECT_EQ(ReadError(path), path +
-                                 ": experiment 'a': samples: 310 samples, but periods * "
-                                 "sample_rate / frequency = 3 * 200 / 2 = 300 (±1 accepted)");
+  const BrokenFile f([](FileEditor& edit) { edit.Resize("/experiments/a", 310, 200, "absolute"); });
+  EXPECT_EQ(f.error, f.path +
+                       ": experiment 'a': samples: 310 samples, but periods * "
+                       "sample_rate / frequency = 3 * 200 / 2 = 300 (±1 accepted)");
 }
 
 TEST(SessionFiles, RejectsAMissingDropMass) {
-  TempDir dir;
-  const std::string path = WriteGoodFile(dir);
-  FileEditor(path).RemoveAttribute("/experiments/b", "drop_mass");
-  EXPECT_EQ(ReadError(path), path + ": experiment 'b': attribute 'drop_mass': missing");
+  const BrokenFile f([](FileEditor& edit) { edit.RemoveAttribute("/experiments/b", "drop_mass"); });
+  EXPECT_EQ(f.error, f.path + ": experiment 'b': attribute 'drop_mass': missing");
 }
 
 TEST(SessionFiles, RejectsANonPositiveImpactVelocity) {
-  TempDir dir;
-  const std::string path = WriteGoodFile(dir);
-  FileEditor(path).SetNumber("/experiments/b", "impact_velocity", 0);
-  EXPECT_EQ(ReadError(path),
-            path + ": experiment 'b': attribute 'impact_velocity': must be > 0, found 0");
+  const BrokenFile f([](FileEditor& edit) { edit.SetNumber("/experiments/b", "impact_velocity", 0); });
+  EXPECT_EQ(f.error,
+            f.path + ": experiment 'b': attribute 'impact_velocity': must be > 0, found 0");
 }
 
 TEST(SessionFiles, RejectsAMissingChannelDataset) {
-  TempDir dir;
-  const std::string path = WriteGoodFile(dir);
-  FileEditor(path).Remove("/experiments/b/pressure");
-  EXPECT_EQ(ReadError(path), path + ": experiment 'b': channel 'pressure': missing dataset");
+  const BrokenFile f([](FileEditor& edit) { edit.Remove("/experiments/b/pressure"); });
+  EXPECT_EQ(f.error, f.path + ": experiment 'b': channel 'pressure': missing dataset");
 }
 
 TEST(SessionFiles, RejectsAMissingTimeDataset) {
-  TempDir dir;
-  const std::string path = WriteGoodFile(dir);
-  FileEditor(path).Remove("/experiments/c/time");
-  EXPECT_EQ(ReadError(path), path + ": experiment 'c': dataset 'time': missing dataset");
+  const BrokenFile f([](FileEditor& edit) { edit.Remove("/experiments/c/time"); });
+  EXPECT_EQ(f.error, f.path + ": experiment 'c': dataset 'time': missing dataset");
 }
 
 TEST(SessionFiles, RejectsAChannelWithoutUnits) {
-  TempDir dir;
-  const std::string path = WriteGoodFile(dir);
-  FileEditor(path).RemoveAttribute("/experiments/a/force", "units");
-  EXPECT_EQ(ReadError(path),
-            path + ": experiment 'a': channel 'force': attribute 'units': missing");
+  const BrokenFile f([](FileEditor& edit) { edit.RemoveAttribute("/experiments/a/force", "units"); });
+  EXPECT_EQ(f.error,
+            f.path + ": experiment 'a': channel 'force': attribute 'units': missing");
 }
 
 TEST(SessionFiles, RejectsUnknownUnits) {
-  TempDir dir;
-  const std::string path = WriteGoodFile(dir);
-  FileEditor(path).SetString("/experiments/a/stroke", "units", "mm");
-  ExpectMentions(ReadError(path), {path, "experiment 'a'", "channel 'stroke': attribute 'units'",
+  const BrokenFile f([](FileEditor& edit) { edit.SetString("/experiments/a/stroke", "units", "mm"); });
+  ExpectMentions(f.error, {f.path, "experiment 'a'", "channel 'stroke': attribute 'units'",
                                    "unknown units 'mm'"});
 }
 
 TEST(SessionFiles, RejectsUnknownUnitsOnAFurtherChannel) {
-  TempDir dir;
-  const std::string path = WriteGoodFile(dir);
-  FileEditor(path).SetString("/experiments/a/temperature", "units", "degC");
+  const BrokenFile f([](FileEditor& edit) { edit.SetString("/experiments/a/temperature", "units", "degC"); });
   ExpectMentions(
-      ReadError(path),
-      {path, "experiment 'a'", "channel 'temperature': attribute 'units'", "unknown units 'degC'"});
+      f.error,
+      {f.path, "experiment 'a'", "channel 'temperature': attribute 'units'", "unknown units 'degC'"});
 }
 
 TEST(SessionFiles, RejectsEmptyUnits) {
-  TempDir dir;
-  const std::string path = WriteGoodFile(dir);
-  FileEditor(path).SetString("/experiments/b/force", "units", "");
-  ExpectMentions(ReadError(path),
-                 {path, "experiment 'b'", "channel 'force': attribute 'units'", "empty"});
+  const BrokenFile f([](FileEditor& edit) { edit.SetString("/experiments/b/force", "units", ""); });
+  ExpectMentions(f.error,
+                 {f.path, "experiment 'b'", "channel 'force': attribute 'units'", "empty"});
 }
 
 TEST(SessionFiles, RejectsUnitsOfTheWrongQuantity) {
-  TempDir dir;
-  const std::string path = WriteGoodFile(dir);
-  FileEditor(path).SetString("/experiments/a/pressure", "units", "N");
-  EXPECT_EQ(ReadError(path),
-            path + ": experiment 'a': channel 'pressure': attribute 'units': 'N', expected 'Pa'");
+  const BrokenFile f([](FileEditor& edit) { edit.SetString("/experiments/a/pressure", "units", "N"); });
+  EXPECT_EQ(f.error,
+            f.path + ": experiment 'a': channel 'pressure': attribute 'units': 'N', expected 'Pa'");
 }
 
 TEST(SessionFiles, RejectsTimeUnitsOtherThanSeconds) {
-  TempDir dir;
-  const std::string path = WriteGoodFile(dir);
-  FileEditor(path).SetString("/experiments/a/time", "units", "ms");
-  ExpectMentions(ReadError(path),
-                 {path, "experiment 'a'", "dataset 'time': attribute 'units'", "'ms'"});
+  const BrokenFile f([](FileEditor& edit) { edit.SetString("/experiments/a/time", "units", "ms"); });
+  ExpectMentions(f.error,
+                 {f.path, "experiment 'a'", "dataset 'time': attribute 'units'", "'ms'"});
 }
 
 TEST(SessionFiles, RejectsPressureWithoutReference) {
-  TempDir dir;
-  const std::string path = WriteGoodFile(dir);
-  FileEditor(path).RemoveAttribute("/experiments/c/pressure", "reference");
-  EXPECT_EQ(ReadError(path),
-            path + ": experiment 'c': channel 'pressure': attribute 'reference': missing");
+  const BrokenFile f([](FileEditor& edit) { edit.RemoveAttribute("/experiments/c/pressure", "reference"); });
+  EXPECT_EQ(f.error,
+            f.path + ": experiment 'c': channel 'pressure': attribute 'reference': missing");
 }
 
 TEST(SessionFiles, RejectsAnUnknownPressureReference) {
-  TempDir dir;
-  const std::string path = WriteGoodFile(dir);
-  FileEditor(path).SetString("/experiments/c/pressure", "reference", "sealed");
-  EXPECT_EQ(ReadError(path), path +
-                                 ": experiment 'c': channel 'pressure': attribute 'reference': "
-                                 "'sealed' is neither \"absolute\" nor \"gauge\"");
+  const BrokenFile f([](FileEditor& edit) { edit.SetString("/experiments/c/pressure", "reference", "sealed"); });
+  EXPECT_EQ(f.error, f.path +
+                       ": experiment 'c': channel 'pressure': attribute 'reference': "
+                       "'sealed' is neither \"absolute\" nor \"gauge\"");
 }
 
 TEST(SessionFiles, RejectsDatasetsOfDifferentLengths) {
-  TempDir dir;
-  const std::string path = WriteGoodFile(dir);
-  FileEditor(path).SetDataset("/experiments/a/force", std::vector<double>(299, 1.0), {299}, "N");
-  EXPECT_EQ(ReadError(path),
-            path + ": experiment 'a': channel 'force': 299 samples, but 'time' has 300");
+  const BrokenFile f([](FileEditor& edit) {
+    edit.SetDataset("/experiments/a/force", std::vector<double>(299, 1.0), {299}, "N");
+  });
+  EXPECT_EQ(f.error,
+            f.path + ": experiment 'a': channel 'force': 299 samples, but 'time' has 300");
 }
 
 TEST(SessionFiles, RejectsNaNAndInfSamples) {
@@ -775,24 +730,19 @@ TEST(SessionFiles, RejectsADatasetThatIsNotOneDimensional) {
 }
 
 TEST(SessionFiles, RejectsAnEmptyExperiment) {
-  TempDir dir;
-  const std::string path = WriteGoodFile(dir);
-  FileEditor(path).Resize("/experiments/c", 0, 10, "absolute");
-  EXPECT_EQ(ReadError(path), path + ": experiment 'c': samples: no samples (empty experiment)");
+  const BrokenFile f([](FileEditor& edit) { edit.Resize("/experiments/c", 0, 10, "absolute"); });
+  EXPECT_EQ(f.error, f.path + ": experiment 'c': samples: no samples (empty experiment)");
 }
 
 TEST(SessionFiles, ListsEveryDefectOnItsOwnLine) {
-  TempDir dir;
-  const std::string path = WriteGoodFile(dir);
-  {
-    FileEditor edit(path);
+  const BrokenFile f([](FileEditor& edit) {
     edit.RemoveAttribute("/", "rig");
     edit.RemoveAttribute("/experiments/a", "frequency");
     edit.SetString("/experiments/b/force", "units", "kN");
-  }
-  const std::string message = ReadError(path);
-  EXPECT_EQ(message, path + ": attribute 'rig': missing\n" + path +
-                         ": experiment 'a': attribute 'frequency': missing\n" + path +
+  });
+  const std::string message = f.error;
+  EXPECT_EQ(message, f.path + ": attribute 'rig': missing\n" + f.path +
+                         ": experiment 'a': attribute 'frequency': missing\n" + f.path +
                          ": experiment 'b': channel 'force': attribute 'units': unknown "
                          "units 'kN' (accepted: m, N, Pa, K, s, V, A, m/s, m/s^2, m/s2, kg, 1)");
   EXPECT_EQ(LineCount(message), 3u);

@@ -28,17 +28,6 @@ using test::kSilverboxData;
 using test::kSilverboxMat;
 constexpr long kRows = 131072;
 
-// The error text of f(), "" when it does not throw ImportError.
-template <class F>
-std::string ImportErrorOf(F&& f) {
-  try {
-    f();
-  } catch (const ImportError& e) {
-    return e.what();
-  }
-  return "";
-}
-
 void WriteText(const std::string& path, const std::string& text) {
   std::ofstream(path) << text;
 }
@@ -133,6 +122,9 @@ TEST(SilverboxImport, SessionFileRoundTripKeepsEverySample) {
     }
   }
 }
+
+// The message of the ImportError a call throws ("" when none).
+constexpr auto ImportErrorOf = [](auto&& call) { return strut::test::ErrorOf<ImportError>(call); };
 
 TEST(ImportErrors, NameTheFileLineAndColumn) {
   test::TempDir dir;

@@ -21,17 +21,6 @@ class FileError : public std::runtime_error {
 };
 using Reader = strut::daq::TomlReader<FileError>;
 
-// The message `read` throws as FileError, or "(no error)".
-template <typename F>
-std::string ErrorOf(F read) {
-  try {
-    read();
-  } catch (const FileError& e) {
-    return e.what();
-  }
-  return "(no error)";
-}
-
 TEST(TomlReader, ReadsTypedValuesAndLeavesAbsentKeysEmpty) {
   const Reader r("f.toml");
   const toml::table root = r.Parse("rate = 2000\nname = \"rig 3\"\non = true\n[limits]\nupper = 0.25\ncount = 4\n");
@@ -44,6 +33,9 @@ TEST(TomlReader, ReadsTypedValuesAndLeavesAbsentKeysEmpty) {
   EXPECT_FALSE(r.Number(limits, Reader::In("limits"), "lower").has_value());
   EXPECT_NO_THROW(r.RefuseUnknown(limits, Reader::In("limits"), {"upper", "count"}));
 }
+
+// The message a read throws as FileError ("" when none).
+constexpr auto ErrorOf = [](auto&& call) { return strut::test::ErrorOf<FileError>(call); };
 
 TEST(TomlReader, ErrorsNameTheFileLineKeyAndWhatWasFound) {
   const Reader r("f.toml");

@@ -26,6 +26,18 @@ class TempDir {
 inline constexpr const char* kChromium = "/usr/bin/chromium";
 bool ChromiumAvailable();
 
+//! The message of the `Error` that `call` throws, "" when it throws none; any other exception
+//! propagates and fails the test.
+template <class Error, class F>
+std::string ErrorOf(F&& call) {
+  try {
+    call();
+  } catch (const Error& e) {
+    return e.what();
+  }
+  return "";
+}
+
 //! A shell command's exit code, stdout and stderr (captured in files named after `stem`).
 struct ShellResult {
   int exit_code = -1;

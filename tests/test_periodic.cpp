@@ -31,6 +31,15 @@ PeriodicInput TwoDofInput(Causality causality, std::span<const double> theta, in
   return ForceOf(PeriodicSolver(Model::Build("2dof", Causality::kStrokeInput)).Solve(stroke, theta));
 }
 
+// The solver for `scheme` converged to a tolerance of 1e-2 (of the unknowns' scales), far below the
+// effect of a finite-difference step.
+PeriodicSolver TightSolver(const Model& model, Scheme scheme) {
+  PeriodicSolverOptions tight;
+  tight.tolerance = 1e-2;
+  tight.scheme = scheme;
+  return PeriodicSolver(model, tight);
+}
+
 // Input directions on n points (columns): a mean shift, the first cosine, the sine of `harmonic`.
 Eigen::MatrixXd InputDirections(int n, int harmonic) {
   Eigen::MatrixXd directions(n, 3);
@@ -256,10 +265,7 @@ TEST(PeriodicSolver, InputGradientsMatchFiniteDifferencesOfTheSolver) {
       const auto theta = model.defaults().values();
       const int n = 200;
       const PeriodicInput input = TwoDofInput(causality, theta, n);
-      PeriodicSolverOptions tight;
-      tight.tolerance = 1e-2;
-      tight.scheme = scheme;
-      PeriodicSolver solver(model, tight);
+      PeriodicSolver solver = TightSolver(model, scheme);
       const PeriodicSolution base = solver.Solve(input, theta);
       const Eigen::MatrixXd directions = InputDirections(n, 3);
       // Two functionals: smooth weights on every output, and a single point of the first one.
@@ -303,10 +309,7 @@ TEST(PeriodicSolver, InputSensitivitiesMatchFiniteDifferencesOfTheSolver) {
       const auto theta = model.defaults().values();
       const int n = 200;
       const PeriodicInput input = TwoDofInput(causality, theta, n);
-      PeriodicSolverOptions tight;
-      tight.tolerance = 1e-2;
-      tight.scheme = scheme;
-      PeriodicSolver solver(model, tight);
+      PeriodicSolver solver = TightSolver(model, scheme);
       const PeriodicSolution base = solver.Solve(input, theta);
       const Eigen::MatrixXd directions = InputDirections(n, 17);
       const auto sens = solver.InputSensitivities(base, theta, directions);
@@ -343,15 +346,10 @@ TEST(PeriodicSolver, SensitivitiesMatchFiniteDifferencesOfTheSolver) {
     SCOPED_TRACE(std::string(ToString(causality)));
     const Model model = Model::Build("2dof", causality);
     const auto theta = model.defaults().values();
-    PeriodicInput input = StrokeH(200);
-    if (causality == Causality::kForceInput) {
-      PeriodicSolver s(Model::Build("2dof", Causality::kStrokeInput));
-      input = ForceOf(s.Solve(input, theta));
-    }
+    const PeriodicInput input = TwoDofInput(causality, theta, 200);
     // Differences of the solver need it converged far below the effect of the step h.
-    PeriodicSolverOptions tight;
-    tight.tolerance = 1e-2;
-    PeriodicSolver solver(model, tight);
+    const Scheme scheme = PeriodicSolverOptions{}.scheme;
+    PeriodicSolver solver = TightSolver(model, scheme);
     const PeriodicSolution base = solver.Solve(input, theta);
     const auto sens = solver.OutputSensitivities(base, theta);
     ASSERT_EQ(sens.size(), base.channels.size());
@@ -360,7 +358,7 @@ TEST(PeriodicSolver, SensitivitiesMatchFiniteDifferencesOfTheSolver) {
       auto plus = theta, minus = theta;
       plus[i] += h;
       minus[i] -= h;
-      PeriodicSolver fd_solver(model, tight);
+      PeriodicSolver fd_solver = TightSolver(model, scheme);
       const PeriodicSolution sp = fd_solver.Solve(input, plus, &base);
       const PeriodicSolution sm = fd_solver.Solve(input, minus, &base);
       for (std::size_t c = 0; c < base.channels.size(); ++c) {

@@ -2,12 +2,9 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
-#include <fstream>
-#include <nlohmann/json.hpp>
 
 #include "strut/ident/discover.h"
 #include "strut/sim/periodic_session.h"
-#include "test_support.h"
 
 namespace strut::ident {
 namespace {

@@ -14,7 +14,6 @@
 #include "strut/sim/draw.h"
 #include "strut/sim/drop_fit.h"
 #include "strut/sim/simulated_rig.h"
-#include "test_support.h"
 
 namespace strut::sim {
 namespace {

@@ -7,7 +7,6 @@
 
 #include <cmath>
 #include <cstdio>
-#include <fstream>
 #include <nlohmann/json.hpp>
 
 #include "strut/report/fit_report.h"
@@ -15,7 +14,6 @@
 #include "strut/sim/draw.h"
 #include "strut/sim/drop_prediction.h"
 #include "strut/sim/simulated_rig.h"
-#include "test_support.h"
 
 namespace strut::sim {
 namespace {

@@ -8,7 +8,6 @@
 #include <utility>
 
 #include "strut/ident/periodic.h"
-#include "test_support.h"
 
 namespace strut::ident {
 namespace {

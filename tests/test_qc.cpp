@@ -8,15 +8,15 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 
+#include "lot_sessions.h"
 #include "strut/daq/session.h"
-#include "strut/report/fit_report.h"
-#include "strut/report/qc_report.h"
 #include "strut/qc/decision.h"
 #include "strut/qc/history.h"
 #include "strut/qc/matrix.h"
+#include "strut/report/fit_report.h"
+#include "strut/report/qc_report.h"
 #include "strut/sim/simulated_rig.h"
 #include "strut/study/lot.h"
-#include "lot_sessions.h"
 #include "test_support.h"
 
 namespace strut::qc {

@@ -16,9 +16,9 @@
 #include <thread>
 
 #include "recorder_fixtures.h"
+#include "session_events.h"
 #include "strut/daq/recorder.h"
 #include "strut/daq/session.h"
-#include "session_events.h"
 #include "test_support.h"
 
 namespace strut::daq {

@@ -10,9 +10,9 @@
 #include <thread>
 
 #include "replay_fixtures.h"
+#include "session_events.h"
 #include "strut/daq/can_acquisition.h"
 #include "strut/daq/replay.h"
-#include "session_events.h"
 #include "test_support.h"
 
 namespace strut::daq {

@@ -15,11 +15,11 @@
 #include <set>
 
 #include "rig_plant.h"
+#include "session_events.h"
 #include "strut/daq/modbus_controller.h"
 #include "strut/daq/recorder.h"
 #include "strut/daq/session.h"
 #include "strut/rig/matrix_runner.h"
-#include "session_events.h"
 #include "test_support.h"
 
 namespace strut::rig {

@@ -19,11 +19,11 @@
 #include <thread>
 
 #include "rig_plant.h"
+#include "session_events.h"
 #include "strut/daq/can_transport.h"
 #include "strut/daq/modbus_controller.h"
 #include "strut/daq/recorder.h"
 #include "strut/daq/session.h"
-#include "session_events.h"
 #include "strut_cli.h"
 
 extern char** environ;

@@ -4,10 +4,8 @@
 #include <algorithm>
 #include <cmath>
 #include <fmt/format.h>
-#include <fstream>
 #include <map>
 #include <regex>
-#include <nlohmann/json.hpp>
 
 #include "strut/ident/session_fit.h"
 #include "strut/rig/test_matrix.h"
@@ -15,7 +13,6 @@
 #include "strut/sim/periodic_session.h"
 #include "strut/sim/recorded_truth.h"
 #include "strut/sim/simulated_rig.h"
-#include "test_support.h"
 
 namespace strut::ident {
 namespace {

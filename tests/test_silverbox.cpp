@@ -8,14 +8,14 @@
 #include <fstream>
 #include <random>
 
+#include "silverbox_data.h"
+#include "strut/daq/import.h"
 #include "strut/daq/session.h"
 #include "strut/ident/estimator.h"
-#include "strut/daq/import.h"
 #include "strut/ident/initial_values.h"
+#include "strut/sim/transient.h"
 #include "strut/study/oscillator.h"
 #include "strut/study/silverbox.h"
-#include "strut/sim/transient.h"
-#include "silverbox_data.h"
 #include "test_support.h"
 
 namespace strut::ident {

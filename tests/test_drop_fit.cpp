@@ -13,6 +13,7 @@
 #include "strut/ident/session_fit.h"
 #include "strut/sim/draw.h"
 #include "strut/sim/drop_fit.h"
+#include "session_fixtures.h"
 #include "strut/sim/simulated_rig.h"
 
 namespace strut::sim {
@@ -145,7 +146,7 @@ TEST(PrepareTransientExperiments, NamesTheFileAndExperimentOfABadDrop) {
 // several times more sharply than the matrix alone (strut bench dropfit: 5.9-15 times on 10 units).
 TEST(DropFit, ShakerMatrixPlusOneDropRecoversADrawnUnitsTruth) {
   const std::uint64_t seed = 1001;
-  const Truth truth = DrawUnit(WithIdealRig(DefaultTruth()), UnitDraw{}, seed);
+  const Truth truth = test::DrawnIdealUnit(seed);
   const SimulatedRig rig(truth);
   RigRunOptions run;
   run.seed = seed;

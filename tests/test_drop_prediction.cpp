@@ -13,6 +13,7 @@
 #include "strut/ident/session_fit.h"
 #include "strut/sim/draw.h"
 #include "strut/sim/drop_prediction.h"
+#include "session_fixtures.h"
 #include "strut/sim/simulated_rig.h"
 
 namespace strut::sim {
@@ -249,7 +250,7 @@ TEST(FitJson, ReadsBackParametersAndCovariance) {
 // intervals.
 TEST(DropPrediction, ShakerFitOfDrawnUnitsPredictsTheTruthsDrop) {
   for (const std::uint64_t seed : {1001u, 1002u}) {
-    const Truth truth = DrawUnit(WithIdealRig(DefaultTruth()), UnitDraw{}, seed);
+    const Truth truth = test::DrawnIdealUnit(seed);
     const SimulatedRig rig(truth);
     RigRunOptions run;
     run.seed = seed;

@@ -5,7 +5,6 @@
 // every file.
 #include <gtest/gtest.h>
 #include <signal.h>
-#include <spawn.h>
 #include <sys/wait.h>
 
 #include <fmt/format.h>
@@ -23,8 +22,6 @@
 #include "strut/daq/session.h"
 #include "strut_cli.h"
 
-extern char** environ;
-
 namespace strut::daq {
 namespace {
 
@@ -39,16 +36,6 @@ using strut::test::RunStrut;
 using strut::test::TempDir;
 namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
-
-// Starts the child recorder; its pid.
-pid_t SpawnChild(const std::vector<std::string>& args) {
-  std::vector<char*> argv;
-  for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
-  argv.push_back(nullptr);
-  pid_t pid = -1;
-  if (posix_spawn(&pid, argv[0], nullptr, nullptr, argv.data(), environ) != 0) return -1;
-  return pid;
-}
 
 TEST(Recorder, StrutRecoverWritesAValidSessionAndLeavesTheJournalAlone) {
   TempDir dir;
@@ -164,7 +151,7 @@ TEST(Recorder, KillNineAtRandomMomentsLosesAtMostTheLastMomentAndRecoverMendsEve
     const std::string report = dir.file(fmt::format("k{:03}.txt", run));
     // 2 kHz on a 10x clock (20,000 samples a wall second), blocks of 50, 4 periods of 2 Hz an
     // experiment, sync every 100 ms.
-    const pid_t pid = SpawnChild({STRUT_RECORDER_CHILD, session, report, "2000", "10", "50",
+    const pid_t pid = test::Spawn({STRUT_RECORDER_CHILD, session, report, "2000", "10", "50",
                                   std::to_string(experiments(random)), "4", "2", "100"});
     ASSERT_GT(pid, 0);
     // Every tenth run is killed 0-30 ms after it started (inside Open, most likely); the others at

@@ -7,7 +7,6 @@
 #include <arpa/inet.h>
 #include <netinet/in.h>
 #include <signal.h>
-#include <spawn.h>
 #include <spdlog/fmt/fmt.h>
 #include <sys/socket.h>
 #include <sys/wait.h>
@@ -25,8 +24,6 @@
 #include "strut/daq/recorder.h"
 #include "strut/daq/session.h"
 #include "strut_cli.h"
-
-extern char** environ;
 
 namespace strut::rig {
 namespace {
@@ -104,15 +101,8 @@ amplitude = 0.03
   EXPECT_NE(no_journal.output.find("has no journal"), std::string::npos) << no_journal.output;
 }
 
-pid_t Spawn(const std::string& command_line) {
-  std::vector<std::string> args{"/bin/sh", "-c", "exec " + command_line};
-  std::vector<char*> argv;
-  for (auto& a : args) argv.push_back(a.data());
-  argv.push_back(nullptr);
-  pid_t pid = -1;
-  if (posix_spawn(&pid, argv[0], nullptr, nullptr, argv.data(), environ) != 0) return -1;
-  return pid;
-}
+// Starts a shell command line (its redirections included) as a child process: its pid, or -1.
+pid_t SpawnShell(const std::string& command_line) { return test::Spawn({"/bin/sh", "-c", "exec " + command_line}); }
 
 TEST(RigRunCli, KillNineMidExperimentThenResumeCompletesTheMatrixIntoTheSameFile) {
   TempDir dir;
@@ -126,7 +116,7 @@ TEST(RigRunCli, KillNineMidExperimentThenResumeCompletesTheMatrixIntoTheSameFile
   const std::string session = dir.file("s.h5");
   const std::string common = fmt::format("{} rig run {} --matrix {} --ramp-cycles 1 --static-rate 0.5 -o {}",
                                          STRUT_BINARY, rig.Args(), dir.file("m.toml"), session);
-  const pid_t pid = Spawn(common + " --serial K9 --no-progress > " + dir.file("first.log") + " 2>&1");
+  const pid_t pid = SpawnShell(common + " --serial K9 --no-progress > " + dir.file("first.log") + " 2>&1");
   ASSERT_GT(pid, 0);
   // Kill it once 'a' is recorded and 'b' is being recorded (the journal shows both).
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
@@ -217,7 +207,7 @@ TEST(RigRunCli, CtrlCPausesAfterTheExperimentAndSigtermStopsAtOnce) {
   const std::string session = dir.file("s.h5");
   const std::string common = fmt::format("{} rig run {} --matrix {} --ramp-cycles 1 --static-rate 0.5 --no-progress -o {}",
                                          STRUT_BINARY, rig.Args(), dir.file("m.toml"), session);
-  const pid_t first = Spawn(common + " --serial SG > " + dir.file("first.log") + " 2>&1");
+  const pid_t first = SpawnShell(common + " --serial SG > " + dir.file("first.log") + " 2>&1");
   ASSERT_GT(first, 0);
   ASSERT_TRUE(RecordingExperiment(first, session, 1)) << test::ReadFile(dir.file("first.log"));
   ASSERT_EQ(kill(first, SIGINT), 0);
@@ -225,7 +215,7 @@ TEST(RigRunCli, CtrlCPausesAfterTheExperimentAndSigtermStopsAtOnce) {
   const std::string paused = test::ReadFile(dir.file("first.log"));
   EXPECT_NE(paused.find("paused at the operator's request before experiment 'b'"), std::string::npos) << paused;
 
-  const pid_t second = Spawn(common + " --resume > " + dir.file("second.log") + " 2>&1");
+  const pid_t second = SpawnShell(common + " --resume > " + dir.file("second.log") + " 2>&1");
   ASSERT_GT(second, 0);
   ASSERT_TRUE(RecordingExperiment(second, session, 2)) << test::ReadFile(dir.file("second.log"));
   ASSERT_EQ(kill(second, SIGTERM), 0);

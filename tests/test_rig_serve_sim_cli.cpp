@@ -2,7 +2,6 @@
 // streams over CAN-over-UDP until SIGTERM, and refuses bad options naming them.
 #include <gtest/gtest.h>
 #include <signal.h>
-#include <spawn.h>
 #include <sys/socket.h>
 #include <sys/wait.h>
 
@@ -18,8 +17,6 @@
 #include "strut/sim/truth.h"
 #include "strut_cli.h"
 
-extern char** environ;
-
 namespace strut::sim {
 namespace {
 
@@ -33,11 +30,8 @@ TEST(ServeSimCommand, ServesTheControllerAndStreamsUntilSigterm) {
   const std::string can = fmt::format("udp:127.0.0.1:{}", receiver->local_port());
   std::vector<std::string> args = {STRUT_BINARY, "rig", "serve-sim", "--listen", listen, "--can", can,
                                    "--speed", "5", "--seed", "3", "--log-interval", "0"};
-  std::vector<char*> argv;
-  for (auto& a : args) argv.push_back(a.data());
-  argv.push_back(nullptr);
-  pid_t pid = 0;
-  ASSERT_EQ(posix_spawn(&pid, STRUT_BINARY, nullptr, nullptr, argv.data(), environ), 0);
+  const pid_t pid = test::Spawn(args);
+  ASSERT_GT(pid, 0);
   // The stream flows while the rig is idle, as a real acquisition's does.
   daq::CanAcquisition acquisition(std::move(receiver), [] {
     const Truth truth = DefaultTruth();

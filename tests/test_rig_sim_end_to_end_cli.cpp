@@ -7,7 +7,6 @@
 #include <arpa/inet.h>
 #include <netinet/in.h>
 #include <signal.h>
-#include <spawn.h>
 #include <spdlog/fmt/fmt.h>
 #include <sys/socket.h>
 #include <sys/wait.h>
@@ -24,8 +23,6 @@
 #include "strut/daq/session.h"
 #include "strut/sim/recorded_truth.h"
 #include "strut_cli.h"
-
-extern char** environ;
 
 namespace strut {
 namespace {
@@ -124,11 +121,8 @@ TEST(RigSimEndToEnd, ServeSimAndRigRunAsTwoProcessesRecordTheMatrixThatIdentifie
                                 fmt::format("exec {} rig serve-sim --listen 127.0.0.1:{} --can udp:127.0.0.1:{} {} "
                                             "--log-interval 0 > {} 2>&1",
                                             STRUT_BINARY, modbus, udp, unit, dir.file("serve.log"))};
-  std::vector<char*> argv;
-  for (auto& a : args) argv.push_back(a.data());
-  argv.push_back(nullptr);
-  pid_t server = -1;
-  ASSERT_EQ(posix_spawn(&server, argv[0], nullptr, nullptr, argv.data(), environ), 0);
+  const pid_t server = test::Spawn(args);
+  ASSERT_GT(server, 0);
   struct Reaper {  // the served rig ends with the test, however it ends
     pid_t pid;
     int status = -1;

@@ -7,6 +7,7 @@
 #include <map>
 #include <regex>
 
+#include "session_fixtures.h"
 #include "strut/ident/session_fit.h"
 #include "strut/rig/test_matrix.h"
 #include "strut/sim/draw.h"
@@ -17,21 +18,14 @@
 namespace strut::ident {
 namespace {
 
-//! The shipped rig with nothing the damper model leaves out (an ideal actuator, calibrated transducers).
-sim::Truth IdealRig() { return sim::WithIdealRig(sim::DefaultTruth()); }
-
-daq::Session DrawnSession(unsigned long seed) {
-  const sim::SimulatedRig rig(sim::DrawUnit(IdealRig(), sim::UnitDraw{}, seed));
-  sim::RigRunOptions run;
-  run.seed = seed;
-  return rig.RunMatrix(rig::StandardMatrixPlan(), run);
-}
+using test::DrawnIdealUnit;
+using test::DrawnUnitSession;
 
 TEST(SessionFit, TheThinnedGridOfTheSlowExperimentsFitsLikeEverySample) {
   // The default grid under stroke input keeps every sample phase only where the model may not be
   // smooth; the same fit on every sample phase (n = 200: experiment a at 5000 points) lands on the
   // same estimates, far within their sd, and the thinned grid is much smaller.
-  const daq::Session session = DrawnSession(23);
+  const daq::Session session = DrawnUnitSession(23);
   SessionFitOptions options;
   const Model model = Model::Build(options.composition, options.causality);
   const FitData thinned = PrepareFitData(session, "drawn", model, options.estimator.n);
@@ -54,7 +48,7 @@ TEST(SessionFit, TheThinnedGridOfTheSlowExperimentsFitsLikeEverySample) {
 //! near-stiction 1-3e4 s/m, where a force-driven stroke follows the load cell's noise in every stick
 //! phase), for force input.
 ParameterSet SlidingSealUnit(unsigned long seed, const Model& model) {
-  ParameterSet truth = sim::DrawUnit(IdealRig(), sim::UnitDraw{}, seed).Parameters(model);
+  ParameterSet truth = DrawnIdealUnit(seed).Parameters(model);
   truth.set("theta10", 2000.0);
   return truth;
 }
@@ -74,7 +68,7 @@ daq::Session QuietLoadCellSession(unsigned long seed) {
 TEST(SessionFit, DefaultsIdentifyADrawnUnitToItsNoiseFloor) {
   for (const unsigned long seed : {21ul, 22ul}) {
     SCOPED_TRACE(seed);
-    const daq::Session session = DrawnSession(seed);
+    const daq::Session session = DrawnUnitSession(seed);
     const auto truth = sim::ReadRecordedTruth(session);
     ASSERT_TRUE(truth);
     SessionFitOptions options;  // 2dof, stroke input, every parameter the data determine
@@ -138,7 +132,7 @@ TEST(SessionFit, CalibrationPartOfEachSdIsWhatAGainErrorMovesTheEstimateBy) {
   // each estimate's shift with the calibration part of its sd for a gain sd of that size. The
   // fitted outputs' gains act on their residuals, the input's (the stroke under stroke input, the
   // force under force input) through the measured and the estimated input.
-  const daq::Session rig_session = DrawnSession(23), quiet_session = QuietLoadCellSession(23);
+  const daq::Session rig_session = DrawnUnitSession(23), quiet_session = QuietLoadCellSession(23);
   struct Case {
     Causality causality;
     const char* channel;
@@ -201,7 +195,7 @@ TEST(SessionFit, CalibrationPartOfEachSdIsWhatAGainErrorMovesTheEstimateBy) {
 
 TEST(SessionFit, WhatNoExperimentReachesIsFixedAndNamed) {
   // An end stop 30 mm outside the stroke the matrix uses: nothing in the data can size it.
-  const daq::Session session = DrawnSession(23);
+  const daq::Session session = DrawnUnitSession(23);
   SessionFitOptions options;
   options.composition = "2dof+end-stop";
   options.assignments = "theta23=-0.03";
@@ -228,7 +222,7 @@ TEST(SessionFit, WhatNoExperimentReachesIsFixedAndNamed) {
 }
 
 TEST(SessionFit, ExcludeLeavesOutExperimentsAndChannelsAndNamesMistakes) {
-  const daq::Session session = DrawnSession(24);
+  const daq::Session session = DrawnUnitSession(24);
   const Model model = Model::Build("2dof", Causality::kStrokeInput);
   const FitData data = PrepareFitData(session, "drawn", model, 800, {"a", "c:force"});
   EXPECT_EQ(data.experiments.size(), 13u);
@@ -251,7 +245,7 @@ TEST(SessionFit, AnExperimentWithoutWholeSamplesPerPeriodKeepsEightHundredPoints
   // samples) is thinned. (The simulated rig records whole periods only: the copy of b is relabelled.)
   rig::MatrixPlan plan;
   plan.experiments = {{"b", "middle", 0.1, 0.133, 0.127}};
-  const sim::SimulatedRig rig(sim::DrawUnit(IdealRig(), sim::UnitDraw{}, 26));
+  const sim::SimulatedRig rig(DrawnIdealUnit(26));
   daq::Session session = rig.RunMatrix(plan);
   ASSERT_EQ(session.experiments.size(), 1u);
   daq::Experiment copy = session.experiments[0];
@@ -275,7 +269,7 @@ TEST(SessionFit, AnExperimentWithoutWholeSamplesPerPeriodKeepsEightHundredPoints
 
 TEST(SessionFit, AFitStoppedBeforeItConvergedSaysSoAndWhatToTry) {
   // One iteration from 20 % off cannot converge: the verdict (identify's exit code 2) says so.
-  const daq::Session session = DrawnSession(25);
+  const daq::Session session = DrawnUnitSession(25);
   SessionFitOptions options;
   options.estimator.max_iterations = 1;
   options.assignments = "theta4=0.006,theta15=22";

@@ -1,10 +1,13 @@
 #include "strut_cli.h"
 
+#include <spawn.h>
 #include <sys/wait.h>
 
 #include <array>
 #include <cstdio>
 #include <stdexcept>
+
+extern char** environ;
 
 namespace strut::test {
 
@@ -18,6 +21,15 @@ CommandResult RunStrut(const std::string& args) {
   const int status = pclose(pipe);
   result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
   return result;
+}
+
+pid_t Spawn(const std::vector<std::string>& argv) {
+  std::vector<char*> pointers;
+  for (const std::string& a : argv) pointers.push_back(const_cast<char*>(a.c_str()));
+  pointers.push_back(nullptr);
+  pid_t pid = -1;
+  if (posix_spawn(&pid, pointers[0], nullptr, nullptr, pointers.data(), environ) != 0) return -1;
+  return pid;
 }
 
 }  // namespace strut::test

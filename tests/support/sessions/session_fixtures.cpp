@@ -2,7 +2,9 @@
 
 #include "strut/daq/session.h"
 #include "strut/ident/model.h"
+#include "strut/sim/draw.h"
 #include "strut/sim/periodic_session.h"
+#include "strut/sim/simulated_rig.h"
 
 namespace strut::test {
 
@@ -19,6 +21,17 @@ void WriteTwoDofSession(const std::string& path, const std::string& labels, cons
 
 void WriteTwoDofSession(const std::string& path, const std::string& labels) {
   WriteTwoDofSession(path, labels, ident::Model::Build("2dof", ident::Causality::kStrokeInput).defaults());
+}
+
+sim::Truth DrawnIdealUnit(std::uint64_t seed) {
+  return sim::DrawUnit(sim::WithIdealRig(sim::DefaultTruth()), sim::UnitDraw{}, seed);
+}
+
+daq::Session DrawnUnitSession(std::uint64_t seed) {
+  const sim::SimulatedRig rig(DrawnIdealUnit(seed));
+  sim::RigRunOptions run;
+  run.seed = seed;
+  return rig.RunMatrix(rig::StandardMatrixPlan(), run);
 }
 
 }  // namespace strut::test

@@ -3,11 +3,14 @@
 // on strut_sim).
 #pragma once
 
+#include <cstdint>
 #include <string>
 #include <vector>
 
+#include "strut/daq/session.h"
 #include "strut/ident/parameters.h"
 #include "strut/rig/test_matrix.h"
+#include "strut/sim/truth.h"
 
 namespace strut::test {
 
@@ -20,5 +23,12 @@ void WriteTwoDofSession(const std::string& path, const std::string& labels, cons
 
 //! The same at the 2dof model's defaults, which 2dof fits to the noise floor.
 void WriteTwoDofSession(const std::string& path, const std::string& labels);
+
+//! A unit drawn (sim::DrawUnit, `seed`) around the shipped truth on an ideal rig: an ideal
+//! actuator and calibrated transducers, nothing the damper model leaves out.
+sim::Truth DrawnIdealUnit(std::uint64_t seed);
+
+//! DrawnIdealUnit(seed) through the standard matrix on the simulated rig, its noise drawn from `seed`.
+daq::Session DrawnUnitSession(std::uint64_t seed);
 
 }  // namespace strut::test

@@ -21,6 +21,7 @@
 #include <vector>
 
 #include "python_peer.h"
+#include "session_checks.h"
 #include "session_file_fixtures.h"
 #include "strut/daq/session.h"
 #include "test_support.h"
@@ -36,6 +37,7 @@ using strut::daq::SessionError;
 using strut::daq::WriteOptions;
 using strut::daq::WriteSession;
 using strut::test::ExpectMentions;
+using strut::test::ExpectSameSession;
 using strut::test::FileEditor;
 using strut::test::FileSizeLimit;
 using strut::test::MakeDrop;
@@ -49,45 +51,6 @@ using strut::test::TimeAxis;
 using strut::test::WriteGoodFile;
 
 constexpr double kTwoPi = 2 * std::numbers::pi;
-
-// ---------------------------------------------------------------------------------------------
-// Sessions in memory
-
-void ExpectSameExperiment(const Experiment& expected, const Experiment& actual) {
-  SCOPED_TRACE("experiment " + expected.label);
-  EXPECT_EQ(actual.label, expected.label);
-  EXPECT_EQ(actual.kind, expected.kind);
-  EXPECT_EQ(actual.status, expected.status);
-  EXPECT_EQ(actual.sample_rate, expected.sample_rate);
-  EXPECT_EQ(actual.frequency, expected.frequency);
-  EXPECT_EQ(actual.amplitude, expected.amplitude);
-  EXPECT_EQ(actual.static_position, expected.static_position);
-  EXPECT_EQ(actual.waveform, expected.waveform);
-  EXPECT_EQ(actual.periods, expected.periods);
-  EXPECT_EQ(actual.group, expected.group);
-  EXPECT_EQ(actual.drop_mass, expected.drop_mass);
-  EXPECT_EQ(actual.impact_velocity, expected.impact_velocity);
-  EXPECT_EQ(actual.time, expected.time);
-  EXPECT_EQ(actual.extra_attributes, expected.extra_attributes);
-  ASSERT_EQ(actual.channels.size(), expected.channels.size());
-  for (std::size_t i = 0; i < expected.channels.size(); ++i) {
-    EXPECT_EQ(actual.channels[i].name, expected.channels[i].name);
-    EXPECT_EQ(actual.channels[i].units, expected.channels[i].units);
-    EXPECT_EQ(actual.channels[i].reference, expected.channels[i].reference);
-    EXPECT_EQ(actual.channels[i].samples, expected.channels[i].samples);
-  }
-}
-
-void ExpectSameSession(const Session& expected, const Session& actual) {
-  EXPECT_EQ(actual.format_version, expected.format_version);
-  EXPECT_EQ(actual.created_utc, expected.created_utc);
-  EXPECT_EQ(actual.damper_serial, expected.damper_serial);
-  EXPECT_EQ(actual.rig, expected.rig);
-  ASSERT_EQ(actual.experiments.size(), expected.experiments.size());
-  for (std::size_t i = 0; i < expected.experiments.size(); ++i) {
-    ExpectSameExperiment(expected.experiments[i], actual.experiments[i]);
-  }
-}
 
 // ---------------------------------------------------------------------------------------------
 // Files

@@ -8,6 +8,7 @@
 #include <fstream>
 #include <random>
 
+#include "session_checks.h"
 #include "silverbox_data.h"
 #include "strut/daq/import.h"
 #include "strut/daq/session.h"
@@ -107,20 +108,8 @@ TEST(SilverboxImport, SessionFileRoundTripKeepsEverySample) {
   const daq::Session back = daq::ReadSession(dir.file("silverbox.h5"));
   EXPECT_EQ(back.profile, "generic");
   ASSERT_EQ(back.experiments.size(), s.experiments.size());
-  for (std::size_t i = 0; i < s.experiments.size(); ++i) {
-    const daq::Experiment &a = s.experiments[i], &b = back.experiments[i];
-    EXPECT_EQ(a.label, b.label);
-    EXPECT_EQ(a.kind, b.kind);
-    EXPECT_EQ(a.waveform, b.waveform);
-    EXPECT_EQ(a.frequency, b.frequency);
-    EXPECT_EQ(a.extra_attributes, b.extra_attributes);
-    ASSERT_EQ(a.channels.size(), b.channels.size());
-    for (std::size_t c = 0; c < a.channels.size(); ++c) {
-      EXPECT_EQ(a.channels[c].name, b.channels[c].name);
-      EXPECT_EQ(a.channels[c].units, b.channels[c].units);
-      EXPECT_EQ(a.channels[c].samples, b.channels[c].samples);
-    }
-  }
+  for (std::size_t i = 0; i < s.experiments.size(); ++i)
+    test::ExpectSameExperiment(s.experiments[i], back.experiments[i]);
 }
 
 // The message of the ImportError a call throws ("" when none).

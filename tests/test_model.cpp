@@ -4,6 +4,7 @@
 #include <cmath>
 #include <fstream>
 
+#include "model_instants.h"
 #include "strut/ident/model.h"
 #include "test_support.h"
 
@@ -29,12 +30,10 @@ std::vector<Case> AllCases() {
   return cases;
 }
 
-// A realistic instant in mid-stroke, moving: every term is active.
-struct Instant {
-  std::vector<double> x, xd, xdd;
-  double u, ud, udd;
-};
+using test::Instant;
+using test::ResidualAt;
 
+// A realistic instant in mid-stroke, moving: every term is active.
 Instant MakeInstant(const Model& model) {
   Instant p;
   const int m = model.unknown_count();
@@ -55,12 +54,6 @@ Instant MakeInstant(const Model& model) {
     p.u = 0.131, p.ud = 0.031, p.udd = -0.21;
   }
   return p;
-}
-
-std::vector<double> ResidualAt(const Model& model, const Instant& p, const std::vector<double>& theta) {
-  std::vector<double> r(model.unknown_count());
-  model.Residual<double>(p.x, p.xd, p.xdd, p.u, p.ud, p.udd, theta, r);
-  return r;
 }
 
 TEST(Model, ComposesBasesAndTermsCanonically) {
@@ -304,19 +297,8 @@ TEST(Model, JetDerivativesMatchCentralFiniteDifferences) {
     values.apply_assignments(c.changes);
     const std::vector<double> theta = values.values();
     const Instant p = MakeInstant(model);
-    // Directions: x, xd, xdd of every unknown, the input and its rates, every parameter.
-    const int nd = 3 * m + 3 + np;
-    ASSERT_LE(nd, kMaxDerivatives);
-    std::vector<Jet> x(m), xd(m), xdd(m), th(np), r(m);
-    for (int j = 0; j < m; ++j) {
-      x[j] = MakeVariable(p.x[j], nd, j);
-      xd[j] = MakeVariable(p.xd[j], nd, m + j);
-      xdd[j] = MakeVariable(p.xdd[j], nd, 2 * m + j);
-    }
-    const Jet u = MakeVariable(p.u, nd, 3 * m), ud = MakeVariable(p.ud, nd, 3 * m + 1),
-              udd = MakeVariable(p.udd, nd, 3 * m + 2);
-    for (int i = 0; i < np; ++i) th[i] = MakeVariable(theta[i], nd, 3 * m + 3 + i);
-    model.Residual<Jet>(x, xd, xdd, u, ud, udd, th, r);
+    ASSERT_LE(test::JetDirections(model), kMaxDerivatives);
+    const std::vector<Jet> r = test::ResidualJets(model, p, theta);
 
     // Step 1e-6 of the value, at least of `floor` (a parameter's typical size: an oil compliance
     // of 8e-10 1/Pa needs a step far below 1e-9).

@@ -8,6 +8,7 @@
 #include <numbers>
 #include <span>
 
+#include "model_instants.h"
 #include "strut/ident/model.h"
 
 namespace strut::ident {
@@ -17,10 +18,8 @@ constexpr const char* kAll = "viscous-damping+stribeck-friction+end-stop+oil-com
 // The terms for physics beyond the paper (damper-physics.md §2) that compose with both bases.
 constexpr const char* kBeyondThePaper = "dead-volume+recoil-damping+metering-pin+friction-asymmetry";
 
-struct Instant {
-  std::vector<double> x, xd, xdd;
-  double u = 0, ud = 0, ud2 = 0;
-};
+using test::Instant;
+using test::ResidualAt;
 
 // An instant with stroke q, rate v, pressure p, temperature T (whatever the causality).
 Instant At(const Model& model, double q, double v, double a, double p, double T, double F) {
@@ -32,18 +31,12 @@ Instant At(const Model& model, double q, double v, double a, double p, double T,
     s.xdd.push_back(name == "stroke" ? a : 0.0);
   }
   if (model.causality() == Causality::kForceInput) {
-    s.u = F, s.ud = 150.0, s.ud2 = -10.0;
+    s.u = F, s.ud = 150.0, s.udd = -10.0;
   } else {
     const int offset = model.defaults().position_of_index(12);
-    s.u = q + (offset >= 0 ? model.defaults().value(offset) : 0.0), s.ud = v, s.ud2 = a;
+    s.u = q + (offset >= 0 ? model.defaults().value(offset) : 0.0), s.ud = v, s.udd = a;
   }
   return s;
-}
-
-std::vector<double> Residual(const Model& model, const Instant& s, const std::vector<double>& theta) {
-  std::vector<double> r(model.unknown_count());
-  model.Residual<double>(s.x, s.xd, s.xdd, s.u, s.ud, s.ud2, theta, r);
-  return r;
 }
 
 struct ActiveInstant {
@@ -55,22 +48,13 @@ struct ActiveInstant {
 void ExpectJetDerivativesMatchFiniteDifferences(const Model& model, std::span<const ActiveInstant> instants,
                                                 double step = 1e-6) {
   const std::vector<double> theta = model.defaults().values();
-  const int m = model.unknown_count(), np = model.parameter_count(), nd = 3 * m + 3 + np;
-  ASSERT_LE(nd, kMaxDerivatives);
+  const int m = model.unknown_count(), np = model.parameter_count();
+  ASSERT_LE(test::JetDirections(model), kMaxDerivatives);
   for (const auto& in : instants) {
     SCOPED_TRACE(model.composition() + " " + std::string(ToString(model.causality())) + " q = " + std::to_string(in.q) +
                  " v = " + std::to_string(in.v));
     const Instant s = At(model, in.q, in.v, in.a, in.p, in.T, in.F);
-    std::vector<Jet> x(m), xd(m), xdd(m), th(np), r(m);
-    for (int j = 0; j < m; ++j) {
-      x[j] = MakeVariable(s.x[j], nd, j);
-      xd[j] = MakeVariable(s.xd[j], nd, m + j);
-      xdd[j] = MakeVariable(s.xdd[j], nd, 2 * m + j);
-    }
-    const Jet u = MakeVariable(s.u, nd, 3 * m), ud = MakeVariable(s.ud, nd, 3 * m + 1),
-              ud2 = MakeVariable(s.ud2, nd, 3 * m + 2);
-    for (int i = 0; i < np; ++i) th[i] = MakeVariable(theta[i], nd, 3 * m + 3 + i);
-    model.Residual<Jet>(x, xd, xdd, u, ud, ud2, th, r);
+    const std::vector<Jet> r = test::ResidualJets(model, s, theta);
     // Central differences with a step of `step` relative to each variable (of 1e-3 at the least); for a
     // parameter 1e-4 relative to its value or typical size: an oil compliance of 8e-10 1/Pa needs
     // a step far below 1e-9 (the truncation error at 10 MPa) but above 1e-15 (the rounding error
@@ -83,7 +67,7 @@ void ExpectJetDerivativesMatchFiniteDifferences(const Model& model, std::span<co
       std::vector<double> tp = theta, tm = theta;
       perturb(plus, tp, h);
       perturb(minus, tm, -h);
-      const auto rp = Residual(model, plus, tp), rm = Residual(model, minus, tm);
+      const auto rp = ResidualAt(model, plus, tp), rm = ResidualAt(model, minus, tm);
       for (int i = 0; i < m; ++i) {
         const double numeric = (rp[i] - rm[i]) / (2 * h), exact = r[i].derivatives()[direction];
         EXPECT_NEAR(exact, numeric, 2e-6 * std::max(1.0, std::abs(exact)) + 1e-7 * model.equation_scale(i) * 1e6)
@@ -135,7 +119,7 @@ TEST(SimTerms, TermsBeyondThePaperHaveExactDerivativesInBothDirectionsOfTravel) 
 double TermForces(const Model& model, const std::vector<double>& theta, double q, double v, double p, double T) {
   Instant s = At(model, q, v, 0.0, p, T, 0.0);
   s.x[0] = 0.0;
-  return Residual(model, s, theta)[0];
+  return ResidualAt(model, s, theta)[0];
 }
 
 TEST(SimTerms, ForceTermsFollowTheirDocumentedEquations) {
@@ -276,8 +260,8 @@ TEST(SimTerms, DeadVolumeSoftensTheGasAtDeepCompressionAndHeatTransferGrowsWithP
   const auto ht = [&](int i) { return h.value(h.position_of_index(i)); };
   const double q = 0.25, p = 8e6, T = 380.0;
   const Instant s0 = At(plain, q, 0.0, 0.0, p, T, 0.0), s1 = At(more, q, 0.0, 0.0, p, T, 0.0);
-  const double r0 = Residual(plain, s0, plain.defaults().values())[2];
-  const double r1 = Residual(more, s1, h.values())[2];
+  const double r0 = ResidualAt(plain, s0, plain.defaults().values())[2];
+  const double r1 = ResidualAt(more, s1, h.values())[2];
   const double conduction = ht(16) * (1.0 + ht(6) * q) * (T + ht(17));
   const double growth = std::pow(p / (-ht(5) * ht(17)), 2.0 / 3.0) - 1.0;
   EXPECT_NEAR(r1 - r0, ht(35) * growth * conduction, 1e-9 * std::abs(conduction));

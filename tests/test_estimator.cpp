@@ -39,6 +39,15 @@ daq::Session SmallCleanSession(const ParameterSet& truth, const std::string& lab
   return sim::SimulatePeriodicSession("2dof", truth.values(), StandardExperiments(labels), options);
 }
 
+//! central4 at n = 400: its discretisation error (1e-9) is far below the parameter uncertainty, so
+//! the interval tests measure the uncertainty machinery, not the scheme.
+EstimatorOptions FineCentral4() {
+  EstimatorOptions options;
+  options.n = 400;
+  options.scheme = Scheme::kCentral4;
+  return options;
+}
+
 void ExpectRecovered(const FitSummary& fit, const ParameterSet& truth, double within_sd) {
   ASSERT_TRUE(fit.converged) << fit.FullReport();
   for (int i : fit.estimated_positions) {
@@ -149,12 +158,7 @@ TEST(Estimator, NinetyFivePercentIntervalsHoldTheTruthAtTheirRate) {
   const daq::Session clean = SmallCleanSession(truth, "bhk", 2);
   const Model model = Model::Build("2dof", Causality::kStrokeInput);
   const std::vector<ParameterChoice> choices = ChoicesFromList(model.defaults(), "theta4,theta6,theta16");
-  // central4 at n = 400: its discretisation error (1e-9) is far below the parameter uncertainty,
-  // so the test measures the uncertainty machinery, not the scheme.
-  EstimatorOptions estimator_options;
-  estimator_options.n = 400;
-  estimator_options.scheme = Scheme::kCentral4;
-  const Estimator estimator(model, estimator_options);
+  const Estimator estimator(model, FineCentral4());
   std::mt19937_64 rng(2024);
   int inside = 0, total = 0;
   for (int realisation = 0; realisation < 100; ++realisation) {
@@ -183,9 +187,7 @@ TEST(Estimator, IntervalsCarryTheMeasuredInputsNoise) {
   const daq::Session clean = SmallCleanSession(truth, "def", 3);
   const Model model = Model::Build("2dof", Causality::kStrokeInput);
   const std::vector<ParameterChoice> choices = ChoicesFromList(model.defaults(), "theta4,theta6,theta16");
-  EstimatorOptions with_input;
-  with_input.n = 400;
-  with_input.scheme = Scheme::kCentral4;
+  const EstimatorOptions with_input = FineCentral4();
   EstimatorOptions sandwich = with_input;
   sandwich.estimate_input = false;
   EstimatorOptions without_input = sandwich;

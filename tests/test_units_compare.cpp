@@ -8,19 +8,17 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <string>
-#include <unistd.h>
 
 #include "strut/study/units_compare.h"
+#include "test_support.h"
 
 namespace strut::study {
 namespace {
 
-// A directory of this test's files, removed at the end.
+// A fresh directory of this test's files (test::TempDir), removed at the end.
 struct Folder {
-  std::filesystem::path path = std::filesystem::temp_directory_path() /
-                               ("strut_units_compare_" + std::to_string(::getpid()));
-  Folder() { std::filesystem::create_directories(path); }
-  ~Folder() { std::filesystem::remove_all(path); }
+  test::TempDir dir;
+  std::filesystem::path path{dir.path()};
   std::string Write(const std::string& name, const nlohmann::json& j) const {
     const std::string file = (path / name).string();
     std::ofstream(file) << j.dump(1) << "\n";

@@ -843,10 +843,12 @@ FitProblem::GainGradient FitProblem::GainGradients(const std::string& channel, c
   return g;
 }
 
-std::vector<double> FitProblem::NoiseRatios() const {
+std::vector<FitProblem::NoiseRatioSum> FitProblem::NoiseRatioSums() const {
   const int all = static_cast<int>(channels_.size());
   const int nc = periodic_channels_;
-  std::vector<double> sum(all, 0.0), count(all, 0.0);
+  // Each experiment adds S_a = chi2(N_a) / (chi2(d_a) / d_a) with the model right (d_a: its noise
+  // estimate's degrees of freedom, infinite for a transient's): var(S_a) = 2 N_a + 2 N_a^2 / d_a.
+  std::vector<NoiseRatioSum> sums(all);
   for (const TransientExperiment& t : transients_) {
     if (!t.active) continue;
     for (int b = nc; b < all; ++b) {
@@ -854,8 +856,10 @@ std::vector<double> FitProblem::NoiseRatios() const {
       const double noise = t.data->channels.at(t.recorded[b]).noise_variance;
       if (!(noise > 0)) continue;
       const Eigen::VectorXd r = t.Residual(b);
-      sum[b] += r.squaredNorm() / noise;
-      count[b] += static_cast<double>(r.size());
+      const double n = static_cast<double>(r.size());
+      sums[b].squares += r.squaredNorm() / noise;
+      sums[b].count += n;
+      sums[b].variance += 2.0 * n;
     }
   }
   for (const Experiment& s : experiments_) {
@@ -863,43 +867,25 @@ std::vector<double> FitProblem::NoiseRatios() const {
     for (int b = 0; b < nc; ++b) {
       const auto it = s.data->channels.find(channels_[b]);
       if (!s.channel_fitted[b] || it == s.data->channels.end() || !(it->second.mean_noise_variance > 0)) continue;
-      sum[b] += s.Residual(channels_[b], output_row_[b]).squaredNorm() / it->second.mean_noise_variance;
-      count[b] += static_cast<double>(s.phase_count()) - s.InputDof(b);
+      const double n = static_cast<double>(s.phase_count()) - s.InputDof(b);
+      const double noise_dof = static_cast<double>(s.phase_count()) * static_cast<double>(s.data->periods - 1);
+      sums[b].squares += s.Residual(channels_[b], output_row_[b]).squaredNorm() / it->second.mean_noise_variance;
+      sums[b].count += n;
+      sums[b].variance += 2.0 * n + (noise_dof > 0 ? 2.0 * n * n / noise_dof : 0.0);
     }
   }
-  std::vector<double> ratio(all);
-  for (int b = 0; b < all; ++b) ratio[b] = count[b] > 0 ? sum[b] / count[b] : NAN;
+  return sums;
+}
+
+std::vector<double> FitProblem::NoiseRatios() const {
+  std::vector<double> ratio;
+  for (const NoiseRatioSum& s : NoiseRatioSums()) ratio.push_back(s.count > 0 ? s.squares / s.count : NAN);
   return ratio;
 }
 
 std::vector<double> FitProblem::NoiseRatioSds() const {
-  const int all = static_cast<int>(channels_.size());
-  const int nc = periodic_channels_;
-  // var(sum_a S_a / N) = sum_a (2 N_a + 2 N_a^2 / d_a) / N^2 for S_a = chi2(N_a) / (chi2(d_a) / d_a).
-  std::vector<double> variance(all, 0.0), count(all, 0.0);
-  for (const TransientExperiment& t : transients_) {
-    if (!t.active) continue;
-    for (int b = nc; b < all; ++b) {
-      if (!t.fitted(b) || !(t.data->channels.at(t.recorded[b]).noise_variance > 0)) continue;
-      const double n = static_cast<double>(t.Residual(b).size());
-      variance[b] += 2.0 * n;
-      count[b] += n;
-    }
-  }
-  for (const Experiment& s : experiments_) {
-    if (!s.active || s.data->periods < 2) continue;
-    for (int b = 0; b < nc; ++b) {
-      const auto it = s.data->channels.find(channels_[b]);
-      if (!s.channel_fitted[b] || it == s.data->channels.end() || !(it->second.mean_noise_variance > 0)) continue;
-      const double n = static_cast<double>(s.phase_count()) - s.InputDof(b);
-      const double noise_dof = static_cast<double>(s.phase_count()) * static_cast<double>(s.data->periods - 1);
-      variance[b] += 2.0 * n + 2.0 * n * n / noise_dof;
-      count[b] += n;
-    }
-  }
-  std::vector<double> sd(all, NAN);
-  for (int b = 0; b < all; ++b)
-    if (count[b] > 0) sd[b] = std::sqrt(variance[b]) / count[b];
+  std::vector<double> sd;
+  for (const NoiseRatioSum& s : NoiseRatioSums()) sd.push_back(s.count > 0 ? std::sqrt(s.variance) / s.count : NAN);
   return sd;
 }
 

@@ -152,6 +152,12 @@ class FitProblem {
                  FitSummary& summary);
 
  private:
+  //! Per channel: sum of squared residuals over their noise variances, their count, and the
+  //! variance of that sum with the model right.
+  struct NoiseRatioSum {
+    double squares = 0.0, count = 0.0, variance = 0.0;
+  };
+  std::vector<NoiseRatioSum> NoiseRatioSums() const;
   struct Experiment;
   struct TransientExperiment;
   //! Predicts transient experiment `t` at `theta` (with the estimated parameters' sensitivities when

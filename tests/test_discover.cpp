@@ -4,22 +4,15 @@
 #include <cmath>
 
 #include "strut/ident/discover.h"
-#include "strut/sim/periodic_session.h"
+#include "session_fixtures.h"
 
 namespace strut::ident {
 namespace {
 
 constexpr int kGrid = 400;
 
-// A session of the standard matrix from `truth_model` with `changes` applied to its defaults.
 FitData Simulate(const std::string& truth_model, const std::string& changes, unsigned seed) {
-  const Model model = Model::Build(truth_model, Causality::kStrokeInput);
-  ParameterSet truth = model.defaults();
-  if (!changes.empty()) truth.apply_assignments(changes);
-  sim::PeriodicSessionOptions options;
-  options.seed = seed;
-  const daq::Session session = sim::SimulatePeriodicSession(truth_model, truth.values(), rig::StandardMatrix(), options);
-  return PrepareFitData(session, "simulated", model, kGrid);
+  return test::SimulatedFitData(truth_model, changes, seed, kGrid);
 }
 
 //! The baseline's fit options: every parameter the data determine, stroke input, n = kGrid.

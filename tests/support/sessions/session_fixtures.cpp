@@ -15,6 +15,16 @@ std::vector<rig::MatrixEntry> StandardExperiments(const std::string& labels) {
   return matrix;
 }
 
+ident::FitData SimulatedFitData(const std::string& truth_model, const std::string& changes, unsigned seed, int n) {
+  const ident::Model model = ident::Model::Build(truth_model, ident::Causality::kStrokeInput);
+  ident::ParameterSet truth = model.defaults();
+  if (!changes.empty()) truth.apply_assignments(changes);
+  sim::PeriodicSessionOptions options;
+  options.seed = seed;
+  const daq::Session session = sim::SimulatePeriodicSession(truth_model, truth.values(), rig::StandardMatrix(), options);
+  return ident::PrepareFitData(session, "simulated", model, n);
+}
+
 void WriteTwoDofSession(const std::string& path, const std::string& labels, const ident::ParameterSet& truth) {
   daq::WriteSession(path, sim::SimulatePeriodicSession("2dof", truth.values(), StandardExperiments(labels), {}));
 }

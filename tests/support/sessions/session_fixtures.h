@@ -9,6 +9,7 @@
 
 #include "strut/daq/session.h"
 #include "strut/ident/parameters.h"
+#include "strut/ident/session_fit.h"
 #include "strut/rig/test_matrix.h"
 #include "strut/sim/truth.h"
 
@@ -23,6 +24,11 @@ void WriteTwoDofSession(const std::string& path, const std::string& labels, cons
 
 //! The same at the 2dof model's defaults, which 2dof fits to the noise floor.
 void WriteTwoDofSession(const std::string& path, const std::string& labels);
+
+//! The standard matrix simulated by `truth_model` (stroke input) at its defaults with `changes`
+//! (--set syntax), its noise from `seed` (sim::SimulatePeriodicSession's default sensors), prepared
+//! for a fit of `truth_model` on the n-point grid.
+ident::FitData SimulatedFitData(const std::string& truth_model, const std::string& changes, unsigned seed, int n);
 
 //! A unit drawn (sim::DrawUnit, `seed`) around the shipped truth on an ideal rig: an ideal
 //! actuator and calibrated transducers, nothing the damper model leaves out.

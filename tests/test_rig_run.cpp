@@ -129,6 +129,16 @@ TEST(MatrixRunner, RecordsTheRequestedWholePeriodsOfEachExperimentInSteadyState)
   EXPECT_TRUE(b.report.disarmed);
   ASSERT_EQ(s.experiments.size(), 2u);
   EXPECT_TRUE(daq::Validate(s).empty());
+  // Each experiment says when its recording began: ISO 8601 UTC, in recording order, no earlier
+  // than the session's creation.
+  std::string previous = s.created_utc;
+  for (const daq::Experiment& e : s.experiments) {
+    const std::string& started = e.extra_attributes.at("started_utc");
+    EXPECT_EQ(started.size(), 20u) << started;
+    EXPECT_EQ(started.back(), 'Z') << started;
+    EXPECT_GE(started, previous) << e.label;
+    previous = started;
+  }
   for (const daq::Experiment& e : s.experiments) {
     SCOPED_TRACE(e.label);
     EXPECT_EQ(e.status, "complete");

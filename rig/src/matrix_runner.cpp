@@ -328,6 +328,9 @@ struct MatrixRunner::Impl {
     h.group = c.item.entry.group;
     h.extra_attributes["matrix_label"] = c.item.entry.label;
     h.extra_attributes["attempt"] = std::to_string(c.item.attempt);
+    // When the recording began (UTC, to the second): a charge that leaks over a session shows as a
+    // drift with this time (docs/rig-run.md).
+    h.extra_attributes["started_utc"] = daq::UtcNowIso8601();
     h.sample_rate = RecordedRate();
     return daq::AcquiredExperiment(std::move(h), acquisition.description(), options.pressure_reference);
   }

@@ -352,6 +352,8 @@ std::optional<FitSummary> FitByContinuation(const FitData& data, const Model& mo
     spdlog::debug("continuation of {}: {}", model.composition(), e.what());
   } catch (const PeriodicSolverError& e) {
     spdlog::debug("continuation of {}: {}", model.composition(), e.what());
+  } catch (const ModelError& e) {  // a step's composition is not a model (a term before what it needs)
+    spdlog::debug("continuation of {}: {}", model.composition(), e.what());
   }
   return std::nullopt;
 }

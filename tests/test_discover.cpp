@@ -16,12 +16,7 @@ FitData Simulate(const std::string& truth_model, const std::string& changes, uns
 }
 
 //! The baseline's fit options: every parameter the data determine, stroke input, n = kGrid.
-SessionFitOptions Baseline(const std::string& composition) {
-  SessionFitOptions options;
-  options.composition = composition;
-  options.estimator.n = kGrid;
-  return options;
-}
+SessionFitOptions Baseline(const std::string& composition) { return test::FitOptionsOnGrid(composition, kGrid); }
 
 DiscoverOptions Options() { return DiscoverOptions(); }
 

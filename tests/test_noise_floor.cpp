@@ -20,12 +20,7 @@ FitData Simulate(const std::string& truth_model, const std::string& changes, uns
   return test::SimulatedFitData(truth_model, changes, seed, kGrid);
 }
 
-SessionFitOptions Options(const std::string& composition) {
-  SessionFitOptions options;
-  options.composition = composition;
-  options.estimator.n = kGrid;
-  return options;
-}
+SessionFitOptions Options(const std::string& composition) { return test::FitOptionsOnGrid(composition, kGrid); }
 
 TEST(NoiseFloor, UpperNormalQuantileMatchesTheTable) {
   EXPECT_NEAR(UpperNormalQuantile(0.5), 0.0, 1e-12);
@@ -40,7 +35,7 @@ TEST(NoiseFloor, UpperNormalQuantileMatchesTheTable) {
 
 TEST(NoiseFloor, ThePredictedSdIsTheSpreadOfTheRatioOverNoiseRealisations) {
   // A right model fitted to 12 realisations of the same unit's noise: the ratios scatter around 1
-  // with the sd FitProblem::NoiseRatioSds predicts. With 12 draws the sample sd lies within a
+  // with the sd FitProblem::NoiseRatioStatistics predicts. With 12 draws the sample sd lies within a
   // factor 0.5-1.6 of the true one with probability above 0.999 (chi-square with 11 dof).
   const Model model = Model::Build("2dof", Causality::kStrokeInput);
   std::map<std::string, std::vector<double>> ratios;

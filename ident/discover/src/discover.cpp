@@ -351,13 +351,14 @@ bool AtNoiseFloor(const FitSummary& fit) {
   return std::none_of(fit.channels.begin(), fit.channels.end(), [](const FitChannel& c) { return c.AboveNoiseFloor(); });
 }
 
-// Whether some channel's ratio falls from `current` to `candidate` by more than noise moves it.
+// Whether some channel's ratio falls from `current` to `candidate` by more than noise moves it: the
+// floor test's z times the ratio's sd, which is how far the channel's limit lies above 1.
 bool FallsBeyondNoise(const FitSummary& current, const FitSummary& candidate) {
-  const double z = UpperNormalQuantile(kNoiseFloorFalseAlarm / static_cast<double>(std::max<std::size_t>(1, current.channels.size())));
-  for (const FitChannel& c : current.channels)
+  for (const FitChannel& c : current.channels) {
+    const double margin = std::isfinite(c.noise_ratio_sd) ? c.noise_floor_limit - 1.0 : 0.0;
     for (const FitChannel& k : candidate.channels)
-      if (k.name == c.name && c.noise_ratio - k.noise_ratio > z * (std::isfinite(c.noise_ratio_sd) ? c.noise_ratio_sd : 0.0))
-        return true;
+      if (k.name == c.name && c.noise_ratio - k.noise_ratio > margin) return true;
+  }
   return false;
 }
 

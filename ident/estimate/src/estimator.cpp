@@ -129,13 +129,12 @@ FitSummary Estimator::Fit(const std::vector<ExperimentData>& data, const Paramet
   summary.history = minimum.history;
 
   const std::vector<double> variance = minimum.residuals.Variances(l);
-  const std::vector<double> ratios = problem.NoiseRatios();
-  const std::vector<double> ratio_sds = problem.NoiseRatioSds();
+  const FitProblem::NoiseRatios noise = problem.NoiseRatioStatistics();
   bool misfit = false;  // the widening for misfit follows the same test as the verdict
-  for (std::size_t b = 0; b < ratios.size(); ++b)
-    misfit = misfit || ratios[b] >= NoiseFloorLimit(ratio_sds[b], ratios.size());
+  for (std::size_t b = 0; b < noise.ratio.size(); ++b)
+    misfit = misfit || noise.ratio[b] >= NoiseFloorLimit(noise.sd[b], noise.ratio.size());
   internal::CovarianceSummary covariance =
-      internal::EstimateCovariance(problem, scaled, priors, options_, minimum, variance, ratios, misfit);
+      internal::EstimateCovariance(problem, scaled, priors, options_, minimum, variance, noise.ratio, misfit);
   summary.warnings.insert(summary.warnings.end(), covariance.warnings.begin(), covariance.warnings.end());
   for (std::string& w : internal::CovarianceDiagnostics(covariance, initial, choices, est))
     summary.warnings.push_back(std::move(w));
@@ -156,7 +155,7 @@ FitSummary Estimator::Fit(const std::vector<ExperimentData>& data, const Paramet
   summary.loglik = current.LogLikelihood();
   summary.aic = -2.0 * summary.loglik + 2.0 * l;
   summary.bic = -2.0 * summary.loglik + l * std::log(static_cast<double>(std::max(1L, summary.observations)));
-  problem.Summarise(current, variance, ratios, summary);
+  problem.Summarise(current, variance, noise, summary);
   // A fit that only matches the data with an impossible state (negative absolute pressure, a gas
   // volume through zero) says so: the parameters then mean nothing physical.
   for (const ExperimentFit& e : summary.experiments)

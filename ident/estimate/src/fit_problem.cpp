@@ -843,12 +843,12 @@ FitProblem::GainGradient FitProblem::GainGradients(const std::string& channel, c
   return g;
 }
 
-std::vector<FitProblem::NoiseRatioSum> FitProblem::NoiseRatioSums() const {
+FitProblem::NoiseRatios FitProblem::NoiseRatioStatistics() const {
   const int all = static_cast<int>(channels_.size());
   const int nc = periodic_channels_;
   // Each experiment adds S_a = chi2(N_a) / (chi2(d_a) / d_a) with the model right (d_a: its noise
   // estimate's degrees of freedom, infinite for a transient's): var(S_a) = 2 N_a + 2 N_a^2 / d_a.
-  std::vector<NoiseRatioSum> sums(all);
+  std::vector<double> squares(all, 0.0), count(all, 0.0), variance(all, 0.0);
   for (const TransientExperiment& t : transients_) {
     if (!t.active) continue;
     for (int b = nc; b < all; ++b) {
@@ -857,9 +857,9 @@ std::vector<FitProblem::NoiseRatioSum> FitProblem::NoiseRatioSums() const {
       if (!(noise > 0)) continue;
       const Eigen::VectorXd r = t.Residual(b);
       const double n = static_cast<double>(r.size());
-      sums[b].squares += r.squaredNorm() / noise;
-      sums[b].count += n;
-      sums[b].variance += 2.0 * n;
+      squares[b] += r.squaredNorm() / noise;
+      count[b] += n;
+      variance[b] += 2.0 * n;
     }
   }
   for (const Experiment& s : experiments_) {
@@ -869,31 +869,24 @@ std::vector<FitProblem::NoiseRatioSum> FitProblem::NoiseRatioSums() const {
       if (!s.channel_fitted[b] || it == s.data->channels.end() || !(it->second.mean_noise_variance > 0)) continue;
       const double n = static_cast<double>(s.phase_count()) - s.InputDof(b);
       const double noise_dof = static_cast<double>(s.phase_count()) * static_cast<double>(s.data->periods - 1);
-      sums[b].squares += s.Residual(channels_[b], output_row_[b]).squaredNorm() / it->second.mean_noise_variance;
-      sums[b].count += n;
-      sums[b].variance += 2.0 * n + (noise_dof > 0 ? 2.0 * n * n / noise_dof : 0.0);
+      squares[b] += s.Residual(channels_[b], output_row_[b]).squaredNorm() / it->second.mean_noise_variance;
+      count[b] += n;
+      variance[b] += 2.0 * n + (noise_dof > 0 ? 2.0 * n * n / noise_dof : 0.0);
     }
   }
-  return sums;
+  NoiseRatios out{std::vector<double>(all, NAN), std::vector<double>(all, NAN)};
+  for (int b = 0; b < all; ++b)
+    if (count[b] > 0) {
+      out.ratio[b] = squares[b] / count[b];
+      out.sd[b] = std::sqrt(variance[b]) / count[b];
+    }
+  return out;
 }
 
-std::vector<double> FitProblem::NoiseRatios() const {
-  std::vector<double> ratio;
-  for (const NoiseRatioSum& s : NoiseRatioSums()) ratio.push_back(s.count > 0 ? s.squares / s.count : NAN);
-  return ratio;
-}
-
-std::vector<double> FitProblem::NoiseRatioSds() const {
-  std::vector<double> sd;
-  for (const NoiseRatioSum& s : NoiseRatioSums()) sd.push_back(s.count > 0 ? std::sqrt(s.variance) / s.count : NAN);
-  return sd;
-}
-
-void FitProblem::Summarise(const ResidualSums& sums, const std::vector<double>& variance,
-                           const std::vector<double>& ratio, FitSummary& summary) {
+void FitProblem::Summarise(const ResidualSums& sums, const std::vector<double>& variance, const NoiseRatios& ratios,
+                           FitSummary& summary) {
   const int all = static_cast<int>(channels_.size());
   const int nc = periodic_channels_;
-  const std::vector<double> ratio_sd = NoiseRatioSds();
   for (int b = 0; b < all; ++b) {
     FitChannel c;
     c.name = channels_[b];
@@ -915,9 +908,9 @@ void FitProblem::Summarise(const ResidualSums& sums, const std::vector<double>& 
         ++count;
       }
     c.noise_floor_variance = count > 0 ? noise / count : NAN;
-    c.noise_ratio = ratio[b];
-    c.noise_ratio_sd = ratio_sd[b];
-    c.noise_floor_limit = NoiseFloorLimit(ratio_sd[b], static_cast<std::size_t>(all));
+    c.noise_ratio = ratios.ratio[b];
+    c.noise_ratio_sd = ratios.sd[b];
+    c.noise_floor_limit = NoiseFloorLimit(ratios.sd[b], static_cast<std::size_t>(all));
     summary.channels.push_back(c);
   }
   for (Experiment& s : experiments_) {

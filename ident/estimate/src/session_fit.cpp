@@ -15,6 +15,7 @@
 #include "strut/ident/term_start.h"
 
 #include "strut/ident/assignments.h"
+#include "strut/ident/catalogue.h"
 
 namespace strut::ident {
 namespace {
@@ -316,32 +317,33 @@ bool Better(const FitSummary& other, const FitSummary& than) {
 std::optional<FitSummary> FitByContinuation(const FitData& data, const Model& model, const FitPlan& plan,
                                             const SessionFitOptions& options,
                                             const std::function<void(const FitProgress&)>& progress) {
-  std::vector<std::string> parts;
-  for (std::size_t start = 0; start <= model.composition().size();) {
-    const std::size_t plus = std::min(model.composition().find('+', start), model.composition().size());
-    parts.push_back(model.composition().substr(start, plus - start));
-    start = plus + 1;
-  }
-  if (parts.size() < 2) return std::nullopt;
+  // The canonical composition is its base and then the terms beyond it, in catalogue order.
+  const std::string base = model.composition().substr(0, model.composition().find('+'));
+  const std::vector<std::string>& base_terms = BaseTerms(base);
+  std::vector<std::string> added;
+  for (const std::string& term : model.term_names())
+    if (std::find(base_terms.begin(), base_terms.end(), term) == base_terms.end()) added.push_back(term);
+  if (added.empty()) return std::nullopt;
   SessionFitOptions base_options = options;
-  base_options.composition = parts.front();
+  base_options.composition = base;
   base_options.params_file.clear();  // the user's values are for the whole composition: kept below
   base_options.assignments.clear();
   try {
-    FitSummary current = FitPrepared(data, Model::Build(parts.front(), model.causality()), base_options).summary;
-    std::string composition = parts.front();
-    for (std::size_t k = 1; k < parts.size(); ++k) {
+    FitSummary current = FitPrepared(data, Model::Build(base, model.causality()), base_options).summary;
+    std::string composition = base;
+    for (std::size_t k = 0; k < added.size(); ++k) {
       if (!current.IsSolutionUsable()) return std::nullopt;
-      composition += "+" + parts[k];
-      const Model step = k + 1 == parts.size() ? model : Model::Build(composition, model.causality());
+      const bool last = k + 1 == added.size();
+      composition += "+" + added[k];
+      const Model step = last ? model : Model::Build(composition, model.causality());
       std::vector<std::string> log;
-      TermStart t = StartWithTerm(step, parts[k], current, &log);
-      for (const std::string& line : log) spdlog::debug("continuation {}: {}", parts[k], line);
+      TermStart t = StartWithTerm(step, added[k], current, &log);
+      for (const std::string& line : log) spdlog::debug("continuation {}: {}", added[k], line);
       for (int i = 0; i < t.start.size(); ++i) {
         const auto p = plan.start.find(t.start.spec(i).key());
         if (p && plan.sources[*p] != plan.data_sources[*p]) t.start.values()[i] = plan.start.value(*p);
       }
-      if (k + 1 == parts.size()) t.choices = plan.choices;
+      if (last) t.choices = plan.choices;
       current = Estimator(step, options.estimator)
                     .Fit(data.experiments, t.start, t.choices, data.issues, progress, data.transients);
       spdlog::debug("continuation: {} {} after {} iterations", composition, ToString(current.Verdict()),

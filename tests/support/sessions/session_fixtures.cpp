@@ -25,6 +25,13 @@ ident::FitData SimulatedFitData(const std::string& truth_model, const std::strin
   return ident::PrepareFitData(session, "simulated", model, n);
 }
 
+ident::SessionFitOptions FitOptionsOnGrid(const std::string& composition, int n) {
+  ident::SessionFitOptions options;
+  options.composition = composition;
+  options.estimator.n = n;
+  return options;
+}
+
 void WriteTwoDofSession(const std::string& path, const std::string& labels, const ident::ParameterSet& truth) {
   daq::WriteSession(path, sim::SimulatePeriodicSession("2dof", truth.values(), StandardExperiments(labels), {}));
 }

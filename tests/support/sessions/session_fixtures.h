@@ -30,6 +30,10 @@ void WriteTwoDofSession(const std::string& path, const std::string& labels);
 //! for a fit of `truth_model` on the n-point grid.
 ident::FitData SimulatedFitData(const std::string& truth_model, const std::string& changes, unsigned seed, int n);
 
+//! The default fit of `composition` (every parameter the data determine, stroke input) on the
+//! n-point grid.
+ident::SessionFitOptions FitOptionsOnGrid(const std::string& composition, int n);
+
 //! A unit drawn (sim::DrawUnit, `seed`) around the shipped truth on an ideal rig: an ideal
 //! actuator and calibrated transducers, nothing the damper model leaves out.
 sim::Truth DrawnIdealUnit(std::uint64_t seed);

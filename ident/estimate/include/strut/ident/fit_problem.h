@@ -138,26 +138,21 @@ class FitProblem {
   GainGradient GainGradients(const std::string& channel, const std::vector<double>& theta,
                              const std::vector<double>& variance);
 
-  //! Per fitted channel: pooled residual mean square over each experiment's noise variance of the
-  //! averaged data, sum_a sum_mu e^2 / s_a^2 over the count (about 1 at the noise floor). NaN where
-  //! no experiment knows its noise.
-  //! The sampling sd of each NoiseRatios() entry with the model right: the residuals' chi-square
-  //! mean and each experiment's noise estimate (its phases times periods less one degrees of
-  //! freedom; a transient's noise counts as known).
-  std::vector<double> NoiseRatioSds() const;
-  std::vector<double> NoiseRatios() const;
+  //! Per fitted channel: `ratio`, the pooled residual mean square over each experiment's noise
+  //! variance of the averaged data, sum_a sum_mu e^2 / s_a^2 over the count (about 1 at the noise
+  //! floor; NaN where no experiment knows its noise), and `sd`, its sampling sd with the model
+  //! right: the residuals' chi-square mean and each experiment's noise estimate (its phases times
+  //! periods less one degrees of freedom; a transient's noise counts as known).
+  struct NoiseRatios {
+    std::vector<double> ratio, sd;
+  };
+  NoiseRatios NoiseRatioStatistics() const;
   //! Fills the summary's channel and experiment statistics (and moves the solutions into it).
-  //! `ratio`: NoiseRatios() of the same solutions.
-  void Summarise(const ResidualSums& sums, const std::vector<double>& variance, const std::vector<double>& ratio,
+  //! `ratios`: NoiseRatioStatistics() of the same solutions.
+  void Summarise(const ResidualSums& sums, const std::vector<double>& variance, const NoiseRatios& ratios,
                  FitSummary& summary);
 
  private:
-  //! Per channel: sum of squared residuals over their noise variances, their count, and the
-  //! variance of that sum with the model right.
-  struct NoiseRatioSum {
-    double squares = 0.0, count = 0.0, variance = 0.0;
-  };
-  std::vector<NoiseRatioSum> NoiseRatioSums() const;
   struct Experiment;
   struct TransientExperiment;
   //! Predicts transient experiment `t` at `theta` (with the estimated parameters' sensitivities when

@@ -181,6 +181,31 @@ TEST(SessionFiles, KeepsExperimentsInRecordingOrder) {
   EXPECT_EQ(read.experiments[2].label, "m3");
 }
 
+TEST(SessionFiles, ExperimentSessionTimesComeFromStartTimesElseFromTheOrder) {
+  EXPECT_EQ(strut::daq::ParseUtcIso8601("1970-01-02T00:00:01Z"), 86401.0);
+  EXPECT_NEAR(*strut::daq::ParseUtcIso8601("2026-12-03T15:36:54.25Z") - *strut::daq::ParseUtcIso8601("2026-12-03T15:36:54Z"), 0.25, 1e-6);
+  for (const char* bad : {"", "2026-12-03", "2026-12-03T15:36:54", "2026-13-03T15:36:54Z", "2026-12-03T15:36:54Zx"})
+    EXPECT_FALSE(strut::daq::ParseUtcIso8601(bad).has_value()) << bad;
+
+  Session s = MakeSession();
+  s.experiments = {MakePeriodic("z1"), MakePeriodic("a2"), MakePeriodic("m3"), MakePeriodic("b4")};
+  // No start times: by the order in the file.
+  EXPECT_EQ(strut::daq::ExperimentSessionTimes(s), (std::vector<double>{0.0, 1.0 / 3.0, 2.0 / 3.0, 1.0}));
+  // Start times on every experiment: by them (a pause before the last experiment shows).
+  const char* starts[] = {"2026-12-03T10:00:00Z", "2026-12-03T10:05:00Z", "2026-12-03T10:10:00Z", "2026-12-03T10:50:00Z"};
+  for (std::size_t i = 0; i < 4; ++i) s.experiments[i].extra_attributes["started_utc"] = starts[i];
+  EXPECT_EQ(strut::daq::ExperimentSessionTimes(s), (std::vector<double>{0.0, 0.1, 0.2, 1.0}));
+  // Kept through a file.
+  TempDir dir;
+  WriteSession(dir.file("s.h5"), s);
+  EXPECT_EQ(strut::daq::ExperimentSessionTimes(ReadSession(dir.file("s.h5"))), (std::vector<double>{0.0, 0.1, 0.2, 1.0}));
+  // One unreadable or missing start time: the order again.
+  s.experiments[2].extra_attributes["started_utc"] = "yesterday";
+  EXPECT_EQ(strut::daq::ExperimentSessionTimes(s), (std::vector<double>{0.0, 1.0 / 3.0, 2.0 / 3.0, 1.0}));
+  s.experiments.resize(1);
+  EXPECT_EQ(strut::daq::ExperimentSessionTimes(s), (std::vector<double>{0.0}));
+}
+
 TEST(SessionFiles, WriteReplacesAnExistingFileAndLeavesNoPartialFile) {
   TempDir dir;
   const std::string path = dir.file("s.h5");

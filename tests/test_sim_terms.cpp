@@ -16,7 +16,7 @@ namespace {
 
 constexpr const char* kAll = "viscous-damping+stribeck-friction+end-stop+oil-compressibility+real-gas";
 // The terms for physics beyond the paper (damper-physics.md §2) that compose with both bases.
-constexpr const char* kBeyondThePaper = "dead-volume+recoil-damping+metering-pin+friction-asymmetry";
+constexpr const char* kBeyondThePaper = "dead-volume+charge-loss+recoil-damping+metering-pin+friction-asymmetry";
 
 using test::Instant;
 using test::ResidualAt;
@@ -113,6 +113,25 @@ TEST(SimTerms, TermsBeyondThePaperHaveExactDerivativesInBothDirectionsOfTravel) 
     ExpectJetDerivativesMatchFiniteDifferences(
         Model::Build(std::string("2dof+") + kBeyondThePaper + "+pressure-heat-transfer", causality), instants, 1e-5);
   }
+}
+
+TEST(SimTerms, ChargeLossLowersTheFreeGasWithTheExperimentsSessionTime) {
+  const Model lossy = Model::Build("1dof+charge-loss", Causality::kStrokeInput);
+  const Model plain = Model::Build("1dof", Causality::kStrokeInput);
+  const std::vector<double> theta = lossy.defaults().values();
+  const auto t = [&](int i) { return theta[lossy.defaults().position_of_index(i)]; };
+  ASSERT_GT(t(37), 0.0);
+  EXPECT_TRUE(lossy.defaults().spec(lossy.defaults().position_of_index(kSessionTimeIndex)).experiment_condition);
+  // A model without the condition takes theta as it is.
+  EXPECT_EQ(plain.AtSessionTime(plain.defaults().values(), 0.7), plain.defaults().values());
+  const auto pressure = [&](double session_time) {
+    return lossy.StaticEquilibrium(0.12, lossy.AtSessionTime(theta, session_time))[1];
+  };
+  // At the session's start the charge is the plain model's; later p = theta5 ((1 - theta37 s) / V)^theta7.
+  const double start = plain.StaticEquilibrium(0.12, plain.defaults().values())[1];
+  EXPECT_NEAR(pressure(0.0), start, 1e-9 * start);
+  for (double s : {0.5, 1.0})
+    EXPECT_NEAR(pressure(s) / start, std::pow(1.0 - t(37) * s, t(7)), 1e-9) << "session time " << s;
 }
 
 // Force of the balance of a stroke-input model at an instant, i.e. sum of term forces (F = 0 given).

@@ -8,6 +8,7 @@
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <ctime>
 #include <iterator>
 #include <set>
@@ -113,6 +114,49 @@ std::string UtcNowIso8601() {
   std::array<char, 32> text{};
   const std::size_t n = std::strftime(text.data(), text.size(), "%Y-%m-%dT%H:%M:%SZ", &utc);
   return std::string(text.data(), n);
+}
+
+std::optional<double> ParseUtcIso8601(const std::string& text) {
+  std::tm utc{};
+  double seconds = 0.0;
+  char zone = 0;
+  int consumed = 0;
+  if (std::sscanf(text.c_str(), "%4d-%2d-%2dT%2d:%2d:%lf%c%n", &utc.tm_year, &utc.tm_mon, &utc.tm_mday, &utc.tm_hour,
+                  &utc.tm_min, &seconds, &zone, &consumed) != 7 ||
+      zone != 'Z' || consumed != static_cast<int>(text.size()) || !(seconds >= 0.0 && seconds < 61.0) ||
+      utc.tm_mon < 1 || utc.tm_mon > 12 || utc.tm_mday < 1 || utc.tm_mday > 31 || utc.tm_hour > 23 || utc.tm_min > 59)
+    return std::nullopt;
+  utc.tm_year -= 1900;
+  utc.tm_mon -= 1;
+  const double whole = std::floor(seconds);
+  utc.tm_sec = static_cast<int>(whole);
+  return static_cast<double>(timegm(&utc)) + (seconds - whole);
+}
+
+std::vector<double> ExperimentSessionTimes(const Session& session) {
+  const std::size_t count = session.experiments.size();
+  std::vector<double> times(count, 0.0);
+  if (count < 2) return times;
+  std::vector<double> utc;
+  for (const Experiment& e : session.experiments) {
+    const auto it = e.extra_attributes.find("started_utc");
+    const std::optional<double> t = it == e.extra_attributes.end() ? std::nullopt : ParseUtcIso8601(it->second);
+    if (!t) break;
+    utc.push_back(*t);
+  }
+  if (utc.size() == count) {
+    const auto [first, last] = std::minmax_element(utc.begin(), utc.end());
+    if (*last > *first) {
+      for (std::size_t i = 0; i < count; ++i) times[i] = (utc[i] - *first) / (*last - *first);
+      return times;
+    }
+  }
+  for (std::size_t i = 0; i < count; ++i) times[i] = OrderSessionTime(i, count);
+  return times;
+}
+
+double OrderSessionTime(std::size_t index, std::size_t count) {
+  return count < 2 ? 0.0 : static_cast<double>(index) / static_cast<double>(count - 1);
 }
 
 std::optional<long> WholeSamplesPerPeriod(double sample_rate, double frequency, long minimum) {

@@ -33,12 +33,13 @@ const std::vector<std::string> kBases = {"1dof", "1dof+heat-exchange", "2dof"};
 const std::vector<std::string> kExtraEffectNames = {"viscous-damping", "stribeck-friction", "end-stop",
                                                 "oil-compressibility", "real-gas", "dead-volume",
                                                 "recoil-damping", "metering-pin", "friction-asymmetry",
-                                                "pressure-heat-transfer"};
+                                                "pressure-heat-transfer", "charge-loss"};
 // Spreads drawn only for units that have their effect (they came after the others, so every other
 // unit of a seed is the one it was before they were added).
 const std::vector<std::string> kDrawnOnlyWithTheEffect = {"end_stop_position", "dead_volume_ratio",
                                                           "recoil_damping_excess", "metering_pin_gradient",
-                                                          "friction_asymmetry", "heat_transfer_pressure_gain"};
+                                                          "friction_asymmetry", "heat_transfer_pressure_gain",
+                                                          "charge_lost"};
 
 //! Random numbers whose values the C++ standard fixes (mt19937_64 is fully specified; the
 //! library's distributions are not), so a seed gives the same unit with every compiler.
@@ -121,6 +122,8 @@ const std::vector<DrawSpread>& DrawSpreads() {
        "§2.8: compression and extension friction differ by up to +-30 %"},
       {"heat_transfer_pressure_gain", "theta35", K::kUniformFactor, 0.5, 1.0, "pressure-heat-transfer",
        "§2.1: natural convection, h growing as (p / p0)^(2/3) (weight 0.5-1 of the full law)"},
+      {"charge_lost", "theta37", K::kUniformFactor, 0.5, 2.0, "charge-loss",
+       "§2.11: gas leaking through the seals, 0.5-2 % of the charge over a session (nominal 1 %)"},
   };
   return spreads;
 }
@@ -410,9 +413,12 @@ EffectSignal MeasureEffectSignal(const Truth& unit, std::string_view effect, con
     ident::PeriodicSolution on, off;
     std::vector<Eigen::MatrixXd> d_outputs;
     try {
-      on = solver.Solve(input, with);
-      off = solver.Solve(input, neutral, &on);
-      d_outputs = solver.OutputSensitivities(off, neutral, estimated);
+      const double session_time = daq::OrderSessionTime(a, matrix.size());
+      const std::vector<double> with_at = model.AtSessionTime(with, session_time);
+      const std::vector<double> neutral_at = model.AtSessionTime(neutral, session_time);
+      on = solver.Solve(input, with_at);
+      off = solver.Solve(input, neutral_at, &on);
+      d_outputs = solver.OutputSensitivities(off, neutral_at, estimated);
     } catch (const ident::PeriodicSolverError& error) {
       throw TruthError(fmt::format("{}: experiment '{}': no periodic steady state: {}", unit.source, e.label, error.what()));
     }

@@ -210,6 +210,10 @@ struct SimulatedController::Plant {
         lvdt(truth.sensors.stroke),
         state{0, {start_stroke, 0.0}, {}, Acquisition(truth, "stream"), std::mt19937_64(seed), {}, {}} {
     state.force.step = 1.0 / (rate * static_cast<double>(oversample));
+    if (truth.has_effect("charge-loss"))
+      spdlog::warn("{}: the served rig holds the charge of the session's start: charge-loss leaks only in `strut sim "
+                   "matrix` runs, where each experiment has its place in the session",
+                   truth.source);
   }
   ident::Model model;
   std::vector<double> theta;

@@ -357,11 +357,13 @@ daq::Session SimulatedRig::RunMatrix(const rig::MatrixPlan& plan, const RigRunOp
   daq::Session session = NewSession();
   std::mt19937_64 rng(options.seed);
   SimulationClock clock(options.clock);
-  for (const auto& e : plan.experiments) {
+  for (std::size_t index = 0; index < plan.experiments.size(); ++index) {
+    const rig::MatrixEntry& e = plan.experiments[index];
     PeriodicRunReport report;
     clock.Start();
     try {
-      session.experiments.push_back(RunPeriodic(e, rate, periods, rng, &report, &clock, options.sink));
+      session.experiments.push_back(RunPeriodic(e, rate, periods, rng, &report, &clock, options.sink, std::nullopt,
+                                                daq::OrderSessionTime(index, plan.experiments.size())));
     } catch (const TransientError& error) {
       throw TransientError(fmt::format("experiment '{}': {}", e.label, error.what()), error.time, error.flag);
     }
@@ -372,7 +374,9 @@ daq::Session SimulatedRig::RunMatrix(const rig::MatrixPlan& plan, const RigRunOp
 
 daq::Experiment SimulatedRig::RunPeriodic(const rig::MatrixEntry& entry, double sample_rate, long periods,
                                           std::mt19937_64& rng, PeriodicRunReport* report_out, SimulationClock* clock,
-                                          const SampleSink& sink, std::optional<double> start_phase) const {
+                                          const SampleSink& sink, std::optional<double> start_phase,
+                                          double session_time) const {
+  const std::vector<double> theta = model_.AtSessionTime(theta_, session_time);
   const auto wall_start = Clock::now();
   const AcquisitionOptions& acq = truth_.acquisition;
   const double f = entry.frequency, period = 1.0 / f;
@@ -404,7 +408,7 @@ daq::Experiment SimulatedRig::RunPeriodic(const rig::MatrixEntry& entry, double 
   solver_options.tolerance = 0.1;  // the damper's start: below what the settling then leaves
   ident::PeriodicSolver solver(model_, solver_options);
   PeriodicStart start =
-      StartFromPeriodicSolutions(entry.label, set_point, model_input, actuator, solver, theta_, report);
+      StartFromPeriodicSolutions(entry.label, set_point, model_input, actuator, solver, theta, report);
 
   // Period after period: actuator (against the load of the previous period), damper, sensors.
   std::vector<double> times(fine + 1);
@@ -423,11 +427,11 @@ daq::Experiment SimulatedRig::RunPeriodic(const rig::MatrixEntry& entry, double 
     // While the loop still adapts to the damper's load (the first periods), the damper restarts
     // from the periodic solution for this period's stroke.
     if (k > 0 && k <= kRestartPeriods && !recording && start.at_set_point && !truth_.actuator.ideal)
-      RestartFromPeriodicSolution(solver, theta_, model_input, set_point, start.trajectory, t0, *start.at_set_point,
+      RestartFromPeriodicSolution(solver, theta, model_input, set_point, start.trajectory, t0, *start.at_set_point,
                                   restart, start.initial);
     const InputSignal signal =
         DamperInput(truth_.actuator.ideal, set_point, model_input, start.trajectory, t0, entry.label, k);
-    const TransientResult result = simulator.Simulate(theta_, signal, times, start.initial);
+    const TransientResult result = simulator.Simulate(theta, signal, times, start.initial);
     report.ida_steps += result.steps;
     start.initial.unknowns.assign(result.unknowns.col(fine).data(),
                                   result.unknowns.col(fine).data() + result.unknowns.rows());

@@ -306,7 +306,8 @@ const std::vector<std::string>& Truth::EffectNames() {
   // In the catalogue's (evaluation) order.
   static const std::vector<std::string> names = {"heat-exchange",      "gas-solubility",        "viscous-damping",
                                                  "stribeck-friction",  "end-stop",              "oil-compressibility",
-                                                 "dead-volume",        "real-gas",              "recoil-damping",
+                                                 "dead-volume",        "charge-loss",           "real-gas",
+                                                 "recoil-damping",
                                                  "metering-pin",       "friction-asymmetry",    "pressure-heat-transfer"};
   return names;
 }

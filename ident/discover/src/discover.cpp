@@ -165,6 +165,20 @@ std::vector<Finding> LocateMismatch(const FitSummary& fit) {
       findings.push_back({"group-bias", channel, std::sqrt(chi),
                           fmt::format("mean {} residual by static-position group (noise units): {}", channel, detail)});
     }
+    // Drift over the session: each experiment's mean residual (its t) against when it was recorded.
+    {
+      Eigen::VectorXd mean_t(items.size()), when(items.size());
+      for (std::size_t k = 0; k < items.size(); ++k) {
+        mean_t[k] = items[k]->z.sum() / std::sqrt(static_cast<double>(std::max<Eigen::Index>(1, items[k]->z.size())));
+        when[k] = items[k]->experiment->session_time;
+      }
+      if (items.size() >= 3 && when.maxCoeff() > when.minCoeff()) {
+        const double t = TStatistic(mean_t, when);
+        findings.push_back({"session-drift", channel, std::abs(t),
+                            fmt::format("mean {} residual against recording order: t {:+.1f}, {} over the session",
+                                        channel, t, t > 0 ? "the measured level rising" : "the measured level falling")});
+      }
+    }
     // Loop area against frequency: residual in phase with the stroke rate, slow against fast tests.
     double slow = 0.0, fast = 0.0;
     int n_slow = 0, n_fast = 0;

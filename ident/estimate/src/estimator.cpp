@@ -99,8 +99,14 @@ FitSummary Estimator::Fit(const std::vector<ExperimentData>& data, const Paramet
   if (initial.size() != np || static_cast<int>(choices.size()) != np)
     throw std::invalid_argument("estimator: parameter set and choices must match the model");
   std::vector<int> est;
-  for (int i = 0; i < np; ++i)
-    if (choices[i].estimate) est.push_back(i);
+  for (int i = 0; i < np; ++i) {
+    if (!choices[i].estimate) continue;
+    if (initial.spec(i).experiment_condition)
+      throw std::invalid_argument(fmt::format("estimator: {} ({}) is set per experiment from its recording and cannot "
+                                              "be estimated",
+                                              initial.spec(i).key(), initial.spec(i).name));
+    est.push_back(i);
+  }
   const int l = static_cast<int>(est.size());
 
   FitSummary summary;

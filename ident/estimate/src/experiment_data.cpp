@@ -252,7 +252,9 @@ std::vector<ExperimentData> Prepare(const daq::Session& session, const std::stri
                                     std::vector<DataIssue>* issues, bool thin) {
   std::vector<ExperimentData> prepared;
   const std::string file = session.source_path.empty() ? "<memory>" : session.source_path;
-  for (const daq::Experiment& e : session.experiments) {
+  const std::vector<double> session_times = daq::ExperimentSessionTimes(session);
+  for (std::size_t index = 0; index < session.experiments.size(); ++index) {
+    const daq::Experiment& e = session.experiments[index];
     if (e.kind != daq::ExperimentKind::kPeriodic || e.status != "complete") {
       spdlog::info("{}: experiment '{}' skipped ({} {})", file, e.label, daq::ToString(e.kind), e.status);
       continue;
@@ -267,6 +269,7 @@ std::vector<ExperimentData> Prepare(const daq::Session& session, const std::stri
     d.amplitude = e.amplitude;
     d.static_position = e.static_position;
     d.periods = e.periods;
+    d.session_time = session_times[index];
     // Whole samples per period: average the recorded samples themselves, phase by phase.
     const std::optional<long> whole_samples = daq::WholeSamplesPerPeriod(e.sample_rate, e.frequency, 4);
     const bool whole = whole_samples.has_value();

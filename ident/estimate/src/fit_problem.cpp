@@ -506,7 +506,8 @@ bool FitProblem::Solve(const std::vector<double>& theta, bool allow_drop, int it
       progress({iteration, a + 1, experiment_count(), NAN});
     }
     try {
-      s.solution = s.solution.n == s.n() ? s.solver->Solve(s.input, theta, &s.solution) : FirstSolve(s, theta);
+      const std::vector<double> at = model_.AtSessionTime(theta, s.data->session_time);
+      s.solution = s.solution.n == s.n() ? s.solver->Solve(s.input, at, &s.solution) : FirstSolve(s, at);
     } catch (const PeriodicSolverError& e) {
       failure[a] = e.what();
     }
@@ -540,7 +541,7 @@ bool FitProblem::Readmit(const std::vector<double>& theta) {
   for (Experiment& s : experiments_) {
     if (s.active || !s.dropped_at_start) continue;
     try {
-      s.solution = FirstSolve(s, theta);
+      s.solution = FirstSolve(s, model_.AtSessionTime(theta, s.data->session_time));
       s.active = true;
       s.error.clear();
       s.sensitivity_rows.clear();
@@ -652,7 +653,8 @@ bool FitProblem::RefreshInputSensitivities(Experiment& s, const std::vector<doub
   const int nc = periodic_channels_;
   if (mode.reuse && static_cast<int>(s.estimate->sensitivity_rows.size()) == nc) return false;
   // d(outputs)/d xi: a forward solve per coefficient with eq. 14's factorisation.
-  const auto sens = s.solver->InputSensitivities(s.solution, theta, s.estimate->directions, mode.exact);
+  const auto sens = s.solver->InputSensitivities(s.solution, model_.AtSessionTime(theta, s.data->session_time),
+                                                 s.estimate->directions, mode.exact);
   if (sens.empty()) {
     // A predictor without input sensitivities (transient integration): the input stays as it is.
     spdlog::warn("experiment '{}': the predictor has no input sensitivities; its input is not estimated",
@@ -677,7 +679,8 @@ bool FitProblem::RefreshParameterSensitivities(Experiment& s, const std::vector<
   const int nc = periodic_channels_;
   if (mode.reuse && static_cast<int>(s.sensitivity_rows.size()) == nc) return false;
   const int l = static_cast<int>(estimated_.size());
-  const auto sens = s.solver->OutputSensitivities(s.solution, theta, estimated_, mode.exact);
+  const auto sens =
+      s.solver->OutputSensitivities(s.solution, model_.AtSessionTime(theta, s.data->session_time), estimated_, mode.exact);
   s.sensitivity_rows.assign(nc, Eigen::MatrixXd());
   for (int b = 0; b < nc; ++b) {
     if (!s.channel_fitted[b]) continue;
@@ -760,7 +763,8 @@ NormalEquations FitProblem::Linearise(const std::vector<double>& theta, const st
       eq.inputs[a] = std::move(block);
     }
     if (with_input) {
-      const Eigen::MatrixXd gradient = s.solver->InputGradients(s.solution, theta, weights);
+      const Eigen::MatrixXd gradient =
+          s.solver->InputGradients(s.solution, model_.AtSessionTime(theta, s.data->session_time), weights);
       if (gradient.size() > 0)
         ns[a] = InputNoiseCovariance(*s.data, gradient, estimated_harmonics);
     }
@@ -817,7 +821,8 @@ FitProblem::GainGradient FitProblem::GainGradients(const std::string& channel, c
     std::vector<Eigen::MatrixXd> along_input;
     if (input) {
       const Eigen::Map<const Eigen::VectorXd> u(s.solution.input.values.data(), s.n());
-      along_input = s.solver->InputSensitivities(s.solution, theta, Eigen::MatrixXd(u), true);
+      along_input = s.solver->InputSensitivities(s.solution, model_.AtSessionTime(theta, s.data->session_time),
+                                                 Eigen::MatrixXd(u), true);
       if (along_input.empty()) {
         covered = false;
         return;
@@ -921,6 +926,7 @@ void FitProblem::Summarise(const ResidualSums& sums, const std::vector<double>& 
     f.frequency = s.data->frequency;
     f.amplitude = s.data->amplitude;
     f.static_position = s.data->static_position;
+    f.session_time = s.data->session_time;
     f.converged = s.active;
     f.error = s.error;
     f.phases = s.data->phases;

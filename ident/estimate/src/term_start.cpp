@@ -175,8 +175,9 @@ Regression GaussNewtonSize(const FitSummary& baseline, const Model& model, const
     std::vector<Eigen::MatrixXd> sensitivities;
     try {
       // The baseline's solution is the candidate's at size 0: Newton starts at the answer.
-      solution = solver.Solve(e.solution.input, theta, &e.solution);
-      sensitivities = solver.OutputSensitivities(solution, theta, positions);
+      const std::vector<double> at = model.AtSessionTime(theta, e.session_time);
+      solution = solver.Solve(e.solution.input, at, &e.solution);
+      sensitivities = solver.OutputSensitivities(solution, at, positions);
     } catch (const PeriodicSolverError& ex) {
       problems.push_back(fmt::format("experiment '{}': {}", e.label, ex.what()));
       continue;
@@ -243,7 +244,8 @@ std::pair<Regression, double> EndStopSearch(const std::vector<Sample>& samples, 
 int GaussNewtonSizeIndex(const std::string& term) {
   static const std::pair<const char*, int> sizes[] = {
       {"oil-compressibility", 26}, {"real-gas", 31},           {"recoil-damping", 32},        {"metering-pin", 33},
-      {"friction-asymmetry", 34},  {"pressure-heat-transfer", 35}, {"dead-volume", 36}};
+      {"friction-asymmetry", 34},  {"pressure-heat-transfer", 35}, {"dead-volume", 36},
+      {"charge-loss", 37}};
   for (const auto& [name, index] : sizes)
     if (term == name) return index;
   return 0;

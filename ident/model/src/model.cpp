@@ -156,7 +156,13 @@ Model Model::Build(std::string_view composition, Causality causality) {
   model.drive_.derivative_order = 0;
   model.stroke_offset_position_ =
       builder.output_offset_index_ >= 0 ? builder.parameter_position(builder.output_offset_index_) : -1;
+  model.session_time_position_ = model.defaults_.position_of_index(kSessionTimeIndex);
   return model;
+}
+
+std::vector<double> Model::AtSessionTime(std::vector<double> theta, double session_time) const {
+  if (session_time_position_ >= 0) theta.at(session_time_position_) = session_time;
+  return theta;
 }
 
 bool Model::has_term(std::string_view name) const {

@@ -714,6 +714,37 @@ class DeadVolume final : public Term {
   bool thermal_ = false;
 };
 
+//! theta37 theta38: gas lost through the seals over the session, linear in when the experiment was
+//! recorded (theta38, its fraction of the session, set per experiment by the fit): the free gas is
+//! 1 - theta37 theta38 of the charge, so theta37 is the fraction lost by the last experiment.
+class ChargeLoss final : public Term {
+ public:
+  unsigned phases() const override { return kGasStatePhase; }
+  std::string_view name() const override { return "charge-loss"; }
+  void Declare(ModelBuilder& b) override {
+    b.add_parameter({.index = 37, .name = "charge_lost", .unit = "-", .default_value = 0.01,
+                     .description = "fraction of the gas charge lost between the session's first and last experiment (0: none)",
+                     .typical = 0.01, .sizes_term = true, .range = {0.0, 1.0, false, true}});
+    b.add_parameter({.index = kSessionTimeIndex, .name = "session_time", .unit = "-", .default_value = 0.0,
+                     .description = "when the experiment was recorded, as a fraction of the session (set from the recording)",
+                     .typical = 1.0, .range = {0.0, 1.0, false, false}, .experiment_condition = true});
+  }
+  void Bind(const ModelBuilder& b) override {
+    if (!b.has_term("polytropic-gas") && !b.has_term("heat-exchange"))
+      throw ModelError("charge-loss needs a gas law (polytropic-gas or heat-exchange)");
+    lost_ = b.parameter_position(37);
+    time_ = b.parameter_position(kSessionTimeIndex);
+  }
+  template <class S>
+  void Eval(TermContext<S>& c) const {
+    if (c.phase == TermContext<S>::Phase::kGasState) c.gas_amount -= c.theta[lost_] * c.theta[time_];
+  }
+  STRUT_TERM_EVALUATE
+
+ private:
+  int lost_ = -1, time_ = -1;
+};
+
 // ---------------------------------------------------------------------------------------------
 // Generic forced oscillators (docs/silverbox.md): m y'' + d y' + d3 y'^3 + k y + k2 y^2 + k3 y^3 + u0 = u,
 // measured output y + y0. The displacement slot is the output y, the drive slot the input u; both
@@ -899,6 +930,8 @@ const std::vector<TermEntry>& Catalogue() {
        "softening that grows with pressure: oil and cylinder compliance"},
       {"dead-volume", &Make<DeadVolume>, "", "isothermal dead volume of the pressure line theta36 = V_d / V0",
        "deep-softening", "a gas law that softens at deep compression: an isothermal dead volume on the pressure line"},
+      {"charge-loss", &Make<ChargeLoss>, "", "gas charge lost over the session theta37, by recording time theta38",
+       "session-drift", "a pressure level that falls with recording order: gas charge lost during the session"},
       {"real-gas", &Make<RealGas>, "", "virial nitrogen Z(rho, T), theta28..theta31", "pressure-stiffening",
        "stiffening that grows with pressure: real-gas (virial) nitrogen"},
       {"recoil-damping", &Make<RecoilDamping>, "", "extension orifice damping (1 + theta32) theta3", "rate-asymmetry",

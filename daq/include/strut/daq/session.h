@@ -152,5 +152,18 @@ void WriteSession(const std::string& path, const Session& session, const WriteOp
 
 //! Current time as ISO 8601 UTC ("2026-11-22T05:32:50Z").
 std::string UtcNowIso8601();
+//! Seconds since the epoch of an ISO 8601 UTC time ("2026-11-22T05:32:50Z", fractional seconds
+//! allowed); nullopt when the text is not one.
+std::optional<double> ParseUtcIso8601(const std::string& text);
+
+//! When each experiment of `session` was recorded, as a fraction of the session: 0 the first, 1 the
+//! last, in the order of `session.experiments`. From the experiments' `started_utc` attributes
+//! (what strut's rig writes) where every experiment has a readable one and they span some time;
+//! else from their order in the file (the recorded order: creation order where the file tracks it).
+//! A session of one experiment gives {0}. A gas charge that leaks over a session drifts with it.
+std::vector<double> ExperimentSessionTimes(const Session& session);
+//! The session time of the `index`-th of `count` experiments by their order alone: index / (count - 1),
+//! 0 for a single experiment.
+double OrderSessionTime(std::size_t index, std::size_t count);
 
 }  // namespace strut::daq

@@ -102,9 +102,12 @@ class SimulatedRig {
   //! One periodic experiment, from the settled periodic-solver state through settling to the
   //! record. `clock` and `sink` may be null/empty. `start_phase` (rad, of the set-point at the
   //! first sample) is drawn from `rng` unless given (a comparison at the same sampling phases).
+  //! `session_time`: when it is recorded, as a fraction of the session (theta38 of a unit whose charge
+  //! leaks; RunMatrix gives each experiment its place in the plan, daq::OrderSessionTime).
   daq::Experiment RunPeriodic(const rig::MatrixEntry& entry, double sample_rate, long periods, std::mt19937_64& rng,
                               PeriodicRunReport* report = nullptr, SimulationClock* clock = nullptr,
-                              const SampleSink& sink = {}, std::optional<double> start_phase = std::nullopt) const;
+                              const SampleSink& sink = {}, std::optional<double> start_phase = std::nullopt,
+                              double session_time = 0.0) const;
 
   //! A drop test as a session of one experiment.
   daq::Session RunDropSession(const DropSpec& drop, const RigRunOptions& options = {},

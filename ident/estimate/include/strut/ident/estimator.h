@@ -108,6 +108,7 @@ struct ChannelStatistics {
 struct ExperimentFit {
   std::string label, group, session;
   double frequency = 0.0, amplitude = 0.0, static_position = 0.0;
+  double session_time = 0.0;  //!< ExperimentData::session_time
   bool converged = false;     //!< the periodic solution exists at the final parameters
   std::string error;          //!< why not
   std::vector<ChannelStatistics> channels;

@@ -60,6 +60,9 @@ struct ExperimentData {
   std::string group;
   double frequency = 0.0, amplitude = 0.0, static_position = 0.0;
   long periods = 0;
+  //! When it was recorded, as a fraction of its session (daq::ExperimentSessionTimes): theta38 of
+  //! its solves (Model::AtSessionTime).
+  double session_time = 0.0;
   //! The model input (force or stroke) on the experiment's solver grid: n points, or, when a period
   //! holds a whole number of samples, the smallest whole multiple of them that is at least n (a slow
   //! experiment's grid then holds every recorded sample phase).

@@ -33,6 +33,7 @@ namespace strut::ident {
 //!      metering-pin            theta33 (position-damping locus)
 //!      friction-asymmetry      theta34 (friction-direction locus)
 //!      pressure-heat-transfer  theta35 (loop-pressure locus)
+//!      charge-loss             theta37 (session-drift locus)
 //!      stribeck-friction    theta19 at each width theta20 of a log grid (0.5 to 40 mm/s, 20 %
 //!                           apart); the width that leaves the least residual (reversal locus)
 //! Values are clipped into the physical range (a size that regresses negative starts at 0, its

@@ -154,6 +154,9 @@ class Model {
 
   //! Parameter specs with default values.
   const ParameterSet& defaults() const { return defaults_; }
+  //! `theta` for an experiment recorded at `session_time` (0 the session's first experiment, 1 its
+  //! last): theta38 set to it where the model has it (charge-loss), else `theta` as it is.
+  std::vector<double> AtSessionTime(std::vector<double> theta, double session_time) const;
   int parameter_count() const { return defaults_.size(); }
 
   //! Unknowns per grid point: [mechanical unknown, states...].
@@ -216,6 +219,7 @@ class Model {
   ParameterSet defaults_;
   StateSpec displacement_, drive_;  //!< the two mechanical slots: stroke and force for dampers
   int stroke_offset_position_ = -1;  //!< output offset (theta12 for dampers) position, -1 if none
+  int session_time_position_ = -1;   //!< theta38's position, -1 if none
 };
 
 }  // namespace strut::ident

@@ -17,6 +17,10 @@ namespace strut::ident {
 //! extension stop: a few millimetres (the default prior on theta12).
 inline constexpr double kStrokeZeroPriorSd = 2.0e-3;
 
+//! theta38: when an experiment was recorded, as a fraction of its session (0 the first, 1 the last;
+//! daq::ExperimentSessionTimes), the condition a drift over the session (charge-loss) is a function of.
+inline constexpr int kSessionTimeIndex = 38;
+
 //! A user mistake in naming or giving parameters (unknown name, bad number, bad file line).
 class ParameterError : public std::invalid_argument {
  public:
@@ -76,6 +80,10 @@ struct ParameterSpec {
   //! what the data can barely tell apart from other parameters and a lab knows roughly (the
   //! stroke zero).
   double prior_sd = 0.0;
+  //! A known condition of each experiment rather than a property of the unit (theta38, when the
+  //! experiment was recorded): the fit sets it per experiment from the recording (Model::AtSessionTime)
+  //! and never estimates it.
+  bool experiment_condition = false;
 
   double typical_size() const { return typical > 0 ? typical : std::abs(default_value); }
   //! Estimated when discovery adds the term: its size and shape parameters.

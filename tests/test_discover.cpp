@@ -114,7 +114,8 @@ INSTANTIATE_TEST_SUITE_P(
                     // touches only in test n (4-24 mm): 200 N; theta22 = 100 s/m keeps the 1e7 N s/m^2 damping
                     Concealed{"end-stop", "theta23=0.006,theta21=1e5,theta22=100"},
                     Concealed{"oil-compressibility", "theta26=8.333333333e-10"},  // 1/K_eff of damper-physics.md
-                    Concealed{"real-gas", ""}),                           // nitrogen as it is
+                    Concealed{"real-gas", ""},                            // nitrogen as it is
+                    Concealed{"charge-loss", "theta37=0.004"}),           // 0.4 % of the gas over the session
     [](const testing::TestParamInfo<Concealed>& info) {
       std::string name = info.param.term;
       std::replace(name.begin(), name.end(), '-', '_');

@@ -23,7 +23,8 @@ daq::Session SimulatePeriodicSession(const std::string& composition, std::span<c
   session.created_utc = daq::UtcNowIso8601();
   session.damper_serial = options.damper_serial;
   session.rig = options.rig;
-  for (const rig::MatrixEntry& entry : matrix) {
+  for (std::size_t index = 0; index < matrix.size(); ++index) {
+    const rig::MatrixEntry& entry = matrix[index];
     const std::optional<long> whole = daq::WholeSamplesPerPeriod(options.sample_rate, entry.frequency, 16);
     if (!whole)
       throw std::invalid_argument(fmt::format("experiment '{}': {} Hz at {} Hz sampling is not a whole number of samples "
@@ -36,7 +37,7 @@ daq::Session SimulatePeriodicSession(const std::string& composition, std::span<c
     const long k = std::max<long>(1, (4000 + n - 1) / n);
     const ident::PeriodicSolution fine = solver.Solve(
         ident::PeriodicInput::Sine(entry.frequency, entry.static_position, entry.amplitude, static_cast<int>(n * k)),
-        theta);
+        model.AtSessionTime(std::vector<double>(theta.begin(), theta.end()), daq::OrderSessionTime(index, matrix.size())));
     struct Sampled {
       const ident::PeriodicSolution& s;
       long k;

@@ -72,6 +72,12 @@ const std::vector<StudyRange>& StudyRanges() {
       {"oil-compressibility", 26, 1e-10, 2e-9, true, false, "1/Pa"},
       {"real-gas", 31, 0.05, 1.5, false, false, "-"},
       {"end-stop", 23, 0.0, 8e-3, false, true, "m"},
+      {"dead-volume", 36, 3e-4, 2e-2, true, false, "-"},
+      {"charge-loss", 37, 2e-4, 3e-2, true, false, "-"},
+      {"recoil-damping", 32, 0.02, 4.0, true, false, "-"},
+      {"metering-pin", 33, 0.1, 8.0, true, false, "1/m"},
+      {"friction-asymmetry", 34, 0.01, 0.4, true, false, "-"},
+      {"pressure-heat-transfer", 35, 0.03, 1.0, true, false, "-"},
   };
   return ranges;
 }

@@ -75,16 +75,15 @@ struct BenchAcquisition {
 }  // namespace
 
 void RegisterBenchAcquisition(CLI::App& bench) {
-  auto b = std::make_shared<BenchAcquisition>();
-  CLI::App* sub = bench.add_subcommand(
-      "acquisition", "CAN acquisition over UDP on loopback: lost samples and receiver CPU at 4 x 50 kHz (CAN FD) "
-                     "and at the classic layout's bus limit; the bus arithmetic");
+  auto [sub, b] = AddCommand<BenchAcquisition>(
+      bench, "acquisition",
+      "CAN acquisition over UDP on loopback: lost samples and receiver CPU at 4 x 50 kHz (CAN FD) "
+      "and at the classic layout's bus limit; the bus arithmetic");
   sub->add_option("--seconds", b->seconds, "Length of each stream.")->check(Between(0.5, 600.0))->capture_default_str();
   sub->add_option("--fd-rate", b->fd_rate, "Sample sets per second of the CAN FD stream.")
       ->check(Between(100.0, 400000.0))
       ->capture_default_str();
   sub->add_option("--json", b->json_path, "Also write the figures as JSON.");
-  sub->callback([b] { b->Run(); });
 }
 
 }  // namespace strut::tools

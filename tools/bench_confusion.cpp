@@ -113,9 +113,9 @@ struct BenchConfusion {
 }  // namespace
 
 void RegisterBenchConfusion(CLI::App& bench) {
-  auto command = std::make_shared<BenchConfusion>();
-  CLI::App* sub = bench.add_subcommand(
-      "confusion", "Discovery on drawn units with one catalogue effect or none: right first terms, extras, false discoveries.");
+  auto [sub, command] = AddCommand<BenchConfusion>(
+      bench, "confusion",
+      "Discovery on drawn units with one catalogue effect or none: right first terms, extras, false discoveries.");
   sub->add_option("--units", command->options.units, "Drawn units per effect.")->check(Between(1, 10000))->capture_default_str();
   sub->add_option("--first-seed", command->options.first_seed, "Seed of the first unit.")->capture_default_str();
   sub->add_option("--base", command->options.base, "The units' base physics and the baseline model: 1dof, 1dof+heat-exchange or 2dof.")
@@ -134,7 +134,6 @@ void RegisterBenchConfusion(CLI::App& bench) {
                   "Also write every unit's session to this existing folder as EFFECT-SEED.h5 (an existing session is "
                   "refused), to run strut discover on it again.")
       ->check(CLI::ExistingDirectory);
-  sub->callback([command] { command->Run(); });
 }
 
 }  // namespace strut::tools

@@ -49,11 +49,10 @@ struct BenchDiscover {
 }  // namespace
 
 void RegisterBenchDiscover(CLI::App& bench) {
-  auto command = std::make_shared<BenchDiscover>();
-  CLI::App* sub = bench.add_subcommand("discover", "Time model discovery: a full run on the standard matrix, with 1 and 2 threads.");
+  auto [sub, command] = AddCommand<BenchDiscover>(
+      bench, "discover", "Time model discovery: a full run on the standard matrix, with 1 and 2 threads.");
   sub->add_option("--json", command->json_path, "Also write the figures as JSON to this file.");
   sub->add_option("--repeats", command->repeats, "Runs per setting.")->check(Between(1, 20))->capture_default_str();
-  sub->callback([command] { command->Run(); });
 }
 
 }  // namespace strut::tools

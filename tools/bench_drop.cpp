@@ -78,16 +78,15 @@ struct BenchDrop {
 }  // namespace
 
 void RegisterBenchDrop(CLI::App& bench) {
-  auto command = std::make_shared<BenchDrop>();
-  CLI::App* sub = bench.add_subcommand(
-      "drop", "Drop prediction from shaker fits of drawn units: errors against the truth's drop, interval coverage, "
-              "prediction time.");
+  auto [sub, command] = AddCommand<BenchDrop>(
+      bench, "drop",
+      "Drop prediction from shaker fits of drawn units: errors against the truth's drop, interval coverage, "
+      "prediction time.");
   AddDropBenchOptions(*sub, command->options, "Seconds from contact.");
   sub->add_option("--effect", command->options.effects,
                   "An effect the truth has and the fitted 2dof model lacks (drawn size): oil-compressibility, "
                   "viscous-damping, stribeck-friction, end-stop, real-gas; repeatable.");
   sub->add_option("--json", command->json_path, "Also write the figures as JSON to this file.");
-  sub->callback([command] { command->Run(); });
 }
 
 }  // namespace strut::tools

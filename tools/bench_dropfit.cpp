@@ -114,13 +114,12 @@ struct BenchDropFit {
 }  // namespace
 
 void RegisterBenchDropFit(CLI::App& bench) {
-  auto command = std::make_shared<BenchDropFit>();
-  CLI::App* sub = bench.add_subcommand(
-      "dropfit", "What one drop adds to a shaker fit on drawn units: theta3's sd alone and with the drop, interval "
-                 "coverage, and the drop predicted from each fit.");
+  auto [sub, command] = AddCommand<BenchDropFit>(
+      bench, "dropfit",
+      "What one drop adds to a shaker fit on drawn units: theta3's sd alone and with the drop, interval "
+      "coverage, and the drop predicted from each fit.");
   AddDropBenchOptions(*sub, command->options, "Seconds of the drop record from contact.");
   sub->add_option("--json", command->json_path, "Also write the figures as JSON to this file.");
-  sub->callback([command] { command->Run(); });
 }
 
 }  // namespace strut::tools

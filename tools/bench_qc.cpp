@@ -111,10 +111,10 @@ struct BenchQc {
 }  // namespace
 
 void RegisterBenchQc(CLI::App& bench) {
-  auto command = std::make_shared<BenchQc>();
-  CLI::App* sub = bench.add_subcommand(
-      "qc", "The QC lot study: drawn units, some defective, each through the QC matrix and decided; confusion matrix "
-            "and decision time (docs/qc.md).");
+  auto [sub, command] = AddCommand<BenchQc>(
+      bench, "qc",
+      "The QC lot study: drawn units, some defective, each through the QC matrix and decided; confusion matrix "
+      "and decision time (docs/qc.md).");
   sub->add_option("--units", command->options.units, "Units in the lot.")->check(Between(1, 100000))->capture_default_str();
   sub->add_option("--first-seed", command->options.first_seed, "Seed of the first unit (the others follow).")->capture_default_str();
   sub->add_option("--defects", command->options.defect_tenths, "Defective units per ten (the defect kinds take turns).")
@@ -126,7 +126,6 @@ void RegisterBenchQc(CLI::App& bench) {
   sub->add_flag("--servo", command->options.servo,
                 "Drive the units through the rig's servo actuator (default: an ideal actuator, docs/qc.md).");
   sub->add_option("--json", command->json_path, "Also write the figures as JSON to this file.");
-  sub->callback([command] { command->Run(); });
 }
 
 }  // namespace strut::tools

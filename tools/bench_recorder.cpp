@@ -65,9 +65,8 @@ struct BenchRecorder {
 }  // namespace
 
 void RegisterBenchRecorder(CLI::App& bench) {
-  auto command = std::make_shared<BenchRecorder>();
-  CLI::App* sub = bench.add_subcommand(
-      "recorder", "Streaming recorder: throughput as a ratio to raw sequential writes, CPU per sample");
+  auto [sub, command] = AddCommand<BenchRecorder>(
+      bench, "recorder", "Streaming recorder: throughput as a ratio to raw sequential writes, CPU per sample");
   sub->add_option("--seconds", command->options.seconds, "Seconds of data.")->check(Between(0.01, 3600.0))->capture_default_str();
   sub->add_option("--rate", command->options.rate, "Sample rate, Hz.")->check(Between(1.0, 1e7))->capture_default_str();
   sub->add_option("--channels", command->options.channels, "SI channels (each with raw counts).")
@@ -79,7 +78,6 @@ void RegisterBenchRecorder(CLI::App& bench) {
   sub->add_option("--repeats", command->options.repeats, "Runs of each (medians are printed).")->check(Between(1, 100))->capture_default_str();
   sub->add_option("--dir", command->dir, "Directory on the disk to measure (default: the temp directory).");
   sub->add_option("--json", command->json_path, "Also write the figures as JSON.");
-  sub->callback([command] { command->Run(); });
 }
 
 }  // namespace strut::tools

@@ -57,16 +57,15 @@ struct BenchReplay {
 }  // namespace
 
 void RegisterBenchReplay(CLI::App& bench) {
-  auto command = std::make_shared<BenchReplay>();
-  CLI::App* sub = bench.add_subcommand(
-      "replay", "Replay as fast as possible: sample sets per CPU second alone, into the recorder and sent over UDP");
+  auto [sub, command] = AddCommand<BenchReplay>(
+      bench, "replay",
+      "Replay as fast as possible: sample sets per CPU second alone, into the recorder and sent over UDP");
   sub->add_option("--seconds", command->seconds, "Recorded seconds (whole periods of 1 Hz).")
       ->check(Between(1.0, 3600.0))
       ->capture_default_str();
   sub->add_option("--rate", command->rate, "Sample rate, Hz.")->check(Between(100.0, 1e6))->capture_default_str();
   sub->add_option("--dir", command->dir, "Directory of the recording (default: the temp directory).");
   sub->add_option("--json", command->json_path, "Also write the figures as JSON.");
-  sub->callback([command] { command->Run(); });
 }
 
 }  // namespace strut::tools

@@ -207,10 +207,10 @@ struct BenchRig {
 }  // namespace
 
 void RegisterBenchRig(CLI::App& bench) {
-  auto command = std::make_shared<BenchRig>();
-  CLI::App* sub = bench.add_subcommand(
-      "rig", "The standard matrix through the real drivers on the simulated rig at several clock speeds, side by "
-             "side with strut sim matrix on the same truth: wall and CPU per simulated second");
+  auto [sub, command] = AddCommand<BenchRig>(
+      bench, "rig",
+      "The standard matrix through the real drivers on the simulated rig at several clock speeds, side by "
+      "side with strut sim matrix on the same truth: wall and CPU per simulated second");
   command->truth_options.Add(*sub, /*with_actuator=*/true);
   sub->add_option("--speeds", command->speeds, "Simulated seconds per wall second to run at, comma-separated.")
       ->delimiter(',')
@@ -224,7 +224,6 @@ void RegisterBenchRig(CLI::App& bench) {
   sub->add_option("--json", command->json_path, "Also write the figures as JSON.");
   sub->footer("Without --truth: the built-in truth with calibrated transducers (no zero or gain error), drawn with "
                 "--draw (default 1001), ideal actuator, as tests/test_rig_sim_end_to_end.cpp runs it.");
-  sub->callback([command] { command->Run(); });
 }
 
 }  // namespace strut::tools

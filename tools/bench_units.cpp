@@ -139,9 +139,9 @@ struct BenchUnits {
 }  // namespace
 
 void RegisterBenchUnits(CLI::App& bench) {
-  auto command = std::make_shared<BenchUnits>();
-  CLI::App* sub = bench.add_subcommand(
-      "units", "Identification of drawn units: coverage of the 95 % intervals, noise-floor verdicts, restarts from far off.");
+  auto [sub, command] = AddCommand<BenchUnits>(
+      bench, "units",
+      "Identification of drawn units: coverage of the 95 % intervals, noise-floor verdicts, restarts from far off.");
   sub->add_option("--units", command->options.units, "The number of drawn units.")->check(Between(1, 100000))->capture_default_str();
   sub->add_option("--first-seed", command->options.first_seed, "Seed of the first unit (the others follow).")->capture_default_str();
   sub->add_option("--base", command->options.base, "The units' physics and the fitted model: 1dof, 1dof+heat-exchange or 2dof.")
@@ -179,7 +179,6 @@ void RegisterBenchUnits(CLI::App& bench) {
   sub->add_option("--tolerance", command->tolerance, "The largest relative difference --compare accepts.")
       ->check(Between(0.0, 1e300))
       ->capture_default_str();
-  sub->callback([command] { command->Run(); });
 }
 
 }  // namespace strut::tools

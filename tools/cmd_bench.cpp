@@ -740,15 +740,14 @@ struct BenchSilverbox {
 void RegisterBenchCommand(CLI::App& app) {
   CLI::App* bench = app.add_subcommand("bench", "Run a benchmark: figures and ratios measured side by side, printed (and with --json written as JSON).");
   bench->require_subcommand(1);
-  auto periodic = std::make_shared<BenchPeriodic>();
-  CLI::App* sub = bench->add_subcommand("periodic", "Time the periodic solver: cold and warm solves, growth with n, accuracy against cost.");
+  auto [sub, periodic] = AddCommand<BenchPeriodic>(
+      *bench, "periodic", "Time the periodic solver: cold and warm solves, growth with n, accuracy against cost.");
   sub->add_option("--json", periodic->json_path, "Also write the figures as JSON to this file.");
   sub->add_flag("--quick", periodic->quick, "Run fewer repeats (a smoke run).");
-  sub->callback([periodic] { periodic->Run(); });
 
-  auto identify = std::make_shared<BenchIdentify>();
-  CLI::App* id = bench->add_subcommand(
-      "identify", "Measure the estimator: fit time on the standard matrix, interval coverage, periodic against transient predictions.");
+  auto [id, identify] = AddCommand<BenchIdentify>(*bench, "identify",
+                                                  "Measure the estimator: fit time on the standard matrix, interval "
+                                                  "coverage, periodic against transient predictions.");
   id->add_option("--json", identify->json_path, "Also write the figures as JSON to this file.");
   id->add_flag("--quick", identify->quick, "Run fewer repeats and realisations and a two-experiment transient fit (a smoke run).");
   id->add_option("--realisations", identify->realisations, "Noise realisations for the coverage (default 200; with --quick 20).")
@@ -780,18 +779,16 @@ void RegisterBenchCommand(CLI::App& app) {
                  "The sensitivities are periodic when their change is below this fraction of their peak.")
       ->check(Positive())
       ->capture_default_str();
-  id->callback([identify] { identify->Run(); });
 
-  auto simulated = std::make_shared<BenchSim>();
-  CLI::App* sim_bench = bench->add_subcommand(
-      "sim", "Time the simulated rig: simulated seconds per wall second on the standard matrix with settling, every effect on.");
+  auto [sim_bench, simulated] = AddCommand<BenchSim>(*bench, "sim",
+                                                     "Time the simulated rig: simulated seconds per wall second on the "
+                                                     "standard matrix with settling, every effect on.");
   sim_bench->add_option("--json", simulated->json_path, "Also write the figures as JSON to this file.");
   sim_bench->add_option("--truth", simulated->truth_path, "Read the truth from this TOML file (default: the built-in one).")->check(CLI::ExistingFile);
-  sim_bench->callback([simulated] { simulated->Run(); });
 
-  auto silverbox = std::make_shared<BenchSilverbox>();
-  CLI::App* sb = bench->add_subcommand(
-      "silverbox", "Run the Silverbox benchmark from its raw files: periodic fit, validation, arrow test (classic split; docs/silverbox.md).");
+  auto [sb, silverbox] = AddCommand<BenchSilverbox>(*bench, "silverbox",
+                                                    "Run the Silverbox benchmark from its raw files: periodic fit, "
+                                                    "validation, arrow test (classic split; docs/silverbox.md).");
   sb->add_option("--data", silverbox->data_dir, "The directory holding SNLS80mV.mat (or SNLS80mV.csv).")->required()->check(CLI::ExistingDirectory);
   sb->add_option("--json", silverbox->json_path, "Also write the figures as JSON to this file.");
   sb->add_option("--report", silverbox->report_path, "Write a self-contained HTML report to this file.");
@@ -806,7 +803,6 @@ void RegisterBenchCommand(CLI::App& app) {
       ->capture_default_str();
   sb->add_option("--threads", silverbox->threads, "Estimator threads (0: one per core).")->check(Between(0, 256))->capture_default_str();
   sb->add_flag("--no-check", silverbox->no_check, "Skip the IDA cross-check of the arrow simulation.");
-  sb->callback([silverbox] { silverbox->Run(); });
 
   RegisterBenchAcquisition(*bench);
   RegisterBenchRecorder(*bench);

@@ -207,9 +207,8 @@ struct DemoCommand {
 }  // namespace
 
 void RegisterDemoCommand(CLI::App& app) {
-  auto command = std::make_shared<DemoCommand>();
-  CLI::App* sub = app.add_subcommand(
-      "demo",
+  auto [sub, command] = AddCommand<DemoCommand>(
+      app, "demo",
       "Run the main job on the simulated rig: draw a unit (2 dof physics plus oil compressibility and Stribeck "
       "friction), record the standard matrix, identify the 1 dof and 2 dof models, discover what 1 dof leaves out, "
       "and compare everything with the drawn truth (docs/demo.md).");
@@ -225,7 +224,8 @@ void RegisterDemoCommand(CLI::App& app) {
   sub->add_option("--threads", command->threads, "Threads of discovery: candidate refits, cross-validation folds and the experiments of each fit side by side.")
       ->check(Between(1, 64))
       ->capture_default_str();
-  sub->callback([command, out] {
+  // Replaces AddCommand's callback: Run needs to know whether --out was given, not only its value.
+  sub->callback([command = command, out] {
     command->out_given = out->count() > 0;
     command->Run();
   });

@@ -42,9 +42,8 @@ struct DiscoverCommand {
 }  // namespace
 
 void RegisterDiscoverCommand(CLI::App& app) {
-  auto command = std::make_shared<DiscoverCommand>();
-  CLI::App* sub = app.add_subcommand(
-      "discover",
+  auto [sub, command] = AddCommand<DiscoverCommand>(
+      app, "discover",
       "Find the physics a model leaves out: fit the baseline with every parameter the data can determine, locate "
       "the mismatch, add the catalogue term that explains it (BIC and cross-validation), and show the fit improve.");
   sub->add_option("sessions", command->sessions, "Session files (HDF5) to fit together.")->required()->check(CLI::ExistingFile);
@@ -56,7 +55,6 @@ void RegisterDiscoverCommand(CLI::App& app) {
   sub->add_option("--threads", command->threads, "Threads: candidate refits, cross-validation folds and the experiments of each fit side by side (the answers do not depend on it).")
       ->check(Between(1, 64))
       ->capture_default_str();
-  sub->callback([command] { command->Run(); });
 }
 
 }  // namespace strut::tools

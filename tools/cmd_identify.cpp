@@ -98,9 +98,8 @@ struct IdentifyCommand {
 }  // namespace
 
 void RegisterIdentifyCommand(CLI::App& app) {
-  auto command = std::make_shared<IdentifyCommand>();
-  CLI::App* sub = app.add_subcommand(
-      "identify",
+  auto [sub, command] = AddCommand<IdentifyCommand>(
+      app, "identify",
       "Estimate the damper model's parameters from recorded sessions (periodic equilibria and drop tests, all "
       "experiments at once). "
       "Exit code 0: converged at the noise floor; 3: converged but above the noise floor; 2: not converged; 1: error.");
@@ -128,7 +127,6 @@ void RegisterIdentifyCommand(CLI::App& app) {
       ->check(Between(0, 100000))
       ->capture_default_str();
   sub->add_flag("--no-progress", command->no_progress, "Do not show the progress line (it is shown only when stderr is a terminal).");
-  sub->callback([command] { command->Run(); });
 }
 
 }  // namespace strut::tools

@@ -73,9 +73,8 @@ struct ImportCommand {
 };
 
 void AddFormat(CLI::App& parent, const std::string& format, const std::string& help) {
-  auto command = std::make_shared<ImportCommand>();
+  auto [sub, command] = AddCommand<ImportCommand>(parent, format, help);
   command->format = format;
-  CLI::App* sub = parent.add_subcommand(format, help);
   sub->add_option("file", command->file, "The measured record to import.")->required()->check(CLI::ExistingFile);
   sub->add_option("-o,--out", command->out, "Session file to write (HDF5).")->required();
   sub->add_flag("--force", command->force, "Replace an existing session file at the output path.");
@@ -94,7 +93,6 @@ void AddFormat(CLI::App& parent, const std::string& format, const std::string& h
   sub->add_option("--serial", command->serial, "The unit under test, stored as damper_serial.");
   sub->add_option("--rig", command->rig, "Where the record comes from, stored as rig.");
   sub->add_option("--gzip", command->gzip, "The HDF5 gzip compression level.")->check(Between(0, 9))->capture_default_str();
-  sub->callback([command] { command->Run(); });
 }
 
 }  // namespace

@@ -164,8 +164,9 @@ struct PeriodicCommand {
 }  // namespace
 
 void RegisterPeriodicCommand(CLI::App& app) {
-  auto command = std::make_shared<PeriodicCommand>();
-  CLI::App* sub = app.add_subcommand("periodic", "Compute one period of a model's periodic equilibrium state under a sine input (or a recorded one) and print it as CSV or JSON.");
+  auto [sub, command] = AddCommand<PeriodicCommand>(app, "periodic",
+                                                    "Compute one period of a model's periodic equilibrium state under "
+                                                    "a sine input (or a recorded one) and print it as CSV or JSON.");
   command->model.Add(*sub);
   auto* f = sub->add_option("--frequency", command->frequency, "The excitation frequency in Hz.")->check(Positive("Hz"))->capture_default_str();
   auto* a = sub->add_option("--amplitude", command->amplitude,
@@ -181,7 +182,6 @@ void RegisterPeriodicCommand(CLI::App& app) {
       ->check(CLI::IsMember({"backward2", "central2", "central4", "spectral"}))
       ->capture_default_str();
   sub->add_option("--json", command->json_path, "Write the state as JSON to this file ('-' for stdout) instead of printing a CSV table.");
-  sub->callback([command] { command->Run(); });
 }
 
 }  // namespace strut::tools

@@ -140,10 +140,10 @@ struct PredictDropCommand {
 void RegisterPredictCommand(CLI::App& app) {
   CLI::App* predict = app.add_subcommand("predict", "Predictions from an identified model");
   predict->require_subcommand(1);
-  auto command = std::make_shared<PredictDropCommand>();
-  CLI::App* sub = predict->add_subcommand(
-      "drop", "Drop test predicted from a fit (strut identify --json): figures with intervals, optionally compared "
-              "with a recorded drop (docs/drop-prediction.md)");
+  auto [sub, command] = AddCommand<PredictDropCommand>(
+      *predict, "drop",
+      "Drop test predicted from a fit (strut identify --json): figures with intervals, optionally compared "
+      "with a recorded drop (docs/drop-prediction.md)");
   sub->add_option("--fit", command->fit_path, "The fit's JSON (strut identify --json).")->required()->check(CLI::ExistingFile);
   sub->add_option("--mass", command->mass, "Dropped mass, kg (default with --compare: the record's).")
       ->check(Positive("kg"));
@@ -166,7 +166,6 @@ void RegisterPredictCommand(CLI::App& app) {
       ->check(Between(1e-6, 0.5))
       ->capture_default_str();
   sub->add_flag("--no-intervals", command->no_intervals, "Skip the intervals (one transient run instead of 1 + 2 per parameter).");
-  sub->callback([command] { command->Run(); });
 }
 
 }  // namespace strut::tools

@@ -150,9 +150,8 @@ struct HistoryCommand {
 }  // namespace
 
 void RegisterQcCommand(CLI::App& app) {
-  auto command = std::make_shared<QcCommand>();
-  CLI::App* qc = app.add_subcommand(
-      "qc",
+  auto [qc, command] = AddCommand<QcCommand>(
+      app, "qc",
       "Quality control of a production damper from a QC session: PASS, FAIL or UNDECIDED against a reference "
       "(docs/qc.md). Exit code 0 pass, 1 fail, 2 undecided (bad data, fit not converged or not at the noise floor).");
   qc->add_option("session", command->session, "The QC session (HDF5), from the matrix `strut qc plan` writes.")
@@ -165,25 +164,24 @@ void RegisterQcCommand(CLI::App& app) {
   qc->add_option("--report", command->report_path, "Write a self-contained HTML report.");
   qc->add_option("--db", command->db_path, "Record the decision in this QC history (SQLite; created when missing).");
   qc->add_option("--time", command->time, "With --db: the decision's time (UTC ISO 8601) instead of now.");
-  qc->callback([command, qc] {
+  // Replaces AddCommand's callback: with `qc plan` or `qc history` only that subcommand runs.
+  qc->callback([command = command, qc = qc] {
     if (qc->get_subcommands().empty()) command->Run();
   });
 
-  auto plan = std::make_shared<PlanCommand>();
-  CLI::App* p = qc->add_subcommand("plan", "Write the QC matrix (a matrix file for `strut sim matrix --matrix`).");
+  auto [p, plan] =
+      AddCommand<PlanCommand>(*qc, "plan", "Write the QC matrix (a matrix file for `strut sim matrix --matrix`).");
   p->add_option("-o,--output", plan->output, "Matrix file to write (default: stdout).");
   p->add_option("--write-reference", plan->reference_output,
                 "Also write the simulated lot's reference file (nominal values and bands, TOML).");
-  p->callback([plan] { plan->Run(); });
 
-  auto history = std::make_shared<HistoryCommand>();
-  CLI::App* h = qc->add_subcommand("history", "List QC decisions from the history: a lot, a serial's past results, "
-                                              "and the trend of every quantity.");
+  auto [h, history] = AddCommand<HistoryCommand>(*qc, "history",
+                                                 "List QC decisions from the history: a lot, a serial's past results, "
+                                                 "and the trend of every quantity.");
   h->add_option("--db", history->db_path, "The QC history (SQLite).")->required();
   h->add_option("--serial", history->serial, "Only this serial.");
   h->add_option("--since", history->since, "Only decisions at or after this date (YYYY-MM-DD) or UTC time.");
   h->add_flag("--json", history->json, "Print JSON (decisions, trends, counts) instead of tables.");
-  h->callback([history] { history->Run(); });
 }
 
 }  // namespace strut::tools

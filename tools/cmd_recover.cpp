@@ -74,9 +74,9 @@ struct RecoverCommand {
 }  // namespace
 
 void RegisterRecoverCommand(CLI::App& app) {
-  auto command = std::make_shared<RecoverCommand>();
-  CLI::App* sub = app.add_subcommand(
-      "recover", "Turn the journal of a recording cut off mid-run into a session file (experiment in progress: aborted)");
+  auto [sub, command] = AddCommand<RecoverCommand>(
+      app, "recover",
+      "Turn the journal of a recording cut off mid-run into a session file (experiment in progress: aborted)");
   sub->add_option("file", command->file, "The journal (SESSION.h5.journal), or the session's name SESSION.h5.")
       ->required();
   sub->add_option("-o,--out", command->out, "Session file to write (default: the journal's name without .journal).");
@@ -84,7 +84,6 @@ void RegisterRecoverCommand(CLI::App& app) {
   sub->add_flag("--delete-journal", command->delete_journal,
                 "Delete the journal once the session is written and passes the contract check.");
   sub->add_option("--gzip", command->gzip, "Compression level 0..9.")->check(Between(0, 9))->capture_default_str();
-  sub->callback([command] { command->Run(); });
 }
 
 }  // namespace strut::tools

@@ -181,10 +181,10 @@ struct ReplayCommand {
 }  // namespace
 
 void RegisterReplayCommand(CLI::App& app) {
-  auto command = std::make_shared<ReplayCommand>();
-  CLI::App* sub = app.add_subcommand(
-      "replay", "Play a recorded session back through the acquisition interface as the rig's stream: recorded again "
-                "(-o) or sent as CAN frames (--to), docs/replay.md");
+  auto [sub, command] = AddCommand<ReplayCommand>(
+      app, "replay",
+      "Play a recorded session back through the acquisition interface as the rig's stream: recorded again "
+      "(-o) or sent as CAN frames (--to), docs/replay.md");
   sub->add_option("session", command->file, "The session to play (HDF5).")->required()->check(CLI::ExistingFile);
   sub->add_option("--speed", command->speed,
                   "Recorded seconds per wall second (a number > 0), or max: as fast as possible. Default: max, "
@@ -196,7 +196,6 @@ void RegisterReplayCommand(CLI::App& app) {
   sub->add_option("--gzip", command->gzip, "Compression level 0..9 of the recording.")
       ->check(Between(0, 9))
       ->capture_default_str();
-  sub->callback([command] { command->Run(); });
 }
 
 }  // namespace strut::tools

@@ -250,10 +250,10 @@ struct RigRunCommand {
 }  // namespace
 
 void RegisterRigRunCommand(CLI::App& rig) {
-  auto c = std::make_shared<RigRunCommand>();
-  CLI::App* run = rig.add_subcommand(
-      "run", "Run the test matrix on the rig and record it: controller over Modbus TCP, acquisition over CAN "
-             "(docs/rig-run.md)");
+  auto [run, c] = AddCommand<RigRunCommand>(
+      rig, "run",
+      "Run the test matrix on the rig and record it: controller over Modbus TCP, acquisition over CAN "
+      "(docs/rig-run.md)");
   run->add_option("--rig", c->rig_spec,
                   "Actuator controller, modbus-tcp://HOST:PORT (or HOST:PORT), or sim: the simulated rig in this "
                   "process, served over Modbus TCP and CAN frames on loopback as strut rig serve-sim serves it. "
@@ -309,7 +309,6 @@ void RegisterRigRunCommand(CLI::App& rig) {
   run->add_flag("--force", c->force, "Replace an existing session or journal at the output.");
   run->add_flag("--no-progress", c->no_progress, "No live progress line on a terminal.");
   c->truth_options.Add(*run, /*with_actuator=*/true);
-  run->callback([c] { c->Run(); });
 }
 
 }  // namespace strut::tools

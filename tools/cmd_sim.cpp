@@ -175,17 +175,17 @@ void RegisterSimCommand(CLI::App& app) {
   CLI::App* sim_app = app.add_subcommand("sim", "Run the simulated rig: test matrices and drop tests written as session files, and the truth it simulates.");
   sim_app->require_subcommand(1);
 
-  auto matrix = std::make_shared<SimMatrixCommand>();
-  CLI::App* m = sim_app->add_subcommand("matrix", "Run a test matrix (by default the 14 standard experiments) on the simulated rig and write the session.");
+  auto [m, matrix] = AddCommand<SimMatrixCommand>(
+      *sim_app, "matrix",
+      "Run a test matrix (by default the 14 standard experiments) on the simulated rig and write the session.");
   matrix->truth.Add(*m, true);
   matrix->run.Add(*m);
   m->add_option("--matrix", matrix->matrix_path, "Read the test matrix from this TOML file (docs/simulated-rig.md).")->check(CLI::ExistingFile);
   m->add_option("-o,--output", matrix->output, "Session file to write (HDF5).")->required();
   m->add_flag("--force", matrix->force, "Replace an existing session file at the output path.");
-  m->callback([matrix] { matrix->Run(); });
 
-  auto drop = std::make_shared<SimDropCommand>();
-  CLI::App* d = sim_app->add_subcommand("drop", "Drop a mass onto the fully extended damper and write the record as a session.");
+  auto [d, drop] = AddCommand<SimDropCommand>(
+      *sim_app, "drop", "Drop a mass onto the fully extended damper and write the record as a session.");
   drop->truth.Add(*d);
   drop->run.Add(*d);
   d->add_option("--mass", drop->drop.mass, "The dropped mass in kg.")->check(Positive("kg"))->capture_default_str();
@@ -198,13 +198,11 @@ void RegisterSimCommand(CLI::App& app) {
   d->add_option("--label", drop->drop.label, "The experiment's label in the session.")->capture_default_str();
   d->add_option("-o,--output", drop->output, "Session file to write (HDF5).")->required();
   d->add_flag("--force", drop->force, "Replace an existing session file at the output path.");
-  d->callback([drop] { drop->Run(); });
 
-  auto truth = std::make_shared<SimTruthCommand>();
-  CLI::App* t = sim_app->add_subcommand("truth", "Show the truth the rig simulates (a drawn unit's too), or write out the built-in default.");
+  auto [t, truth] = AddCommand<SimTruthCommand>(
+      *sim_app, "truth", "Show the truth the rig simulates (a drawn unit's too), or write out the built-in default.");
   truth->truth.Add(*t);
   t->add_option("--write-default", truth->write_path, "Write the built-in default truth file to this path and stop.");
-  t->callback([truth] { truth->Run(); });
 }
 
 }  // namespace strut::tools

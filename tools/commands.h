@@ -3,6 +3,8 @@
 #pragma once
 
 #include <CLI/CLI.hpp>
+#include <memory>
+#include <string>
 
 namespace strut::tools {
 
@@ -40,5 +42,22 @@ void RegisterBenchDropFit(CLI::App& bench);
 void RegisterBenchRig(CLI::App& bench);
 //! `predict drop`: drop-test prediction from a fit.
 void RegisterPredictCommand(CLI::App& app);
+
+//! A subcommand and the command object its options are bound to.
+template <typename Command>
+struct Subcommand {
+  CLI::App* app;
+  std::shared_ptr<Command> command;
+};
+
+//! Adds subcommand `name` under `parent` with a fresh `Command`, whose Run() is called when the
+//! command line names the subcommand; the caller binds the options to the returned command.
+template <typename Command>
+Subcommand<Command> AddCommand(CLI::App& parent, const std::string& name, const std::string& description) {
+  auto command = std::make_shared<Command>();
+  CLI::App* app = parent.add_subcommand(name, description);
+  app->callback([command] { command->Run(); });
+  return {app, command};
+}
 
 }  // namespace strut::tools

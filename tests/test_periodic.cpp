@@ -253,10 +253,19 @@ TEST(PeriodicSolver, EverySchemeSolvesTheForceDrivenOneDof) {
   }
 }
 
-TEST(PeriodicSolver, InputGradientsMatchFiniteDifferencesOfTheSolver) {
-  // The adjoint: d(w^T y)/du projected on input perturbations (a mean shift, harmonics) against
-  // solves with the input perturbed both ways, for weights on every output at once. Every scheme:
-  // the input's rates reach the residual through each one's stencil (transposed here).
+// A tightly solved 2dof state that input derivatives are checked at: experiment h's input on n points.
+struct InputDerivativeCase {
+  Causality causality;
+  std::span<const double> theta;
+  int n;
+  const PeriodicInput& input;
+  PeriodicSolver& solver;
+  const PeriodicSolution& base;
+};
+
+// Runs `check` under each causality with backward2 and with central4.
+template <class Check>
+void ForEachInputDerivativeCase(Check check) {
   for (Causality causality : {Causality::kForceInput, Causality::kStrokeInput}) {
     for (Scheme scheme : {Scheme::kBackward2, Scheme::kCentral4}) {
       SCOPED_TRACE(std::string(ToString(causality)) + " " + std::string(ToString(scheme)));
@@ -266,78 +275,80 @@ TEST(PeriodicSolver, InputGradientsMatchFiniteDifferencesOfTheSolver) {
       const PeriodicInput input = TwoDofInput(causality, theta, n);
       PeriodicSolver solver = TightSolver(model, scheme);
       const PeriodicSolution base = solver.Solve(input, theta);
-      const Eigen::MatrixXd directions = InputDirections(n, 3);
-      // Two functionals: smooth weights on every output, and a single point of the first one.
-      const int channels = static_cast<int>(base.channels.size());
-      std::vector<Eigen::MatrixXd> weights(channels, Eigen::MatrixXd::Zero(n, 2));
-      for (int c = 0; c < channels; ++c) {
-        const double size = std::max(base.outputs.row(c).cwiseAbs().maxCoeff(), 1e-30);
-        for (int mu = 0; mu < n; ++mu) weights[c](mu, 0) = (1.0 + 0.5 * std::sin(2 * std::numbers::pi * (c + 1) * mu / n)) / size;
-      }
-      weights[0](37, 1) = 1.0;
-      const Eigen::MatrixXd gradient = solver.InputGradients(base, theta, weights);
-      ASSERT_EQ(gradient.rows(), n);
-      ASSERT_EQ(gradient.cols(), 2);
-      const double h = causality == Causality::kForceInput ? 1.0 : 1e-6;  // N, m
-      for (int k = 0; k < 3; ++k) {
-        const auto [sp, sm] = SolveMovedBothWays(solver, input, theta, base, h * directions.col(k));
-        for (int b = 0; b < 2; ++b) {
-          // Tolerance relative to the sum's terms before they cancel.
-          double numeric = 0.0, terms = 0.0;
-          for (int c = 0; c < channels; ++c) {
-            const Eigen::VectorXd dy = (sp.outputs.row(c) - sm.outputs.row(c)).transpose() / (2 * h);
-            numeric += weights[c].col(b).dot(dy);
-            terms += weights[c].col(b).cwiseAbs().dot(dy.cwiseAbs());
-          }
-          const double exact = gradient.col(b).dot(directions.col(k));
-          EXPECT_NEAR(exact, numeric, 1e-4 * terms + 1e-12) << "functional " << b << " direction " << k;
-        }
-      }
+      check(InputDerivativeCase{causality, theta, n, input, solver, base});
     }
   }
+}
+
+TEST(PeriodicSolver, InputGradientsMatchFiniteDifferencesOfTheSolver) {
+  // The adjoint: d(w^T y)/du projected on input perturbations (a mean shift, harmonics) against
+  // solves with the input perturbed both ways, for weights on every output at once. Every scheme:
+  // the input's rates reach the residual through each one's stencil (transposed here).
+  ForEachInputDerivativeCase([](const InputDerivativeCase& at) {
+    const auto& [causality, theta, n, input, solver, base] = at;
+    const Eigen::MatrixXd directions = InputDirections(n, 3);
+    // Two functionals: smooth weights on every output, and a single point of the first one.
+    const int channels = static_cast<int>(base.channels.size());
+    std::vector<Eigen::MatrixXd> weights(channels, Eigen::MatrixXd::Zero(n, 2));
+    for (int c = 0; c < channels; ++c) {
+      const double size = std::max(base.outputs.row(c).cwiseAbs().maxCoeff(), 1e-30);
+      for (int mu = 0; mu < n; ++mu) weights[c](mu, 0) = (1.0 + 0.5 * std::sin(2 * std::numbers::pi * (c + 1) * mu / n)) / size;
+    }
+    weights[0](37, 1) = 1.0;
+    const Eigen::MatrixXd gradient = solver.InputGradients(base, theta, weights);
+    ASSERT_EQ(gradient.rows(), n);
+    ASSERT_EQ(gradient.cols(), 2);
+    const double h = causality == Causality::kForceInput ? 1.0 : 1e-6;  // N, m
+    for (int k = 0; k < 3; ++k) {
+      const auto [sp, sm] = SolveMovedBothWays(solver, input, theta, base, h * directions.col(k));
+      for (int b = 0; b < 2; ++b) {
+        // Tolerance relative to the sum's terms before they cancel.
+        double numeric = 0.0, terms = 0.0;
+        for (int c = 0; c < channels; ++c) {
+          const Eigen::VectorXd dy = (sp.outputs.row(c) - sm.outputs.row(c)).transpose() / (2 * h);
+          numeric += weights[c].col(b).dot(dy);
+          terms += weights[c].col(b).cwiseAbs().dot(dy.cwiseAbs());
+        }
+        const double exact = gradient.col(b).dot(directions.col(k));
+        EXPECT_NEAR(exact, numeric, 1e-4 * terms + 1e-12) << "functional " << b << " direction " << k;
+      }
+    }
+  });
 }
 
 TEST(PeriodicSolver, InputSensitivitiesMatchFiniteDifferencesOfTheSolver) {
   // The forward counterpart of the adjoint: outputs moved along input directions (a mean shift, a
   // low and a high harmonic) against solves with the input perturbed both ways, and the adjoint's
   // functional read off the forward sensitivities.
-  for (Causality causality : {Causality::kForceInput, Causality::kStrokeInput}) {
-    for (Scheme scheme : {Scheme::kBackward2, Scheme::kCentral4}) {
-      SCOPED_TRACE(std::string(ToString(causality)) + " " + std::string(ToString(scheme)));
-      const Model model = Model::Build("2dof", causality);
-      const auto theta = model.defaults().values();
-      const int n = 200;
-      const PeriodicInput input = TwoDofInput(causality, theta, n);
-      PeriodicSolver solver = TightSolver(model, scheme);
-      const PeriodicSolution base = solver.Solve(input, theta);
-      const Eigen::MatrixXd directions = InputDirections(n, 17);
-      const auto sens = solver.InputSensitivities(base, theta, directions);
-      ASSERT_EQ(sens.size(), base.channels.size());
-      const double h = causality == Causality::kForceInput ? 0.25 : 1e-6;  // N, m (1 N: truncation 9e-4 in T)  // N, m
-      for (int k = 0; k < 3; ++k) {
-        const auto [sp, sm] = SolveMovedBothWays(solver, input, theta, base, h * directions.col(k));
-        for (std::size_t c = 0; c < base.channels.size(); ++c) {
-          const int row = static_cast<int>(c);
-          const Eigen::VectorXd numeric = (sp.outputs.row(row) - sm.outputs.row(row)).transpose() / (2 * h);
-          const Eigen::VectorXd exact = sens[c].col(k);
-          const double size = std::max(exact.cwiseAbs().maxCoeff(), 1e-30);
-          EXPECT_LT((numeric - exact).cwiseAbs().maxCoeff(), 2e-4 * size + 1e-12)
-              << base.channels[c] << " direction " << k;
-        }
-      }
-      // The adjoint agrees: w^T (dy/du phi) = (d(w^T y)/du)^T phi.
-      std::vector<Eigen::MatrixXd> weights(base.channels.size(), Eigen::MatrixXd::Zero(n, 1));
-      double forward = 0.0, scale = 0.0;
+  ForEachInputDerivativeCase([](const InputDerivativeCase& at) {
+    const auto& [causality, theta, n, input, solver, base] = at;
+    const Eigen::MatrixXd directions = InputDirections(n, 17);
+    const auto sens = solver.InputSensitivities(base, theta, directions);
+    ASSERT_EQ(sens.size(), base.channels.size());
+    const double h = causality == Causality::kForceInput ? 0.25 : 1e-6;  // N, m (1 N: truncation 9e-4 in T)  // N, m
+    for (int k = 0; k < 3; ++k) {
+      const auto [sp, sm] = SolveMovedBothWays(solver, input, theta, base, h * directions.col(k));
       for (std::size_t c = 0; c < base.channels.size(); ++c) {
-        const double size = std::max(base.outputs.row(static_cast<int>(c)).cwiseAbs().maxCoeff(), 1e-30);
-        for (int mu = 0; mu < n; ++mu) weights[c](mu, 0) = std::cos(2 * std::numbers::pi * (c + 2) * mu / n) / size;
-        forward += weights[c].col(0).dot(sens[c].col(2));
-        scale += weights[c].col(0).cwiseAbs().dot(sens[c].col(2).cwiseAbs());
+        const int row = static_cast<int>(c);
+        const Eigen::VectorXd numeric = (sp.outputs.row(row) - sm.outputs.row(row)).transpose() / (2 * h);
+        const Eigen::VectorXd exact = sens[c].col(k);
+        const double size = std::max(exact.cwiseAbs().maxCoeff(), 1e-30);
+        EXPECT_LT((numeric - exact).cwiseAbs().maxCoeff(), 2e-4 * size + 1e-12)
+            << base.channels[c] << " direction " << k;
       }
-      const Eigen::MatrixXd gradient = solver.InputGradients(base, theta, weights);
-      EXPECT_NEAR(gradient.col(0).dot(directions.col(2)), forward, 1e-9 * scale + 1e-15);
     }
-  }
+    // The adjoint agrees: w^T (dy/du phi) = (d(w^T y)/du)^T phi.
+    std::vector<Eigen::MatrixXd> weights(base.channels.size(), Eigen::MatrixXd::Zero(n, 1));
+    double forward = 0.0, scale = 0.0;
+    for (std::size_t c = 0; c < base.channels.size(); ++c) {
+      const double size = std::max(base.outputs.row(static_cast<int>(c)).cwiseAbs().maxCoeff(), 1e-30);
+      for (int mu = 0; mu < n; ++mu) weights[c](mu, 0) = std::cos(2 * std::numbers::pi * (c + 2) * mu / n) / size;
+      forward += weights[c].col(0).dot(sens[c].col(2));
+      scale += weights[c].col(0).cwiseAbs().dot(sens[c].col(2).cwiseAbs());
+    }
+    const Eigen::MatrixXd gradient = solver.InputGradients(base, theta, weights);
+    EXPECT_NEAR(gradient.col(0).dot(directions.col(2)), forward, 1e-9 * scale + 1e-15);
+  });
 }
 
 TEST(PeriodicSolver, SensitivitiesMatchFiniteDifferencesOfTheSolver) {

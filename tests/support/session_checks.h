@@ -4,10 +4,26 @@
 #include <gtest/gtest.h>
 
 #include <string>
+#include <vector>
 
 #include "strut/daq/session.h"
 
 namespace strut::test {
+
+//! `actual` has as many elements as `expected`, and `expect_same(expected[i], actual[i])` holds for each.
+template <typename T, typename ExpectSame>
+void ExpectSameEach(const std::vector<T>& expected, const std::vector<T>& actual, ExpectSame expect_same) {
+  ASSERT_EQ(actual.size(), expected.size());
+  for (std::size_t i = 0; i < expected.size(); ++i) expect_same(expected[i], actual[i]);
+}
+
+//! The channel's name, units, reference and every sample.
+inline void ExpectSameChannel(const daq::Channel& expected, const daq::Channel& actual) {
+  EXPECT_EQ(actual.name, expected.name);
+  EXPECT_EQ(actual.units, expected.units);
+  EXPECT_EQ(actual.reference, expected.reference);
+  EXPECT_EQ(actual.samples, expected.samples);
+}
 
 //! Every field and sample of `actual` equals `expected`'s (a round trip through a file).
 inline void ExpectSameExperiment(const daq::Experiment& expected, const daq::Experiment& actual) {
@@ -26,13 +42,7 @@ inline void ExpectSameExperiment(const daq::Experiment& expected, const daq::Exp
   EXPECT_EQ(actual.impact_velocity, expected.impact_velocity);
   EXPECT_EQ(actual.time, expected.time);
   EXPECT_EQ(actual.extra_attributes, expected.extra_attributes);
-  ASSERT_EQ(actual.channels.size(), expected.channels.size());
-  for (std::size_t i = 0; i < expected.channels.size(); ++i) {
-    EXPECT_EQ(actual.channels[i].name, expected.channels[i].name);
-    EXPECT_EQ(actual.channels[i].units, expected.channels[i].units);
-    EXPECT_EQ(actual.channels[i].reference, expected.channels[i].reference);
-    EXPECT_EQ(actual.channels[i].samples, expected.channels[i].samples);
-  }
+  ExpectSameEach(expected.channels, actual.channels, ExpectSameChannel);
 }
 
 //! The session's own fields and every experiment, as ExpectSameExperiment.
@@ -41,10 +51,7 @@ inline void ExpectSameSession(const daq::Session& expected, const daq::Session& 
   EXPECT_EQ(actual.created_utc, expected.created_utc);
   EXPECT_EQ(actual.damper_serial, expected.damper_serial);
   EXPECT_EQ(actual.rig, expected.rig);
-  ASSERT_EQ(actual.experiments.size(), expected.experiments.size());
-  for (std::size_t i = 0; i < expected.experiments.size(); ++i) {
-    ExpectSameExperiment(expected.experiments[i], actual.experiments[i]);
-  }
+  ExpectSameEach(expected.experiments, actual.experiments, ExpectSameExperiment);
 }
 
 }  // namespace strut::test

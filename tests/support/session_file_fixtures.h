@@ -34,18 +34,24 @@ inline daq::Channel MakeChannel(std::string name, std::string units, const std::
   return c;
 }
 
-// Periodic: 200 Hz, 2 Hz, 3 periods = 300 samples, with a further `temperature` channel.
-inline daq::Experiment MakePeriodic(std::string label) {
+//! An experiment of `kind` with `n` samples at `sample_rate` on its time axis and no channels yet.
+inline daq::Experiment MakeExperiment(std::string label, daq::ExperimentKind kind, double sample_rate, std::size_t n) {
   daq::Experiment e;
   e.label = std::move(label);
-  e.kind = daq::ExperimentKind::kPeriodic;
-  e.sample_rate = 200;
+  e.kind = kind;
+  e.sample_rate = sample_rate;
+  e.time = TimeAxis(n, sample_rate);
+  return e;
+}
+
+// Periodic: 200 Hz, 2 Hz, 3 periods = 300 samples, with a further `temperature` channel.
+inline daq::Experiment MakePeriodic(std::string label) {
+  daq::Experiment e = MakeExperiment(std::move(label), daq::ExperimentKind::kPeriodic, 200, 300);
   e.frequency = 2;
   e.amplitude = 0.01;
   e.static_position = 0.1;
   e.periods = 3;
   e.group = "high";
-  e.time = TimeAxis(300, e.sample_rate);
   e.channels = {MakeChannel("stroke", "m", e.time, 0.1, 0.01, 2),
                 MakeChannel("force", "N", e.time, 5000, 2000, 2),
                 MakeChannel("pressure", "Pa", e.time, 2e6, 1e5, 2, "absolute"),
@@ -56,13 +62,9 @@ inline daq::Experiment MakePeriodic(std::string label) {
 
 //! Drop: 1 kHz, 250 samples, 500 kg at 2.5 m/s, gauge pressure.
 inline daq::Experiment MakeDrop(std::string label) {
-  daq::Experiment e;
-  e.label = std::move(label);
-  e.kind = daq::ExperimentKind::kDrop;
-  e.sample_rate = 1000;
+  daq::Experiment e = MakeExperiment(std::move(label), daq::ExperimentKind::kDrop, 1000, 250);
   e.drop_mass = 500;
   e.impact_velocity = 2.5;
-  e.time = TimeAxis(250, e.sample_rate);
   e.channels = {MakeChannel("stroke", "m", e.time, 0.05, 0.05, 1),
                 MakeChannel("force", "N", e.time, 1e4, 1e4, 1),
                 MakeChannel("pressure", "Pa", e.time, 1e5, 5e4, 1, "gauge")};
@@ -71,12 +73,8 @@ inline daq::Experiment MakeDrop(std::string label) {
 
 //! Static, aborted: 10 Hz, 50 samples, absolute pressure.
 inline daq::Experiment MakeStatic(std::string label) {
-  daq::Experiment e;
-  e.label = std::move(label);
-  e.kind = daq::ExperimentKind::kStatic;
+  daq::Experiment e = MakeExperiment(std::move(label), daq::ExperimentKind::kStatic, 10, 50);
   e.status = "aborted";
-  e.sample_rate = 10;
-  e.time = TimeAxis(50, e.sample_rate);
   e.channels = {MakeChannel("stroke", "m", e.time, 0.2, 0.001, 0.1),
                 MakeChannel("force", "N", e.time, 3e4, 10, 0.1),
                 MakeChannel("pressure", "Pa", e.time, 3e6, 1e3, 0.1, "absolute")};

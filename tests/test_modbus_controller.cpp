@@ -11,6 +11,7 @@
 #include <thread>
 
 #include "modbus_test_peer.h"
+#include "set_points.h"
 #include "strut/daq/fake_controller.h"
 #include "strut/daq/modbus_controller.h"
 
@@ -31,16 +32,7 @@ ModbusControllerOptions Options(int port) {
   return o;
 }
 
-SetPoint Typical() {
-  SetPoint s;
-  s.static_position = 0.133;
-  s.amplitude = 0.034;
-  s.frequency = 0.5;
-  s.ramp_cycles = 2;
-  s.static_rate = 0.02;
-  s.limits = {0.005, 0.35, -4.0e4, 4.5e4};
-  return s;
-}
+SetPoint Typical() { return strut::test::ExperimentHSetPoint(/*ramp_cycles=*/2); }
 
 double F32(double v) {  // see test_modbus_registers.cpp for why volatile
   volatile float f = static_cast<float>(v);

@@ -12,22 +12,13 @@
 #include <random>
 #include <string>
 
+#include "set_points.h"
 #include "strut/daq/controller_registers.h"
 
 namespace strut::daq::registers {
 namespace {
 
-SetPoint TypicalSetPoint() {
-  SetPoint s;
-  s.mode = ControlMode::kStroke;
-  s.static_position = 0.133;
-  s.amplitude = 0.034;
-  s.frequency = 0.5;
-  s.ramp_cycles = 3;
-  s.static_rate = 0.02;
-  s.limits = {0.005, 0.35, -4.0e4, 4.5e4};
-  return s;
-}
+SetPoint TypicalSetPoint() { return strut::test::ExperimentHSetPoint(/*ramp_cycles=*/3); }
 
 //! The set-point as the registers carry it (float32).
 // Through a volatile float: GCC 12's SLP vectorizer at -O3 dropped the double -> float -> double

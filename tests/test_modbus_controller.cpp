@@ -32,6 +32,13 @@ ModbusControllerOptions Options(int port) {
   return o;
 }
 
+// A fake controller served on loopback and a client of it, made and destroyed in that order.
+struct Loopback {
+  FakeControllerBackend backend;
+  ModbusControllerServer server{backend};
+  ModbusController client{Options(server.port())};
+};
+
 SetPoint Typical() { return strut::test::ExperimentHSetPoint(/*ramp_cycles=*/2); }
 
 double F32(double v) {  // see test_modbus_registers.cpp for why volatile
@@ -70,9 +77,8 @@ TEST(ModbusEndpoint, ParsesHostPortFormsAndRefusesBadOnes) {
 }
 
 TEST(ModbusController, EveryRegisterRoundTrips) {
-  FakeControllerBackend backend;
-  ModbusControllerServer server(backend);
-  ModbusController client(Options(server.port()));
+  Loopback loopback;
+  auto& [backend, server, client] = loopback;
 
   // Holding registers 0-19: the set-point block, as the client encodes it and the backend gets it.
   SetPoint s = Typical();
@@ -141,9 +147,8 @@ TEST(ModbusController, EveryRegisterRoundTrips) {
 }
 
 TEST(ModbusController, HalfWrittenSetPointIsNeverApplied) {
-  FakeControllerBackend backend;
-  ModbusControllerServer server(backend);
-  ModbusController client(Options(server.port()));
+  Loopback loopback;
+  auto& [backend, server, client] = loopback;
   const std::uint16_t first = client.WriteSetPoint(Typical());
   ASSERT_EQ(backend.applied().size(), 1u);
 
@@ -185,9 +190,8 @@ TEST(ModbusController, HalfWrittenSetPointIsNeverApplied) {
 }
 
 TEST(ModbusController, RefusedCommandArrivesAsAnExceptionWithTheControllersReason) {
-  FakeControllerBackend backend;
-  ModbusControllerServer server(backend);
-  ModbusController client(Options(server.port()));
+  Loopback loopback;
+  auto& [backend, server, client] = loopback;
   client.WriteSetPoint(Typical());
   const DeviceError e = Expect(DeviceError::Kind::kRefused, [&] { client.Run(); });
   const std::string what = e.what();
@@ -218,9 +222,8 @@ TEST(ModbusController, RefusedCommandArrivesAsAnExceptionWithTheControllersReaso
 }
 
 TEST(ModbusController, AddressOutsideTheMapIsAnExceptionAndTheConnectionStays) {
-  FakeControllerBackend backend;
-  ModbusControllerServer server(backend);
-  ModbusController client(Options(server.port()));
+  Loopback loopback;
+  auto& [backend, server, client] = loopback;
   const DeviceError e = Expect(DeviceError::Kind::kRefused, [&] { client.ReadHoldingRegisters(20, 10); });
   EXPECT_EQ(e.error_number(), EMBXILADD);
   EXPECT_NE(std::string(e.what()).find("holding registers 20-29"), std::string::npos) << e.what();
@@ -232,9 +235,8 @@ TEST(ModbusController, AddressOutsideTheMapIsAnExceptionAndTheConnectionStays) {
 }
 
 TEST(ModbusController, InvalidSetPointIsRefusedBeforeSendingAndNaNWrittenRawIsRefusedByTheServer) {
-  FakeControllerBackend backend;
-  ModbusControllerServer server(backend);
-  ModbusController client(Options(server.port()));
+  Loopback loopback;
+  auto& [backend, server, client] = loopback;
   client.ReadStatus();
   const long requests = server.requests();
   SetPoint bad = Typical();
@@ -355,9 +357,8 @@ TEST(ModbusController, ServerDisappearingFailsFastAndReconnectsWithCappedBackoff
 }
 
 TEST(ModbusController, LostHeartbeatStopsTheControllerAndLatchesAFault) {
-  FakeControllerBackend backend;
-  ModbusControllerServer server(backend);
-  ModbusController client(Options(server.port()));
+  Loopback loopback;
+  auto& [backend, server, client] = loopback;
   client.WriteSetPoint(Typical());
   client.Arm();
   client.Run();
@@ -381,9 +382,8 @@ TEST(ModbusController, LostHeartbeatStopsTheControllerAndLatchesAFault) {
 }
 
 TEST(ModbusController, CallsFromManyThreadsAreServedByTheOneIoOwner) {
-  FakeControllerBackend backend;
-  ModbusControllerServer server(backend);
-  ModbusController client(Options(server.port()));
+  Loopback loopback;
+  auto& [backend, server, client] = loopback;
   client.WriteSetPoint(Typical());
   std::atomic<int> ok{0}, failed{0};
   std::vector<std::thread> threads;
@@ -459,9 +459,8 @@ TEST(ModbusControllerServer, GarbageFromTheNetworkNeitherCrashesNorAppliesAnythi
 }
 
 TEST(ModbusControllerServer, FailingBackendIsReportedAsADeviceFault) {
-  FakeControllerBackend backend;
-  ModbusControllerServer server(backend);
-  ModbusController client(Options(server.port()));
+  Loopback loopback;
+  auto& [backend, server, client] = loopback;
   backend.FailStatus(true);
   std::this_thread::sleep_for(30ms);
   const ControllerStatus st = client.ReadStatus();

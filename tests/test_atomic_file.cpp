@@ -29,13 +29,18 @@ std::string BinaryBytes(std::size_t size) {
   return bytes;
 }
 
+// `path` holds exactly `bytes`, and no partial file is left beside it.
+void ExpectHolds(const std::string& path, const std::string& bytes) {
+  EXPECT_EQ(ReadFile(path), bytes);
+  EXPECT_FALSE(fs::exists(path + ".partial"));
+}
+
 TEST(AtomicFile, WritesTheBytesExactlyAndLeavesNoPartialFile) {
   TempDir dir;
   const std::string path = dir.file("out.bin");
   const std::string bytes = BinaryBytes(3 * 1024 * 1024 + 17);
   WriteFileAtomically(path, bytes);
-  EXPECT_EQ(ReadFile(path), bytes);
-  EXPECT_FALSE(fs::exists(path + ".partial"));
+  ExpectHolds(path, bytes);
   WriteFileAtomically(dir.file("empty.txt"), "");
   EXPECT_EQ(fs::file_size(dir.file("empty.txt")), 0u);
   EXPECT_EQ(std::distance(fs::directory_iterator(dir.path()), fs::directory_iterator()), 2);
@@ -48,8 +53,7 @@ TEST(AtomicFile, ReplacesAnExistingFileLongerOrShorter) {
   WriteFileAtomically(path, "short");
   EXPECT_EQ(ReadFile(path), "short");
   WriteFileAtomically(path, std::string(5000, 'y'));
-  EXPECT_EQ(ReadFile(path), std::string(5000, 'y'));
-  EXPECT_FALSE(fs::exists(path + ".partial"));
+  ExpectHolds(path, std::string(5000, 'y'));
 }
 
 // The message of the FileWriteError a write throws ("" when none).
@@ -99,8 +103,7 @@ TEST(AtomicFile, IntoAReadOnlyFolderKeepsTheOldFile) {
   const std::string message = ErrorWritingUnprivileged(path);
   fs::permissions(folder, fs::perms::owner_all);
   EXPECT_EQ(message, path + ": cannot write: creating " + path + ".partial: Permission denied");
-  EXPECT_EQ(ReadFile(path), "old");
-  EXPECT_FALSE(fs::exists(path + ".partial"));
+  ExpectHolds(path, "old");
 }
 
 TEST(AtomicFile, AWriteFailingHalfWayKeepsTheOldFileAndRemovesThePartialOne) {
@@ -113,8 +116,7 @@ TEST(AtomicFile, AWriteFailingHalfWayKeepsTheOldFileAndRemovesThePartialOne) {
     message = ErrorOf([&] { WriteFileAtomically(path, BinaryBytes(256 * 1024)); });
   }
   EXPECT_EQ(message, path + ": cannot write: writing " + path + ".partial: File too large");
-  EXPECT_EQ(ReadFile(path), "old contents");
-  EXPECT_FALSE(fs::exists(path + ".partial"));
+  ExpectHolds(path, "old contents");
 }
 
 TEST(AtomicFile, AFailedRenameLeavesTheTargetAndNoPartialFile) {

@@ -86,6 +86,17 @@ class Reader {
     read(t);
   }
 
+  // Visits a detector's section (`keys` are all its keys): its `enabled` switch and its `action`
+  // here, the detector's own settings in `read`.
+  template <typename Settings, typename F>
+  void Detector(const char* name, std::initializer_list<const char*> keys, Settings& settings, F&& read) {
+    Section(name, keys, [&](const toml::table& t) {
+      Bool(t, name, "enabled", settings.enabled);
+      read(t);
+      Action(t, name, settings.action);
+    });
+  }
+
   void Number(const toml::table& t, const char* section, const char* key, double& out) const {
     if (const auto v = toml_.Number(t, Where(section), key)) out = *v;
   }
@@ -109,12 +120,10 @@ class Reader {
     out = *action;
   }
   void Limit(const char* section, ChannelLimit& l) {
-    Section(section, {"enabled", "lower", "upper", "persistence", "action"}, [&](const toml::table& t) {
-      Bool(t, section, "enabled", l.enabled);
+    Detector(section, {"enabled", "lower", "upper", "persistence", "action"}, l, [&](const toml::table& t) {
       Number(t, section, "lower", l.lower);
       Number(t, section, "upper", l.upper);
       Integer(t, section, "persistence", l.persistence);
-      Action(t, section, l.action);
     });
   }
   void RefuseUnknownSections() const {
@@ -144,29 +153,22 @@ SafetyConfig ParseSafetyConfig(std::string_view text, const std::string& source)
   r.Limit("stroke", c.stroke);
   r.Limit("force", c.force);
   r.Limit("pressure", c.pressure);
-  r.Section("following_error", {"enabled", "max_error", "persistence", "action"}, [&](const toml::table& t) {
-    r.Bool(t, "following_error", "enabled", c.following.enabled);
-    r.Number(t, "following_error", "max_error", c.following.max_error);
-    r.Integer(t, "following_error", "persistence", c.following.persistence);
-    r.Action(t, "following_error", c.following.action);
-  });
-  r.Section("under_peak", {"enabled", "fraction", "cycles", "action"}, [&](const toml::table& t) {
-    r.Bool(t, "under_peak", "enabled", c.under_peak.enabled);
+  r.Detector("following_error", {"enabled", "max_error", "persistence", "action"}, c.following,
+             [&](const toml::table& t) {
+               r.Number(t, "following_error", "max_error", c.following.max_error);
+               r.Integer(t, "following_error", "persistence", c.following.persistence);
+             });
+  r.Detector("under_peak", {"enabled", "fraction", "cycles", "action"}, c.under_peak, [&](const toml::table& t) {
     r.Number(t, "under_peak", "fraction", c.under_peak.fraction);
     r.Integer(t, "under_peak", "cycles", c.under_peak.cycles);
-    r.Action(t, "under_peak", c.under_peak.action);
   });
-  r.Section("stale", {"enabled", "timeout", "action"}, [&](const toml::table& t) {
-    r.Bool(t, "stale", "enabled", c.stale.enabled);
-    r.Millis(t, "stale", "timeout", c.stale.timeout);
-    r.Action(t, "stale", c.stale.action);
-  });
-  r.Section("heartbeat", {"enabled", "controller_timeout", "watchdog", "action"}, [&](const toml::table& t) {
-    r.Bool(t, "heartbeat", "enabled", c.heartbeat.enabled);
-    r.Millis(t, "heartbeat", "controller_timeout", c.heartbeat.controller_timeout);
-    r.Millis(t, "heartbeat", "watchdog", c.heartbeat.watchdog);
-    r.Action(t, "heartbeat", c.heartbeat.action);
-  });
+  r.Detector("stale", {"enabled", "timeout", "action"}, c.stale,
+             [&](const toml::table& t) { r.Millis(t, "stale", "timeout", c.stale.timeout); });
+  r.Detector("heartbeat", {"enabled", "controller_timeout", "watchdog", "action"}, c.heartbeat,
+             [&](const toml::table& t) {
+               r.Millis(t, "heartbeat", "controller_timeout", c.heartbeat.controller_timeout);
+               r.Millis(t, "heartbeat", "watchdog", c.heartbeat.watchdog);
+             });
   r.Section("actuator", {"max_velocity", "piston_area", "max_flow"}, [&](const toml::table& t) {
     r.Number(t, "actuator", "max_velocity", c.actuator.max_velocity);
     r.Number(t, "actuator", "piston_area", c.actuator.piston_area);

@@ -160,10 +160,25 @@ std::optional<CanFrame> CanFrame::FromBytes(std::span<const std::uint8_t> bytes)
   return std::nullopt;
 }
 
+SocketFrameTransport::~SocketFrameTransport() {
+  if (socket_ >= 0) close(socket_);
+}
+
+void SocketFrameTransport::Send(std::span<const CanFrame> frames, std::chrono::nanoseconds timeout) {
+  SendFrames(socket_, name_, frames, timeout);
+}
+
+std::size_t SocketFrameTransport::Receive(std::span<CanFrame> frames, std::chrono::nanoseconds timeout) {
+  return ReceiveFrames(socket_, name_, frames, timeout, counters_);
+}
+
+void SocketFrameTransport::Flush() { Drain(socket_); }
+
 // ---------------------------------------------------------------------------------------------
 // SocketCAN
 
-SocketCanTransport::SocketCanTransport(const std::string& interface, bool fd_frames) : name_(interface) {
+SocketCanTransport::SocketCanTransport(const std::string& interface, bool fd_frames)
+    : SocketFrameTransport(interface, -1) {
   const auto fail = [&](const std::string& why) {
     const int error = errno;
     if (socket_ >= 0) close(socket_);
@@ -195,10 +210,6 @@ SocketCanTransport::SocketCanTransport(const std::string& interface, bool fd_fra
   if (bind(socket_, reinterpret_cast<sockaddr*>(&address), sizeof address) < 0) fail(fmt::format("bind: {}", Errno(errno)));
 }
 
-SocketCanTransport::~SocketCanTransport() {
-  if (socket_ >= 0) close(socket_);
-}
-
 void SocketCanTransport::SetFilter(std::span<const canid_t> extended_ids) {
   std::vector<can_filter> filters;
   for (const canid_t id : extended_ids) filters.push_back({id | CAN_EFF_FLAG, CAN_EFF_FLAG | CAN_RTR_FLAG | CAN_EFF_MASK});
@@ -206,16 +217,6 @@ void SocketCanTransport::SetFilter(std::span<const canid_t> extended_ids) {
                  static_cast<socklen_t>(filters.size() * sizeof(can_filter))) < 0)
     throw DeviceError(DeviceError::Kind::kConnection, name_, "set", "CAN_RAW_FILTER", errno, Errno(errno));
 }
-
-void SocketCanTransport::Send(std::span<const CanFrame> frames, std::chrono::nanoseconds timeout) {
-  SendFrames(socket_, name_, frames, timeout);
-}
-
-std::size_t SocketCanTransport::Receive(std::span<CanFrame> frames, std::chrono::nanoseconds timeout) {
-  return ReceiveFrames(socket_, name_, frames, timeout, counters_);
-}
-
-void SocketCanTransport::Flush() { Drain(socket_); }
 
 // ---------------------------------------------------------------------------------------------
 // UDP
@@ -270,26 +271,12 @@ std::unique_ptr<UdpCanTransport> UdpCanTransport::Connect(const std::string& hos
   return t;
 }
 
-UdpCanTransport::~UdpCanTransport() {
-  if (socket_ >= 0) close(socket_);
-}
-
 std::uint16_t UdpCanTransport::local_port() const {
   sockaddr_in address{};
   socklen_t size = sizeof address;
   if (getsockname(socket_, reinterpret_cast<sockaddr*>(&address), &size) < 0) return 0;
   return ntohs(address.sin_port);
 }
-
-void UdpCanTransport::Send(std::span<const CanFrame> frames, std::chrono::nanoseconds timeout) {
-  SendFrames(socket_, name_, frames, timeout);
-}
-
-std::size_t UdpCanTransport::Receive(std::span<CanFrame> frames, std::chrono::nanoseconds timeout) {
-  return ReceiveFrames(socket_, name_, frames, timeout, counters_);
-}
-
-void UdpCanTransport::Flush() { Drain(socket_); }
 
 std::unique_ptr<CanTransport> OpenCanTransport(const std::string& spec, bool listen, bool fd_frames) {
   if (spec.rfind("can:", 0) == 0) return std::make_unique<SocketCanTransport>(spec.substr(4), fd_frames);

@@ -56,18 +56,13 @@ class CanTransport {
   virtual CanTransportCounters counters() const = 0;
 };
 
-//! A CAN_RAW socket bound to an interface. Throws DeviceError "can0: open: ..." when
-//! the socket cannot be created or bound (no AF_CAN in the kernel, no such interface).
-class SocketCanTransport : public CanTransport {
+//! A transport over one socket it owns and closes: a frame is one write and one read of its bytes
+//! on a CAN_RAW socket and on a UDP socket alike.
+class SocketFrameTransport : public CanTransport {
  public:
-  //! `fd_frames`: accept and send CAN FD frames (CAN_RAW_FD_FRAMES).
-  explicit SocketCanTransport(const std::string& interface, bool fd_frames = true);
-  ~SocketCanTransport() override;
-  SocketCanTransport(const SocketCanTransport&) = delete;
-  SocketCanTransport& operator=(const SocketCanTransport&) = delete;
-
-  //! Receive only these extended ids (exact), plus error frames. Empty: everything.
-  void SetFilter(std::span<const canid_t> extended_ids);
+  ~SocketFrameTransport() override;
+  SocketFrameTransport(const SocketFrameTransport&) = delete;
+  SocketFrameTransport& operator=(const SocketFrameTransport&) = delete;
 
   const std::string& name() const override { return name_; }
   void Send(std::span<const CanFrame> frames, std::chrono::nanoseconds timeout) override;
@@ -75,14 +70,28 @@ class SocketCanTransport : public CanTransport {
   void Flush() override;
   CanTransportCounters counters() const override { return counters_; }
 
- private:
+ protected:
+  //! `socket` -1: the derived constructor opens it.
+  SocketFrameTransport(std::string name, int socket) : name_(std::move(name)), socket_(socket) {}
+
   std::string name_;
   int socket_ = -1;
   CanTransportCounters counters_;
 };
 
+//! A CAN_RAW socket bound to an interface. Throws DeviceError "can0: open: ..." when
+//! the socket cannot be created or bound (no AF_CAN in the kernel, no such interface).
+class SocketCanTransport : public SocketFrameTransport {
+ public:
+  //! `fd_frames`: accept and send CAN FD frames (CAN_RAW_FD_FRAMES).
+  explicit SocketCanTransport(const std::string& interface, bool fd_frames = true);
+
+  //! Receive only these extended ids (exact), plus error frames. Empty: everything.
+  void SetFilter(std::span<const canid_t> extended_ids);
+};
+
 //! CAN frames in UDP datagrams, one frame per datagram, the exact struct bytes.
-class UdpCanTransport : public CanTransport {
+class UdpCanTransport : public SocketFrameTransport {
  public:
   //! Receives on host:port (port 0: an ephemeral port, see local_port()). `receive_buffer`:
   //! SO_RCVBUF bytes asked for (the kernel caps it at net.core.rmem_max); 4 MiB hold
@@ -91,22 +100,11 @@ class UdpCanTransport : public CanTransport {
                                                  int receive_buffer = 4 << 20);
   //! Sends to host:port.
   static std::unique_ptr<UdpCanTransport> Connect(const std::string& host, std::uint16_t port);
-  ~UdpCanTransport() override;
-  UdpCanTransport(const UdpCanTransport&) = delete;
-  UdpCanTransport& operator=(const UdpCanTransport&) = delete;
 
   std::uint16_t local_port() const;
-  const std::string& name() const override { return name_; }
-  void Send(std::span<const CanFrame> frames, std::chrono::nanoseconds timeout) override;
-  std::size_t Receive(std::span<CanFrame> frames, std::chrono::nanoseconds timeout) override;
-  void Flush() override;
-  CanTransportCounters counters() const override { return counters_; }
 
  private:
-  UdpCanTransport(std::string name, int socket) : name_(std::move(name)), socket_(socket) {}
-  std::string name_;
-  int socket_ = -1;
-  CanTransportCounters counters_;
+  UdpCanTransport(std::string name, int socket) : SocketFrameTransport(std::move(name), socket) {}
 };
 
 //! A transport from a spec: "can:IFACE" (SocketCAN) or "udp:HOST:PORT" (listening when

@@ -2,9 +2,11 @@
 // library only (the libFuzzer target builds this file with clang alone).
 #include "strut/daq/controller_registers.h"
 
+#include <array>
 #include <bit>
 #include <cmath>
 #include <cstring>
+#include <utility>
 
 #include "set_point_check.h"
 
@@ -80,6 +82,20 @@ void PutFloatAt(std::span<std::uint16_t> block, std::uint16_t address, double va
   PutFloat(std::span<std::uint16_t, 2>(block.data() + address, 2), static_cast<float>(value));
 }
 
+// The set-point's float32 fields with their registers, one table for encoding and decoding.
+// `S` is SetPoint or const SetPoint.
+template <typename S>
+auto SetPointFloats(S& s) {
+  return std::array{std::pair{holding::kStaticPosition, &s.static_position},
+                    std::pair{holding::kAmplitude, &s.amplitude},
+                    std::pair{holding::kFrequency, &s.frequency},
+                    std::pair{holding::kStaticRate, &s.static_rate},
+                    std::pair{holding::kStrokeMin, &s.limits.stroke_min},
+                    std::pair{holding::kStrokeMax, &s.limits.stroke_max},
+                    std::pair{holding::kForceMin, &s.limits.force_min},
+                    std::pair{holding::kForceMax, &s.limits.force_max}};
+}
+
 }  // namespace
 
 std::string_view ToString(RefusalCode code) {
@@ -145,14 +161,7 @@ SetPointBlock EncodeSetPoint(const SetPoint& s, std::uint16_t sequence) {
   SetPointBlock block{};
   block[holding::kMode] = static_cast<std::uint16_t>(s.mode);
   block[holding::kRampCycles] = static_cast<std::uint16_t>(s.ramp_cycles);
-  PutFloatAt(block, holding::kStaticPosition, s.static_position);
-  PutFloatAt(block, holding::kAmplitude, s.amplitude);
-  PutFloatAt(block, holding::kFrequency, s.frequency);
-  PutFloatAt(block, holding::kStaticRate, s.static_rate);
-  PutFloatAt(block, holding::kStrokeMin, s.limits.stroke_min);
-  PutFloatAt(block, holding::kStrokeMax, s.limits.stroke_max);
-  PutFloatAt(block, holding::kForceMin, s.limits.force_min);
-  PutFloatAt(block, holding::kForceMax, s.limits.force_max);
+  for (const auto& [address, value] : SetPointFloats(s)) PutFloatAt(block, address, *value);
   block[holding::kSequence] = sequence;
   block[holding::kChecksum] = SetPointChecksum(block);
   return block;
@@ -180,14 +189,7 @@ Decoded<SetPoint> DecodeSetPoint(std::span<const std::uint16_t> block) {
   SetPoint s;
   s.mode = *mode;
   s.ramp_cycles = block[holding::kRampCycles];
-  s.static_position = FloatAt(block, holding::kStaticPosition);
-  s.amplitude = FloatAt(block, holding::kAmplitude);
-  s.frequency = FloatAt(block, holding::kFrequency);
-  s.static_rate = FloatAt(block, holding::kStaticRate);
-  s.limits.stroke_min = FloatAt(block, holding::kStrokeMin);
-  s.limits.stroke_max = FloatAt(block, holding::kStrokeMax);
-  s.limits.force_min = FloatAt(block, holding::kForceMin);
-  s.limits.force_max = FloatAt(block, holding::kForceMax);
+  for (const auto& [address, value] : SetPointFloats(s)) *value = FloatAt(block, address);
   if (const auto problem = detail::CheckSetPoint(s)) {
     const std::uint16_t address = HoldingAddressOf(problem->field);
     return Refuse<SetPoint>(problem->not_finite ? R::kNotFinite : R::kOutOfRange, address,

@@ -13,7 +13,9 @@
 #include <array>
 #include <cerrno>
 #include <cstring>
+#include <optional>
 #include <stdexcept>
+#include <string>
 #include <vector>
 
 #include "strut/daq/modbus_controller.h"
@@ -136,6 +138,26 @@ Write WriteOf(const std::uint8_t* query, int length, int header) {
   return w;
 }
 
+//! A write refused, with the Modbus exception it is answered with.
+struct Refused {
+  reg::Refusal refusal;
+  unsigned exception = 0;
+};
+
+//! How the backend's answer to a write touching `address` is refused: its reason as a refused state,
+//! a throw as a device failure; nullopt when `ask` accepts.
+template <typename Ask>
+std::optional<Refused> BackendRefusal(std::uint16_t address, Ask ask) {
+  std::optional<std::string> reason;
+  try {
+    reason = ask();
+  } catch (const std::exception& e) {  // the caller's backend: answered as a device failure
+    return Refused{{reg::RefusalCode::kDeviceFailure, address, e.what()}, MODBUS_EXCEPTION_SLAVE_OR_SERVER_FAILURE};
+  }
+  if (reason) return Refused{{reg::RefusalCode::kStateRefused, address, *reason}, MODBUS_EXCEPTION_ILLEGAL_DATA_VALUE};
+  return std::nullopt;
+}
+
 }  // namespace
 
 void ModbusControllerServer::RefreshStatus() {
@@ -211,16 +233,8 @@ void ModbusControllerServer::HandleWrite(const std::uint8_t* query, int length, 
     const auto decoded = reg::DecodeSetPoint(
         std::span<const std::uint16_t>(proposed.data() + reg::holding::kSetPointBlock, reg::holding::kSetPointCount));
     if (!decoded.ok()) return Refuse(query, decoded.refusal, MODBUS_EXCEPTION_ILLEGAL_DATA_VALUE);
-    std::optional<std::string> reason;
-    try {
-      reason = backend_.Apply(*decoded.value);
-    } catch (const std::exception& e) {  // the caller's backend: answered as a device failure
-      return Refuse(query, {reg::RefusalCode::kDeviceFailure, reg::holding::kSequence, e.what()},
-                    MODBUS_EXCEPTION_SLAVE_OR_SERVER_FAILURE);
-    }
-    if (reason)
-      return Refuse(query, {reg::RefusalCode::kStateRefused, reg::holding::kSequence, *reason},
-                    MODBUS_EXCEPTION_ILLEGAL_DATA_VALUE);
+    if (const auto refused = BackendRefusal(reg::holding::kSequence, [&] { return backend_.Apply(*decoded.value); }))
+      return Refuse(query, refused->refusal, refused->exception);
     // Applied: the block stays even if a command in the same request is refused below.
     std::copy(proposed.begin() + reg::holding::kSetPointBlock,
               proposed.begin() + reg::holding::kSetPointBlock + reg::holding::kSetPointCount,
@@ -228,16 +242,8 @@ void ModbusControllerServer::HandleWrite(const std::uint8_t* query, int length, 
     s.applied_sequence = sequence;
   }
   if (command) {
-    std::optional<std::string> reason;
-    try {
-      reason = backend_.Execute(*command);
-    } catch (const std::exception& e) {  // the caller's backend: answered as a device failure
-      return Refuse(query, {reg::RefusalCode::kDeviceFailure, reg::holding::kCommand, e.what()},
-                    MODBUS_EXCEPTION_SLAVE_OR_SERVER_FAILURE);
-    }
-    if (reason)
-      return Refuse(query, {reg::RefusalCode::kStateRefused, reg::holding::kCommand, *reason},
-                    MODBUS_EXCEPTION_ILLEGAL_DATA_VALUE);
+    if (const auto refused = BackendRefusal(reg::holding::kCommand, [&] { return backend_.Execute(*command); }))
+      return Refuse(query, refused->refusal, refused->exception);
     if (*command == ControllerCommand::kResetFaults) {
       s.server_faults = 0;
       s.watchdog_tripped = false;

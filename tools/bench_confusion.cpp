@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "bench_options.h"
 #include "commands.h"
 #include "option_checks.h"
 #include "output_files.h"
@@ -116,11 +117,9 @@ void RegisterBenchConfusion(CLI::App& bench) {
   auto [sub, command] = AddCommand<BenchConfusion>(
       bench, "confusion",
       "Discovery on drawn units with one catalogue effect or none: right first terms, extras, false discoveries.");
-  sub->add_option("--units", command->options.units, "Drawn units per effect.")->check(Between(1, 10000))->capture_default_str();
-  sub->add_option("--first-seed", command->options.first_seed, "Seed of the first unit.")->capture_default_str();
-  sub->add_option("--base", command->options.base, "The units' base physics and the baseline model: 1dof, 1dof+heat-exchange or 2dof.")
-      ->check(CLI::IsMember({"1dof", "1dof+heat-exchange", "2dof"}))
-      ->capture_default_str();
+  AddDrawnUnitsOptions(*sub, command->options, "Drawn units per effect.", 10000, "Seed of the first unit.");
+  AddUnitsBaseOption(*sub, command->options.base,
+                     "The units' base physics and the baseline model: 1dof, 1dof+heat-exchange or 2dof.");
   sub->add_option("--effects", command->effects, "The effects, separated by commas; 'none' stands for units with nothing missing.")
       ->capture_default_str();
   sub->add_flag("--servo", command->options.servo, "Drive the damper through the servo actuator (default: an ideal actuator).");

@@ -9,7 +9,7 @@
 #include <nlohmann/json.hpp>
 
 #include "commands.h"
-#include "drop_bench_options.h"
+#include "bench_options.h"
 #include "option_checks.h"
 #include "output_files.h"
 #include "strut/study/drop_fit.h"

@@ -8,6 +8,7 @@
 #include <iostream>
 #include <nlohmann/json.hpp>
 
+#include "bench_options.h"
 #include "commands.h"
 #include "option_checks.h"
 #include "output_files.h"
@@ -115,8 +116,7 @@ void RegisterBenchQc(CLI::App& bench) {
       bench, "qc",
       "The QC lot study: drawn units, some defective, each through the QC matrix and decided; confusion matrix "
       "and decision time (docs/qc.md).");
-  sub->add_option("--units", command->options.units, "Units in the lot.")->check(Between(1, 100000))->capture_default_str();
-  sub->add_option("--first-seed", command->options.first_seed, "Seed of the first unit (the others follow).")->capture_default_str();
+  AddDrawnUnitsOptions(*sub, command->options, "Units in the lot.", 100000);
   sub->add_option("--defects", command->options.defect_tenths, "Defective units per ten (the defect kinds take turns).")
       ->check(Between(0, 10))
       ->capture_default_str();

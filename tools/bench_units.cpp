@@ -5,6 +5,7 @@
 #include <iostream>
 #include <nlohmann/json.hpp>
 
+#include "bench_options.h"
 #include "commands.h"
 #include "option_checks.h"
 #include "output_files.h"
@@ -142,11 +143,9 @@ void RegisterBenchUnits(CLI::App& bench) {
   auto [sub, command] = AddCommand<BenchUnits>(
       bench, "units",
       "Identification of drawn units: coverage of the 95 % intervals, noise-floor verdicts, restarts from far off.");
-  sub->add_option("--units", command->options.units, "The number of drawn units.")->check(Between(1, 100000))->capture_default_str();
-  sub->add_option("--first-seed", command->options.first_seed, "Seed of the first unit (the others follow).")->capture_default_str();
-  sub->add_option("--base", command->options.base, "The units' physics and the fitted model: 1dof, 1dof+heat-exchange or 2dof.")
-      ->check(CLI::IsMember({"1dof", "1dof+heat-exchange", "2dof"}))
-      ->capture_default_str();
+  AddDrawnUnitsOptions(*sub, command->options, "The number of drawn units.", 100000);
+  AddUnitsBaseOption(*sub, command->options.base,
+                     "The units' physics and the fitted model: 1dof, 1dof+heat-exchange or 2dof.");
   sub->add_flag("--servo", command->options.servo, "Drive the damper through the servo actuator (default: an ideal actuator).");
   sub->add_flag("--shipped-calibration", command->options.shipped_calibration,
                 "Keep the shipped transducers' zero and gain errors (default: perfect calibration).");

@@ -141,16 +141,8 @@ TEST(ServedRig, RecordsAnExperimentOverModbusAndCanThatMatchesTheSimulatedRig) {
     meta.damper_serial = "SIM-F16N-0001";
     meta.rig = "strut rig serve-sim (in-process, loopback)";
     auto recorder = daq::Recorder::Open(path, meta);
-    daq::Experiment header;
-    header.label = kJ.label;
-    header.kind = daq::ExperimentKind::kPeriodic;
-    header.frequency = kJ.frequency;
-    header.amplitude = kJ.amplitude;
-    header.static_position = kJ.static_position;
-    header.periods = kPeriods;
-    header.group = kJ.group;
     // The file states the simulated rate, and the timestamps go on the simulated clock.
-    header.sample_rate = rig.server->simulated_sample_rate();
+    const daq::Experiment header = rig::PeriodicExperimentOf(kJ, kPeriods, rig.server->simulated_sample_rate());
     recorder.BeginExperiment(daq::AcquiredExperiment(header, rig.acquisition->description()));
     rig.blocks.clear();  // start with fresh samples
     std::size_t recorded = 0;
@@ -242,14 +234,7 @@ TEST(ServedRig, ControllerLostMidRunFailsFastAndTheRecordingEndsAborted) {
   meta.damper_serial = "SIM";
   meta.rig = "served";
   auto recorder = daq::Recorder::Open(path, meta);
-  daq::Experiment header;
-  header.label = "j";
-  header.kind = daq::ExperimentKind::kPeriodic;
-  header.frequency = 2.0;
-  header.amplitude = 0.01;
-  header.static_position = 0.133;
-  header.periods = 5;
-  header.sample_rate = rig.server->simulated_sample_rate();
+  const daq::Experiment header = rig::PeriodicExperimentOf(kJ, 5, rig.server->simulated_sample_rate());
   recorder.BeginExperiment(daq::AcquiredExperiment(header, rig.acquisition->description()));
   std::size_t recorded = 0;
   std::optional<std::int64_t> origin;

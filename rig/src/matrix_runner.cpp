@@ -317,21 +317,13 @@ struct MatrixRunner::Impl {
 
   daq::ExperimentDescriptor Descriptor() const {
     const Current& c = *current;
-    daq::Experiment h;
-    h.label = c.item.label();
-    h.kind = daq::ExperimentKind::kPeriodic;
-    h.frequency = c.item.entry.frequency;
-    h.amplitude = c.item.entry.amplitude;
-    h.static_position = c.item.entry.static_position;
-    h.waveform = "sine";
-    h.periods = options.periods;
-    h.group = c.item.entry.group;
+    daq::Experiment h = PeriodicExperimentOf(c.item.entry, options.periods, RecordedRate());
+    h.label = c.item.label();  // a repeat's label names its attempt
     h.extra_attributes["matrix_label"] = c.item.entry.label;
     h.extra_attributes["attempt"] = std::to_string(c.item.attempt);
     // When the recording began (UTC, to the second): a charge that leaks over a session shows as a
     // drift with this time (docs/rig-run.md).
     h.extra_attributes["started_utc"] = daq::UtcNowIso8601();
-    h.sample_rate = RecordedRate();
     return daq::AcquiredExperiment(std::move(h), acquisition.description(), options.pressure_reference);
   }
 

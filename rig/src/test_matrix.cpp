@@ -2,6 +2,19 @@
 
 namespace strut::rig {
 
+daq::Experiment PeriodicExperimentOf(const MatrixEntry& entry, long periods, double sample_rate) {
+  daq::Experiment e;
+  e.label = entry.label;
+  e.kind = daq::ExperimentKind::kPeriodic;
+  e.sample_rate = sample_rate;
+  e.frequency = entry.frequency;
+  e.amplitude = entry.amplitude;
+  e.static_position = entry.static_position;
+  e.periods = periods;
+  e.group = entry.group;
+  return e;
+}
+
 std::vector<MatrixEntry> StandardMatrix() {
   // Static position / amplitude in mm, as read from the paper's Table 1 (method.md).
   struct Row {

@@ -51,15 +51,7 @@ daq::Session SimulatePeriodicSession(const std::string& composition, std::span<c
     const long start = std::uniform_int_distribution<long>(0, n - 1)(rng);  // arbitrary phase
     const long count = n * options.periods;
 
-    daq::Experiment e;
-    e.label = entry.label;
-    e.kind = daq::ExperimentKind::kPeriodic;
-    e.sample_rate = options.sample_rate;
-    e.frequency = entry.frequency;
-    e.amplitude = entry.amplitude;
-    e.static_position = entry.static_position;
-    e.periods = options.periods;
-    e.group = entry.group;
+    daq::Experiment e = rig::PeriodicExperimentOf(entry, options.periods, options.sample_rate);
     e.time.resize(count);
     for (long i = 0; i < count; ++i) e.time[i] = i / options.sample_rate;
     const auto channel = [&](const char* name, const char* units, const Eigen::VectorXd& clean, double noise,

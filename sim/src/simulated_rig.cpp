@@ -267,15 +267,7 @@ std::vector<double> Joined(const std::vector<std::vector<double>>& blocks, std::
 daq::Experiment PeriodicExperiment(const rig::MatrixEntry& entry, double sample_rate, long periods, long n,
                                    PeriodicRecord& record, const Acquisition& acquisition, bool gauge_pressure,
                                    bool has_temperature, const std::string& composition, PeriodicRunReport& report) {
-  daq::Experiment e;
-  e.label = entry.label;
-  e.kind = daq::ExperimentKind::kPeriodic;
-  e.sample_rate = sample_rate;
-  e.frequency = entry.frequency;
-  e.amplitude = entry.amplitude;
-  e.static_position = entry.static_position;
-  e.periods = periods;
-  e.group = entry.group;
+  daq::Experiment e = rig::PeriodicExperimentOf(entry, periods, sample_rate);
   if (!report.interlock.empty()) {
     // Stopped by the interlock: no steady state; everything acquired up to the trip is kept.
     e.status = "aborted";

@@ -8,6 +8,8 @@
 #include <string_view>
 #include <vector>
 
+#include "strut/daq/session.h"
+
 namespace strut::rig {
 
 //! One sinusoidal experiment of a test matrix (SI units).
@@ -21,6 +23,10 @@ struct MatrixEntry {
 
 //! The 14-experiment standard matrix of method.md (paper Tables 1 and 2).
 std::vector<MatrixEntry> StandardMatrix();
+
+//! The periodic experiment that runs `entry`, without samples: its label, group, frequency,
+//! static position and amplitude, with `periods` steady periods at `sample_rate`.
+daq::Experiment PeriodicExperimentOf(const MatrixEntry& entry, long periods, double sample_rate);
 
 //! A test matrix with optional overrides of the acquisition (from a matrix file).
 struct MatrixPlan {

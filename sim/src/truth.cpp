@@ -5,8 +5,13 @@
 #include <algorithm>
 #include <cmath>
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 #include <map>
 #include <set>
+#include <string_view>
+#include <type_traits>
+#include <variant>
+#include <vector>
 
 #include "strut/daq/toml_reader.h"
 
@@ -54,16 +59,38 @@ class Reader {
   static std::string In(std::string_view section) { return daq::TomlReader<TruthError>::In(section); }
   const toml::table& Table(const toml::node& node, std::string_view name) const { return toml_.Table(node, "", name); }
 
-  void ReadDamper(const toml::table& t, Truth& truth) const {
+  // A key of a section and the field its value goes to, read as the field's type.
+  struct Key {
+    const char* name;
+    std::variant<std::string*, double*, long*, int*, bool*> field;
+  };
+
+  // Reads every key of `t` into its field, in the file's order; a key not among `keys` is refused
+  // naming the ones that are.
+  void ReadKeys(const toml::table& t, std::string_view where, std::initializer_list<Key> keys) const {
     for (auto&& [k, node] : t) {
       const std::string key(k.str());
-      if (key == "serial")
-        truth.damper_serial = toml_.Text(node, "[damper] ", key);
-      else if (key == "rig")
-        truth.rig = toml_.Text(node, "[damper] ", key);
-      else
-        toml_.UnknownKey(node, "[damper] ", key, "serial, rig");
+      const Key* known = std::find_if(keys.begin(), keys.end(), [&](const Key& x) { return key == x.name; });
+      if (known == keys.end()) {
+        std::vector<std::string_view> names;
+        for (const Key& x : keys) names.push_back(x.name);
+        toml_.UnknownKey(node, where, key, fmt::format("{}", fmt::join(names, ", ")));
+      }
+      std::visit(
+          [&](auto* field) {
+            using T = std::remove_pointer_t<decltype(field)>;
+            if constexpr (std::is_same_v<T, std::string>) *field = toml_.Text(node, where, key);
+            if constexpr (std::is_same_v<T, double>) *field = toml_.Number(node, where, key);
+            if constexpr (std::is_same_v<T, long>) *field = toml_.Integer(node, where, key);
+            if constexpr (std::is_same_v<T, int>) *field = static_cast<int>(toml_.Integer(node, where, key));
+            if constexpr (std::is_same_v<T, bool>) *field = toml_.Bool(node, where, key);
+          },
+          known->field);
     }
+  }
+
+  void ReadDamper(const toml::table& t, Truth& truth) const {
+    ReadKeys(t, "[damper] ", {{"serial", &truth.damper_serial}, {"rig", &truth.rig}});
   }
 
   void ReadEffects(const toml::table& t, Truth& truth) {
@@ -93,29 +120,15 @@ class Reader {
   }
 
   void ReadActuator(const toml::table& t, ActuatorOptions& a) const {
-    for (auto&& [k, node] : t) {
-      const std::string key(k.str());
-      if (key == "ideal")
-        a.ideal = toml_.Bool(node, "[actuator] ", key);
-      else if (key == "loop_bandwidth")
-        a.loop_bandwidth = toml_.Number(node, "[actuator] ", key);
-      else if (key == "feedforward")
-        a.feedforward = toml_.Number(node, "[actuator] ", key);
-      else if (key == "valve_bandwidth")
-        a.valve_bandwidth = toml_.Number(node, "[actuator] ", key);
-      else if (key == "max_velocity")
-        a.max_velocity = toml_.Number(node, "[actuator] ", key);
-      else if (key == "stall_force")
-        a.stall_force = toml_.Number(node, "[actuator] ", key);
-      else if (key == "force_limit")
-        a.force_limit = toml_.Number(node, "[actuator] ", key);
-      else if (key == "control_rate")
-        a.control_rate = toml_.Number(node, "[actuator] ", key);
-      else
-        toml_.UnknownKey(node, "[actuator] ", key,
-                   "ideal, loop_bandwidth, feedforward, valve_bandwidth, max_velocity, stall_force, force_limit, "
-                   "control_rate");
-    }
+    ReadKeys(t, "[actuator] ",
+             {{"ideal", &a.ideal},
+              {"loop_bandwidth", &a.loop_bandwidth},
+              {"feedforward", &a.feedforward},
+              {"valve_bandwidth", &a.valve_bandwidth},
+              {"max_velocity", &a.max_velocity},
+              {"stall_force", &a.stall_force},
+              {"force_limit", &a.force_limit},
+              {"control_rate", &a.control_rate}});
   }
 
   void ReadSensor(const toml::table& t, const std::string& section, SensorOptions& s) const {
@@ -159,26 +172,14 @@ class Reader {
   }
 
   void ReadAcquisition(const toml::table& t, AcquisitionOptions& a) const {
-    for (auto&& [k, node] : t) {
-      const std::string key(k.str());
-      if (key == "sample_rate")
-        a.sample_rate = toml_.Number(node, "[acquisition] ", key);
-      else if (key == "drop_sample_rate")
-        a.drop_sample_rate = toml_.Number(node, "[acquisition] ", key);
-      else if (key == "periods")
-        a.periods = toml_.Integer(node, "[acquisition] ", key);
-      else if (key == "settle_tolerance")
-        a.settle_tolerance = toml_.Number(node, "[acquisition] ", key);
-      else if (key == "settle_periods_max")
-        a.settle_periods_max = static_cast<int>(toml_.Integer(node, "[acquisition] ", key));
-      else if (key == "gauge_pressure")
-        a.gauge_pressure = toml_.Bool(node, "[acquisition] ", key);
-      else if (key == "rtol")
-        a.rtol = toml_.Number(node, "[acquisition] ", key);
-      else
-        toml_.UnknownKey(node, "[acquisition] ", key,
-                   "sample_rate, drop_sample_rate, periods, settle_tolerance, settle_periods_max, gauge_pressure, rtol");
-    }
+    ReadKeys(t, "[acquisition] ",
+             {{"sample_rate", &a.sample_rate},
+              {"drop_sample_rate", &a.drop_sample_rate},
+              {"periods", &a.periods},
+              {"settle_tolerance", &a.settle_tolerance},
+              {"settle_periods_max", &a.settle_periods_max},
+              {"gauge_pressure", &a.gauge_pressure},
+              {"rtol", &a.rtol}});
     std::string error;
     if (!a.IsValid(&error)) throw TruthError(fmt::format("{}: [acquisition] {}", Where(t), error));
   }

@@ -31,18 +31,31 @@ std::string_view ToString(ExperimentKind kind) {
   return "unknown";
 }
 
-const Channel* Experiment::find_channel(std::string_view name) const {
-  const auto it = std::find_if(channels.begin(), channels.end(),
-                               [&](const Channel& c) { return c.name == name; });
-  return it == channels.end() ? nullptr : &*it;
+namespace {
+
+// The element of `items` whose `key` is `name`, or nullptr.
+template <typename T>
+const T* FindBy(const std::vector<T>& items, std::string T::*key, std::string_view name) {
+  const auto it = std::find_if(items.begin(), items.end(), [&](const T& x) { return x.*key == name; });
+  return it == items.end() ? nullptr : &*it;
 }
+
+// Every element's `key`, separated by commas, for a message that says what there is.
+template <typename T>
+std::string Keys(const std::vector<T>& items, std::string T::*key) {
+  std::vector<std::string_view> keys;
+  for (const T& x : items) keys.push_back(x.*key);
+  return fmt::format("{}", fmt::join(keys, ", "));
+}
+
+}  // namespace
+
+const Channel* Experiment::find_channel(std::string_view name) const { return FindBy(channels, &Channel::name, name); }
 
 const Channel& Experiment::channel(std::string_view name) const {
   if (const Channel* c = find_channel(name)) return *c;
-  std::vector<std::string_view> names;
-  for (const Channel& c : channels) names.push_back(c.name);
-  throw SessionError(fmt::format("experiment '{}': no channel '{}' (it has: {})", label, name,
-                                 fmt::join(names, ", ")));
+  throw SessionError(
+      fmt::format("experiment '{}': no channel '{}' (it has: {})", label, name, Keys(channels, &Channel::name)));
 }
 
 std::vector<double> Experiment::absolute_pressure() const {
@@ -60,18 +73,13 @@ std::vector<double> Experiment::absolute_pressure() const {
 }
 
 const Experiment* Session::find_experiment(std::string_view label) const {
-  const auto it = std::find_if(experiments.begin(), experiments.end(),
-                               [&](const Experiment& e) { return e.label == label; });
-  return it == experiments.end() ? nullptr : &*it;
+  return FindBy(experiments, &Experiment::label, label);
 }
 
 const Experiment& Session::experiment(std::string_view label) const {
   if (const Experiment* e = find_experiment(label)) return *e;
-  std::vector<std::string_view> labels;
-  for (const Experiment& e : experiments) labels.push_back(e.label);
-  throw SessionError(fmt::format("{}: no experiment '{}' (it has: {})",
-                                 source_path.empty() ? "<memory>" : source_path, label,
-                                 fmt::join(labels, ", ")));
+  throw SessionError(fmt::format("{}: no experiment '{}' (it has: {})", source_path.empty() ? "<memory>" : source_path,
+                                 label, Keys(experiments, &Experiment::label)));
 }
 
 const MetadataGroup* Session::find_metadata(std::string_view name) const {

@@ -15,7 +15,9 @@
 #include <chrono>
 #include <filesystem>
 #include <fstream>
+#include <string>
 #include <thread>
+#include <utility>
 
 #include "rig_plant.h"
 #include "session_events.h"
@@ -355,35 +357,31 @@ TEST(RigRunCli, BadChannelFilesAreRefusedNamingTheFileLineAndKey) {
   };
   const std::string f = dir.file("c.toml");
   const std::string ok_force = "[force]\nindex = 1\nunit = \"N\"\ngain = 2.0\n";
-  EXPECT_NE(refused("frame = \"classic\"\n[stroke]\nindex = 0\nunit = \"m\"\ngain = 1e-5\n" + ok_force)
-                .find(f + ": module: the module number (0..63) is needed"),
-            std::string::npos);
-  EXPECT_NE(refused("module = 1\nframe = \"classic\"\n[stroke]\nindex = 0\nunit = \"inch\"\ngain = 1e-5\n" + ok_force)
-                .find(f + ":5: [stroke] unit \"inch\": give one of m, mm"),
-            std::string::npos);
-  EXPECT_NE(refused("module = 1\nframe = \"classic\"\n[stroke]\nindex = 1\nunit = \"m\"\ngain = 1e-5\n" + ok_force)
-                .find(f + ":8: [force] index 1 is [stroke]'s already"),
-            std::string::npos);
-  EXPECT_NE(refused("module = 1\nframe = \"classic\"\n[stroke]\nindex = 4\nunit = \"m\"\ngain = 1e-5\n" + ok_force)
-                .find(f + ":2: classic frames of 5 readings per sample set"),
-            std::string::npos);
-  EXPECT_NE(refused("module = 1\nframe = \"classic\"\nchannels = 2\n[stroke]\nindex = 2\nunit = \"m\"\ngain = 1e-5\n" +
-                    ok_force)
-                .find(f + ":5: [stroke] index 2 is beyond the 2 readings of a sample set"),
-            std::string::npos);
-  EXPECT_NE(refused("module = 1\nframe = \"classic\"\n[stroke]\nindex = 0\nunit = \"m\"\ngian = 1e-5\n" + ok_force)
-                .find(f + ":6: [stroke] unknown key 'gian'"),
-            std::string::npos);
-  EXPECT_NE(refused("module = 1\nframe = \"can\"\n[stroke]\nindex = 0\nunit = \"m\"\ngain = 1e-5\n" + ok_force)
-                .find(f + ":2: frame \"can\": give \"classic\" or \"fd\""),
-            std::string::npos);
-  EXPECT_NE(refused("module = 1\nframe = \"classic\"\n[stroke]\nindex = 0\nunit = \"m\"\ngain = 1e-5\n")
-                .find(f + ": [force] is missing"),
-            std::string::npos);
-  EXPECT_NE(refused("module = 1\nframe = \"classic\"\n[stroke]\nindex = 0\nunit = \"m\"\ngain = 0\n" + ok_force)
-                .find(f + ":6: [stroke] gain must not be zero"),
-            std::string::npos);
-  EXPECT_NE(refused("module = 1\nframe = \"classic\"\n[stroke\nindex = 0\n").find(f + ":3:"), std::string::npos);
+  // Each file, and what its refusal says.
+  const std::pair<std::string, std::string> files[] = {
+      {"frame = \"classic\"\n[stroke]\nindex = 0\nunit = \"m\"\ngain = 1e-5\n" + ok_force,
+       f + ": module: the module number (0..63) is needed"},
+      {"module = 1\nframe = \"classic\"\n[stroke]\nindex = 0\nunit = \"inch\"\ngain = 1e-5\n" + ok_force,
+       f + ":5: [stroke] unit \"inch\": give one of m, mm"},
+      {"module = 1\nframe = \"classic\"\n[stroke]\nindex = 1\nunit = \"m\"\ngain = 1e-5\n" + ok_force,
+       f + ":8: [force] index 1 is [stroke]'s already"},
+      {"module = 1\nframe = \"classic\"\n[stroke]\nindex = 4\nunit = \"m\"\ngain = 1e-5\n" + ok_force,
+       f + ":2: classic frames of 5 readings per sample set"},
+      {"module = 1\nframe = \"classic\"\nchannels = 2\n[stroke]\nindex = 2\nunit = \"m\"\ngain = 1e-5\n" + ok_force,
+       f + ":5: [stroke] index 2 is beyond the 2 readings of a sample set"},
+      {"module = 1\nframe = \"classic\"\n[stroke]\nindex = 0\nunit = \"m\"\ngian = 1e-5\n" + ok_force,
+       f + ":6: [stroke] unknown key 'gian'"},
+      {"module = 1\nframe = \"can\"\n[stroke]\nindex = 0\nunit = \"m\"\ngain = 1e-5\n" + ok_force,
+       f + ":2: frame \"can\": give \"classic\" or \"fd\""},
+      {"module = 1\nframe = \"classic\"\n[stroke]\nindex = 0\nunit = \"m\"\ngain = 1e-5\n", f + ": [force] is missing"},
+      {"module = 1\nframe = \"classic\"\n[stroke]\nindex = 0\nunit = \"m\"\ngain = 0\n" + ok_force,
+       f + ":6: [stroke] gain must not be zero"},
+      {"module = 1\nframe = \"classic\"\n[stroke\nindex = 0\n", f + ":3:"},
+  };
+  for (const auto& [text, message] : files) {
+    SCOPED_TRACE(text);
+    EXPECT_NE(refused(text).find(message), std::string::npos);
+  }
   // --rig sim has its own module.
   const auto sim = test::RunStrut(fmt::format("rig run --rig sim --channels {} -o {}", f, dir.file("s.h5")));
   EXPECT_EQ(sim.exit_code, 1);

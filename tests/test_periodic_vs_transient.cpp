@@ -177,29 +177,38 @@ TEST(PeriodicVsTransient, StrokeDriven1dofConvergesAtTheOrderOfEachScheme) { Che
 // Force input: the stroke sticks near the reversals (smooth atan friction, theta10 = 2000 s/m), a
 // feature of a few milliseconds that the grid resolves only from n of about 800 on; from there the
 // schemes converge at their order. Spectral collocation does not converge at affordable n here.
-TEST(PeriodicVsTransient, ForceDriven2dofConvergesAtTheOrderOfEachScheme) {
-  const Model model = Model::Build("2dof", Causality::kForceInput);
-  const auto input = ForceOfStrokeSolution("2dof");
-  const auto reference = Reference(model, input(3200));
-  PrintReference("2dof force", reference);
+// ForceDriven: the force-driven model of a composition, its transient reference on 3200 points and
+// the grids compared with it.
+struct ForceDriven {
+  explicit ForceDriven(const std::string& composition)
+      : model(Model::Build(composition, Causality::kForceInput)),
+        input(ForceOfStrokeSolution(composition)),
+        reference(Reference(model, input(3200))) {
+    PrintReference((composition + " force").c_str(), reference);
+  }
+
+  // The errors of `scheme` on the grids, expected to converge in the RMS norm at an order in (low, high).
+  std::vector<Error> ExpectOrderOf(Scheme scheme, double low, double high) const {
+    const auto errors = Errors(model, scheme, ns, input, reference);
+    ExpectOrder(scheme, ns, errors, kRmsNorm, low, high);
+    return errors;
+  }
+
+  const Model model;
+  const std::function<PeriodicInput(int)> input;
+  const PeriodicSteadyStateResult reference;
   const std::vector<int> ns = {800, 1600, 3200};
+};
 
-  const auto backward = Errors(model, Scheme::kBackward2, ns, input, reference);
-  ExpectOrder(Scheme::kBackward2, ns, backward, kRmsNorm, 1.7, 2.3);
+TEST(PeriodicVsTransient, ForceDriven2dofConvergesAtTheOrderOfEachScheme) {
+  const ForceDriven force("2dof");
+  const auto backward = force.ExpectOrderOf(Scheme::kBackward2, 1.7, 2.3);
   EXPECT_LT(backward[0].max, 5e-4) << "the paper's n = 800";
-
-  const auto central = Errors(model, Scheme::kCentral4, ns, input, reference);
-  ExpectOrder(Scheme::kCentral4, ns, central, kRmsNorm, 3.4, 4.6);
+  force.ExpectOrderOf(Scheme::kCentral4, 3.4, 4.6);
 }
 
 TEST(PeriodicVsTransient, ForceDriven1dofBackwardSchemeConvergesAtSecondOrder) {
-  const Model model = Model::Build("1dof", Causality::kForceInput);
-  const auto input = ForceOfStrokeSolution("1dof");
-  const auto reference = Reference(model, input(3200));
-  PrintReference("1dof force", reference);
-  const std::vector<int> ns = {800, 1600, 3200};
-  const auto backward = Errors(model, Scheme::kBackward2, ns, input, reference);
-  ExpectOrder(Scheme::kBackward2, ns, backward, kRmsNorm, 1.7, 2.3);
+  ForceDriven("1dof").ExpectOrderOf(Scheme::kBackward2, 1.7, 2.3);
 }
 
 TEST(PeriodicVsTransient, SteadyStateDoesNotDependOnTheStart) {

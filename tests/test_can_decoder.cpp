@@ -17,6 +17,18 @@ using test::Ramp;
 
 constexpr std::int64_t kT0 = 1'000'000'000;  // ns
 
+//! A decoder for `options` whose stream starts at kT0.
+CanStreamDecoder StartedDecoder(const CanAcquisitionOptions& options) {
+  CanStreamDecoder decoder(options);
+  decoder.Reset(kT0);
+  return decoder;
+}
+
+//! `more` after the frames so far.
+void Append(std::vector<CanFrame>& frames, const std::vector<CanFrame>& more) {
+  frames.insert(frames.end(), more.begin(), more.end());
+}
+
 //! Feeds frames as a Read loop would (a new block when Feed refuses a frame), all received at
 //! `t` (or one period apart when `spaced`); returns the finished blocks, non-empty ones and the last.
 struct Fed {
@@ -66,8 +78,7 @@ TEST(CanStreamDecoder, DecodesCountsAndAppliesEachChannelsCalibration) {
   // 300.15 K -> (300.15 - 273.15) / 0.01 = 2700; pressure count 0 -> the middle of 20 MPa.
   const std::int16_t set[] = {12345, 3000, 0, 2700};
   encoder.Add(set, frames);
-  CanStreamDecoder decoder(options);
-  decoder.Reset(kT0);
+  CanStreamDecoder decoder = StartedDecoder(options);
   const Fed fed = FeedAll(decoder, frames);
   ASSERT_EQ(fed.blocks.size(), 1u);
   const AcquiredBlock& b = fed.last();
@@ -90,8 +101,7 @@ TEST(CanStreamDecoder, ContinuousStreamAcrossTheSequenceWrapHasNoGap) {
     const std::int16_t set[] = {static_cast<std::int16_t>(i), 0, 0, 0};
     encoder.Add(set, frames);
   }
-  CanStreamDecoder decoder(options);
-  decoder.Reset(kT0);
+  CanStreamDecoder decoder = StartedDecoder(options);
   AcquiredBlock block;
   for (std::size_t i = 0; i < frames.size(); ++i)
     ASSERT_TRUE(decoder.Feed(frames[i], kT0 + static_cast<std::int64_t>(i * 160'000), block));  // 8 sets at 50 kHz
@@ -111,8 +121,7 @@ TEST(CanStreamDecoder, SequenceGapEndsTheBlockAndIsRecordedWithItsSize) {
   encoder.Skip(25);
   const auto more = Ramp(encoder, 35, 10);
   frames.insert(frames.end(), more.begin(), more.end());
-  CanStreamDecoder decoder(options);
-  decoder.Reset(kT0);
+  CanStreamDecoder decoder = StartedDecoder(options);
   const Fed fed = FeedAll(decoder, frames);
   ASSERT_EQ(fed.blocks.size(), 2u);
   EXPECT_EQ(fed.blocks[0].size(), 10u);
@@ -151,8 +160,7 @@ TEST(CanStreamDecoder, StatusFrameIndexCountsWholeSequenceWrapsTheClockConfirms)
   frames.insert(frames.end(), more.begin(), more.end());
   std::vector<std::uint64_t> at = {0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 10 + skipped};
   for (std::uint64_t i = 0; i < 5; ++i) at.push_back(10 + skipped + i);
-  CanStreamDecoder decoder(options);
-  decoder.Reset(kT0);
+  CanStreamDecoder decoder = StartedDecoder(options);
   const Fed fed = FeedAll(decoder, frames, kT0, ArrivalTimes(at));
   ASSERT_EQ(fed.blocks.size(), 2u);
   EXPECT_EQ(fed.blocks[1].lost_before, skipped);
@@ -171,12 +179,11 @@ TEST(CanStreamDecoder, SequenceOrIndexAheadOfTheClockIsDroppedNotAGap) {
   CanFrame bogus_sample = Ramp(encoder, 10, 1)[0];
   bogus_sample.raw.can_id ^= 1u << 16;  // sequence + 65536 sets, 33 s ahead of a clock that says 5 ms
   frames.push_back(bogus_sample);
-  for (const auto& f : Ramp(encoder, 11, 5)) frames.push_back(f);
+  Append(frames, Ramp(encoder, 11, 5));
   std::vector<std::int64_t> times;
   for (int i = 0; i < 10; ++i) times.push_back(kT0 + i * 500'000);
   for (int i = 0; i < 8; ++i) times.push_back(kT0 + (10 + i) * 500'000);
-  CanStreamDecoder decoder(options);
-  decoder.Reset(kT0);
+  CanStreamDecoder decoder = StartedDecoder(options);
   const Fed fed = FeedAll(decoder, frames, kT0, times);
   EXPECT_EQ(decoder.stats().ahead_of_clock, 2u);
   EXPECT_EQ(decoder.stats().lost_sample_sets, 1u);  // only the set the bogus frame carried
@@ -190,11 +197,10 @@ TEST(CanStreamDecoder, ModuleRestartIsFollowedAfterARunOfOutOfStepFrames) {
   before.Skip(100000);
   auto frames = Ramp(before, 0, 20);
   CanSampleEncoder restarted(options.layout);  // counts from 0 again: behind the stream
-  for (const auto& f : Ramp(restarted, 1000, 40)) frames.push_back(f);
+  Append(frames, Ramp(restarted, 1000, 40));
   std::vector<std::int64_t> times;
   for (std::size_t i = 0; i < frames.size(); ++i) times.push_back(kT0 + static_cast<std::int64_t>(i) * 500'000);
-  CanStreamDecoder decoder(options);
-  decoder.Reset(kT0);
+  CanStreamDecoder decoder = StartedDecoder(options);
   const Fed fed = FeedAll(decoder, frames, kT0, times);
   EXPECT_EQ(decoder.stats().late_frames, 15u);
   EXPECT_EQ(decoder.stats().resyncs, 1u);
@@ -215,8 +221,7 @@ TEST(CanStreamDecoder, LongSilenceIsMeasuredByTheClockBeyondTheSequenceRange) {
   const std::uint64_t lost = (1u << 18) + 1000;  // 131.5 s at 2 kHz
   encoder.Skip(lost);
   const auto second = Ramp(encoder, 0, 4);
-  CanStreamDecoder decoder(options);
-  decoder.Reset(kT0);
+  CanStreamDecoder decoder = StartedDecoder(options);
   AcquiredBlock a, b;
   for (int i = 0; i < 4; ++i) ASSERT_TRUE(decoder.Feed(first[i], kT0 + i * 500'000, a));
   const std::int64_t later = kT0 + static_cast<std::int64_t>((4 + lost) * 500'000);
@@ -244,8 +249,7 @@ TEST(CanStreamDecoder, CorruptedFramesAreDroppedAndCountedByKind) {
   status.raw.len = 4;
   frames[2] = short_frame;  // replaces set 2: it is lost
   frames.insert(frames.begin() + 4, {foreign, standard, remote, fd, status});
-  CanStreamDecoder decoder(options);
-  decoder.Reset(kT0);
+  CanStreamDecoder decoder = StartedDecoder(options);
   const Fed fed = FeedAll(decoder, frames);
   const AcquisitionStats& s = decoder.stats();
   EXPECT_EQ(s.wrong_length, 3u);  // short sample frame, FD sample frame, short status frame
@@ -272,8 +276,7 @@ TEST(CanStreamDecoder, RepeatedFrameIsDroppedAsLate) {
   CanSampleEncoder encoder(options.layout);
   auto frames = Ramp(encoder, 0, 5);
   frames.insert(frames.begin() + 3, frames[1]);
-  CanStreamDecoder decoder(options);
-  decoder.Reset(kT0);
+  CanStreamDecoder decoder = StartedDecoder(options);
   const Fed fed = FeedAll(decoder, frames);
   EXPECT_EQ(decoder.stats().late_frames, 1u);
   EXPECT_EQ(decoder.stats().lost_sample_sets, 0u);
@@ -286,11 +289,10 @@ TEST(CanStreamDecoder, BusOffMarksTheDataInvalidUntilTheControllerRestarts) {
   CanSampleEncoder encoder(options.layout);
   std::vector<CanFrame> frames = Ramp(encoder, 0, 3);
   frames.push_back(ErrorFrame(CAN_ERR_BUSOFF));
-  for (const auto& f : Ramp(encoder, 3, 3)) frames.push_back(f);
+  Append(frames, Ramp(encoder, 3, 3));
   frames.push_back(ErrorFrame(CAN_ERR_RESTARTED));
-  for (const auto& f : Ramp(encoder, 6, 3)) frames.push_back(f);
-  CanStreamDecoder decoder(options);
-  decoder.Reset(kT0);
+  Append(frames, Ramp(encoder, 6, 3));
+  CanStreamDecoder decoder = StartedDecoder(options);
   const Fed fed = FeedAll(decoder, frames);
   ASSERT_EQ(fed.blocks.size(), 3u);
   EXPECT_TRUE(fed.blocks[0].quality.valid());
@@ -309,13 +311,12 @@ TEST(CanStreamDecoder, ErrorPassiveFromControllerOrCountersAndBackToActive) {
   CanSampleEncoder encoder(options.layout);
   std::vector<CanFrame> frames = Ramp(encoder, 0, 2);
   frames.push_back(ErrorFrame(CAN_ERR_CRTL | CAN_ERR_CNT, CAN_ERR_CRTL_RX_PASSIVE, 3, 128));
-  for (const auto& f : Ramp(encoder, 2, 2)) frames.push_back(f);
+  Append(frames, Ramp(encoder, 2, 2));
   frames.push_back(ErrorFrame(CAN_ERR_PROT));  // a protocol error: data stay valid (and invalid stays)
-  for (const auto& f : Ramp(encoder, 4, 2)) frames.push_back(f);
+  Append(frames, Ramp(encoder, 4, 2));
   frames.push_back(ErrorFrame(CAN_ERR_CNT, 0, 3, 90));  // counters below 128: error-active again
-  for (const auto& f : Ramp(encoder, 6, 2)) frames.push_back(f);
-  CanStreamDecoder decoder(options);
-  decoder.Reset(kT0);
+  Append(frames, Ramp(encoder, 6, 2));
+  CanStreamDecoder decoder = StartedDecoder(options);
   const Fed fed = FeedAll(decoder, frames);
   ASSERT_EQ(fed.blocks.size(), 3u);
   EXPECT_TRUE(fed.blocks[0].quality.valid());
@@ -337,9 +338,8 @@ TEST(CanStreamDecoder, WarningsAndProtocolErrorsAreFlaggedButLeaveTheDataValid) 
   frames.push_back(ErrorFrame(CAN_ERR_CRTL, CAN_ERR_CRTL_RX_WARNING));
   frames.push_back(ErrorFrame(CAN_ERR_PROT | CAN_ERR_BUSERROR));
   frames.push_back(ErrorFrame(CAN_ERR_CRTL, CAN_ERR_CRTL_RX_OVERFLOW));
-  for (const auto& f : Ramp(encoder, 2, 2)) frames.push_back(f);
-  CanStreamDecoder decoder(options);
-  decoder.Reset(kT0);
+  Append(frames, Ramp(encoder, 2, 2));
+  CanStreamDecoder decoder = StartedDecoder(options);
   const Fed fed = FeedAll(decoder, frames);
   ASSERT_EQ(fed.blocks.size(), 1u);
   EXPECT_TRUE(fed.last().quality.valid());
@@ -355,13 +355,12 @@ TEST(CanStreamDecoder, ModuleFaultInTheStatusWordMarksTheDataInvalid) {
   CanSampleEncoder encoder(options.layout);
   std::vector<CanFrame> frames;
   encoder.AddStatus(can_status::kSimulated, 0, 0, frames);
-  for (const auto& f : Ramp(encoder, 0, 2)) frames.push_back(f);
+  Append(frames, Ramp(encoder, 0, 2));
   encoder.AddStatus(can_status::kSimulated | can_status::kExcitationFault, 0, 0, frames);
-  for (const auto& f : Ramp(encoder, 2, 2)) frames.push_back(f);
+  Append(frames, Ramp(encoder, 2, 2));
   encoder.AddStatus(can_status::kSimulated | can_status::kBufferOverflow, 0, 0, frames);  // not a fault
-  for (const auto& f : Ramp(encoder, 4, 2)) frames.push_back(f);
-  CanStreamDecoder decoder(options);
-  decoder.Reset(kT0);
+  Append(frames, Ramp(encoder, 4, 2));
+  CanStreamDecoder decoder = StartedDecoder(options);
   const Fed fed = FeedAll(decoder, frames);
   ASSERT_EQ(fed.blocks.size(), 3u);
   EXPECT_TRUE(fed.blocks[0].quality.valid());
@@ -386,8 +385,7 @@ TEST(CanStreamDecoder, OverRangeReadingsAreFlagged) {
   const std::int16_t rail[] = {100, 0, 32767, 0};       // pressure at the ADC limit
   const std::int16_t outside[] = {25000, 0, 0, 0};      // 0.25 m: outside the stroke's +-0.2 m
   encoder.Add(inside, frames);
-  CanStreamDecoder decoder(options);
-  decoder.Reset(kT0);
+  CanStreamDecoder decoder = StartedDecoder(options);
   EXPECT_FALSE(FeedAll(decoder, frames).last().quality.has(Quality::kOverRange));
   for (const auto* set : {rail, outside}) {
     frames.clear();
@@ -401,8 +399,7 @@ TEST(CanStreamDecoder, OverRangeReadingsAreFlagged) {
 TEST(CanStreamDecoder, StaleAfterSilenceAndResumedOnTheNextFrame) {
   const auto options = FourChannelOptions();  // stale after 250 ms
   CanSampleEncoder encoder(options.layout);
-  CanStreamDecoder decoder(options);
-  decoder.Reset(kT0);
+  CanStreamDecoder decoder = StartedDecoder(options);
   AcquiredBlock block;
   decoder.CheckStale(kT0 + 200'000'000, block);
   EXPECT_FALSE(block.quality.has(Quality::kStale));

@@ -40,6 +40,11 @@ Synthetic Make(int cycles, int n, double decay, double drift = 0.0) {
   return s;
 }
 
+// The whole cycles of n samples in `s`, summarised in one go.
+std::vector<CycleSummary> Summarised(const Synthetic& s, int n) {
+  return CycleSummariser(n).Add(s.t, s.stroke, s.force, s.pressure);
+}
+
 TEST(CycleSummariser, CutsWholeCyclesTheSameWhateverTheBlocks) {
   const Synthetic s = Make(5, 100, 0.5);
   CycleSummariser whole(100);
@@ -71,8 +76,7 @@ TEST(SteadyState, SteadyWhenTheConsecutiveChangesAreWithinTolerance) {
   // Force peaks relax by half each cycle: the change between cycles c-1 and c relative to cycle c's
   // force range is 0.5^c / (2 (1 + 0.5^c)): 1.5 % between cycles 4 and 5, 0.77 % between 5 and 6.
   const Synthetic s = Make(20, 64, 0.5);
-  CycleSummariser cut(64);
-  const auto cycles = cut.Add(s.t, s.stroke, s.force, s.pressure);
+  const auto cycles = Summarised(s, 64);
   SteadyStateTolerances t;
   t.consecutive = 2;
   t.drift_window = 0.0;  // these cycles last 64 ms: the thermal drift test has its own below
@@ -92,8 +96,7 @@ TEST(SteadyState, SteadyWhenTheConsecutiveChangesAreWithinTolerance) {
 
 TEST(SteadyState, ADriftingResponseTimesOutAtTheCycleOrTimeLimit) {
   const Synthetic s = Make(30, 50, 0.0, 0.02);  // pressure drifts 2 % a cycle: never steady
-  CycleSummariser cut(50);
-  const auto cycles = cut.Add(s.t, s.stroke, s.force, s.pressure);
+  const auto cycles = Summarised(s, 50);
   SteadyStateTolerances t;
   t.max_cycles = 12;
   t.drift_window = 0.0;
@@ -132,8 +135,7 @@ TEST(SteadyState, ASlowThermalDriftWithinTheCycleToleranceIsNotSteadyUntilItHasD
       s.force.push_back(1e4 * std::sin(phase) + 500.0);
       s.pressure.push_back(2e6 * (1.0 + 0.05 * std::exp(-time / tau)));
     }
-  CycleSummariser cut(n);
-  const auto cycles = cut.Add(s.t, s.stroke, s.force, s.pressure);
+  const auto cycles = Summarised(s, n);
   SteadyStateTolerances t;
   t.max_cycles = 100000;
   const SteadyStateVerdict v = DetectSteadyState(cycles, t);
@@ -149,8 +151,7 @@ TEST(SteadyState, ASlowThermalDriftWithinTheCycleToleranceIsNotSteadyUntilItHasD
 
 TEST(SteadyState, CyclesRoundTripThroughASessionGroupAndGiveTheSameVerdict) {
   const Synthetic s = Make(12, 40, 0.6);
-  CycleSummariser cut(40);
-  const auto cycles = cut.Add(s.t, s.stroke, s.force, s.pressure);
+  const auto cycles = Summarised(s, 40);
   SteadyStateTolerances t;
   t.force = 0.02;
   const SteadyStateVerdict v = DetectSteadyState(cycles, t);

@@ -92,10 +92,16 @@ TEST(SimRig, InjectedFaultsShowWhereTheyWereAsked) {
   EXPECT_GT(*std::min_element(d.begin(), d.end()), 0.15);
 }
 
-TEST(SimRig, StreamedSamplesArriveInOrderAndTheRecordedOnesAreTheSession) {
-  const SimulatedRig rig(DefaultTruth());
+// A matrix of experiment j of the standard matrix alone (middle position, 2 Hz, 10 mm).
+rig::MatrixPlan OnlyExperimentJ() {
   rig::MatrixPlan plan;
   plan.experiments = {{"j", "middle", 2.0, 0.133, 0.010}};
+  return plan;
+}
+
+TEST(SimRig, StreamedSamplesArriveInOrderAndTheRecordedOnesAreTheSession) {
+  const SimulatedRig rig(DefaultTruth());
+  const rig::MatrixPlan plan = OnlyExperimentJ();
   std::vector<SampleBlock> blocks;
   RigRunOptions o;
   o.sink = [&](const SampleBlock& b) { blocks.push_back(b); };
@@ -115,8 +121,7 @@ TEST(SimRig, StreamedSamplesArriveInOrderAndTheRecordedOnesAreTheSession) {
 
 TEST(SimRig, RealTimeClockPacesTheRun) {
   const SimulatedRig rig(DefaultTruth());
-  rig::MatrixPlan plan;
-  plan.experiments = {{"j", "middle", 2.0, 0.133, 0.010}};
+  const rig::MatrixPlan plan = OnlyExperimentJ();
   std::vector<PeriodicRunReport> reports;
   RigRunOptions o;
   o.clock = {ClockMode::kRealTime, 20.0};  // 20 simulated seconds per wall second

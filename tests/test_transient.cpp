@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <numbers>
 
@@ -156,14 +157,18 @@ TEST(Transient, DropTestSettlesAtTheStaticEquilibriumForTheLoad) {
   EXPECT_NEAR(r.rates(0, last), 0.0, 1e-5);
 }
 
+// Experiment h's stroke (0.5 Hz, 34 mm) until t = 1 s, then what `after` gives.
+InputSignal SineUntilOneSecond(std::function<InputSample(double)> after) {
+  const InputSignal sine = InputSignal::Sine(0.5, kStaticStroke, 0.034);
+  return InputSignal([sine, after](double t) { return t <= 1.0 ? sine(t) : after(t); });
+}
+
 TEST(Transient, NonFiniteInputEndsWithATransientErrorNamingTheTime) {
   const Model model = Model::Build("2dof", Causality::kStrokeInput);
   const auto& theta = model.defaults().values();
   const TransientSimulator simulator(model);
-  const InputSignal sine = InputSignal::Sine(0.5, kStaticStroke, 0.034);
-  const InputSignal broken([sine](double t) {
-    return t < 1.0 ? sine(t) : InputSample{std::numeric_limits<double>::quiet_NaN(), 0.0, 0.0};
-  });
+  const InputSignal broken = SineUntilOneSecond(
+      [](double) { return InputSample{std::numeric_limits<double>::quiet_NaN(), 0.0, 0.0}; });
   try {
     simulator.Simulate(theta, broken, 3.0, 10.0);
     FAIL() << "a NaN input must not integrate";
@@ -182,11 +187,8 @@ TEST(Transient, AnInputsOwnErrorReachesTheCallerUnchanged) {
   const Model model = Model::Build("2dof", Causality::kStrokeInput);
   const auto& theta = model.defaults().values();
   const TransientSimulator simulator(model);
-  const InputSignal sine = InputSignal::Sine(0.5, kStaticStroke, 0.034);
-  const InputSignal broken([sine](double t) {
-    if (t > 1.0) throw std::logic_error("the input's own bug at t > 1 s");
-    return sine(t);
-  });
+  const InputSignal broken =
+      SineUntilOneSecond([](double) -> InputSample { throw std::logic_error("the input's own bug at t > 1 s"); });
   try {
     simulator.Simulate(theta, broken, 3.0, 10.0);
     FAIL() << "the input's exception was lost";

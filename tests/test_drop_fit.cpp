@@ -15,6 +15,7 @@
 #include "strut/sim/drop_fit.h"
 #include "session_fixtures.h"
 #include "strut/sim/simulated_rig.h"
+#include "test_support.h"
 
 namespace strut::sim {
 namespace {
@@ -115,12 +116,7 @@ TEST(PrepareTransientExperiments, NamesTheFileAndExperimentOfABadDrop) {
   const auto message = [&](const std::function<void(daq::Experiment&)>& spoil) {
     daq::Session s = good;
     spoil(s.experiments[0]);
-    try {
-      ident::PrepareTransientExperiments(s, "bad.h5");
-    } catch (const daq::SessionError& e) {
-      return std::string(e.what());
-    }
-    return std::string("no error");
+    return test::ErrorOf<daq::SessionError>([&] { ident::PrepareTransientExperiments(s, "bad.h5"); });
   };
   const auto data = ident::PrepareTransientExperiments(good, "good.h5");
   ASSERT_EQ(data.size(), 1u);

@@ -15,6 +15,7 @@
 #include "strut/sim/drop_prediction.h"
 #include "session_fixtures.h"
 #include "strut/sim/simulated_rig.h"
+#include "test_support.h"
 
 namespace strut::sim {
 namespace {
@@ -192,12 +193,7 @@ TEST(DropWhatIf, TheRecordedDropIsFoundOrRefusedNamingTheSession) {
   EXPECT_EQ(FindDropExperiment(session, "", "s.h5").label, "d1");
   EXPECT_EQ(FindDropExperiment(session, "d1", "s.h5").label, "d1");
   const auto refusal = [&](const std::string& label) {
-    try {
-      FindDropExperiment(session, label, "s.h5");
-    } catch (const std::invalid_argument& e) {
-      return std::string(e.what());
-    }
-    return std::string("(found)");
+    return test::ErrorOf<std::invalid_argument>([&] { FindDropExperiment(session, label, "s.h5"); });
   };
   EXPECT_EQ(refusal("a"), "--compare s.h5: experiment 'a' is not a drop");
   EXPECT_EQ(refusal("zz"), "--compare s.h5: no experiment 'zz'");

@@ -109,12 +109,7 @@ TEST(QcReference, NominalFileInTomlAndJsonGiveTheSameBands) {
 
 TEST(QcReference, MistakesNameTheFileLineAndItem) {
   const auto message = [](const std::string& text) {
-    try {
-      ParseNominalFile(text, "ref.toml");
-    } catch (const ReferenceError& e) {
-      return std::string(e.what());
-    }
-    return std::string("no error");
+    return test::ErrorOf<ReferenceError>([&] { ParseNominalFile(text, "ref.toml"); });
   };
   EXPECT_NE(message("[charge_presure]\nnominal = 1\n").find("ref.toml:1: unknown quantity 'charge_presure'"),
             std::string::npos);

@@ -13,6 +13,7 @@
 #include "strut/daq/session.h"
 #include "strut/rig/campaign.h"
 #include "strut/rig/test_matrix.h"
+#include "test_support.h"
 
 namespace strut::rig {
 namespace {
@@ -171,12 +172,7 @@ amplitude = 0.005
   EXPECT_DOUBLE_EQ(*plan.sample_rate, 100.0);
   EXPECT_EQ(*plan.periods, 2);
   const auto error = [](const std::string& text) {
-    try {
-      ParseMatrix(text, "m.toml");
-    } catch (const MatrixFileError& e) {
-      return std::string(e.what());
-    }
-    return std::string("(no error)");
+    return test::ErrorOf<MatrixFileError>([&] { ParseMatrix(text, "m.toml"); });
   };
   EXPECT_NE(error("[[experiment]]\nlabel = \"a\"\nfrequency = 1\n").find("m.toml:1"), std::string::npos);
   EXPECT_NE(error("[[experiment]]\nlabel = \"a\"\nfrequency = -1\nstatic_position = 0.1\namplitude = 0.01\n")

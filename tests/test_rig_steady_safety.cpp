@@ -267,12 +267,7 @@ max_velocity = 0.3
   EXPECT_DOUBLE_EQ(c.actuator.max_velocity, 0.3);
   EXPECT_EQ(c.pressure.action, SafetyAction::kInterlock);  // defaults stay
   const auto error = [](const char* text) {
-    try {
-      ParseSafetyConfig(text, "l.toml");
-    } catch (const SafetyError& e) {
-      return std::string(e.what());
-    }
-    return std::string("no error");
+    return test::ErrorOf<SafetyError>([&] { ParseSafetyConfig(text, "l.toml"); });
   };
   EXPECT_EQ(error("[stroke]\nupper = 0.2\naction = \"flee\"\n"),
             "l.toml:3: [stroke] action must be \"indicate\", \"hold\", \"stop\" or \"interlock\"");

@@ -299,12 +299,7 @@ TEST(SimDraw, ASignalOfAMissingEffectOrWithoutNoiseIsRefused) {
   spec.effects = {{"real-gas", std::nullopt}};
   Truth unit = DrawUnit(spec, 2);
   const auto message = [&](std::string_view effect) {
-    try {
-      MeasureEffectSignal(unit, effect, rig::StandardMatrix());
-    } catch (const TruthError& e) {
-      return std::string(e.what());
-    }
-    return std::string("no error");
+    return test::ErrorOf<TruthError>([&] { MeasureEffectSignal(unit, effect, rig::StandardMatrix()); });
   };
   EXPECT_NE(message("viscous-damping").find("no effect 'viscous-damping'"), std::string::npos) << message("viscous-damping");
   unit.sensors.pressure.noise = 0.0;

@@ -136,12 +136,7 @@ TEST(UnitsCompare, AFileThatIsNoRunIsRefusedByName) {
   const std::string text = (dir.path / "text.json").string();
   std::ofstream(text) << "not json";
   const auto message = [](const std::string& path) {
-    try {
-      ReadUnitsRun(path);
-    } catch (const std::invalid_argument& e) {
-      return std::string(e.what());
-    }
-    return std::string("no error");
+    return test::ErrorOf<std::invalid_argument>([&] { ReadUnitsRun(path); });
   };
   EXPECT_NE(message(text).find(text + ": not JSON"), std::string::npos) << message(text);
   const std::string no_units = dir.Write("coverage.json", {{"coverage", {}}});

@@ -74,6 +74,14 @@ Decoded<T> Refuse(RefusalCode code, std::uint16_t address, std::string message) 
   return Decoded<T>{std::nullopt, Refusal{code, address, std::move(message)}};
 }
 
+// The refusal of a `what` block ("set-point", "status") at `address` that is not `expected` registers long.
+template <class T>
+Decoded<T> RefuseLength(std::uint16_t address, const char* what, std::size_t size, std::size_t expected) {
+  return Refuse<T>(RefusalCode::kBadLength, address,
+                   std::string(what) + " block of " + std::to_string(size) + " registers, expected " +
+                       std::to_string(expected));
+}
+
 float FloatAt(std::span<const std::uint16_t> block, std::uint16_t address) {
   return GetFloat(std::span<const std::uint16_t, 2>(block.data() + address, 2));
 }
@@ -170,9 +178,7 @@ SetPointBlock EncodeSetPoint(const SetPoint& s, std::uint16_t sequence) {
 Decoded<SetPoint> DecodeSetPoint(std::span<const std::uint16_t> block) {
   using R = RefusalCode;
   if (block.size() != holding::kSetPointCount)
-    return Refuse<SetPoint>(R::kBadLength, holding::kSetPointBlock,
-                            "set-point block of " + std::to_string(block.size()) + " registers, expected " +
-                                std::to_string(holding::kSetPointCount));
+    return RefuseLength<SetPoint>(holding::kSetPointBlock, "set-point", block.size(), holding::kSetPointCount);
   if (block[holding::kSequence] == 0)
     return Refuse<SetPoint>(R::kBadSequence, holding::kSequence, HoldingName(holding::kSequence) + " is 0, which is reserved");
   const std::uint16_t expected = SetPointChecksum(block);
@@ -217,9 +223,7 @@ StatusBlock EncodeStatus(const ControllerStatus& s) {
 Decoded<ControllerStatus> DecodeStatus(std::span<const std::uint16_t> block) {
   using R = RefusalCode;
   if (block.size() != input::kStatusCount)
-    return Refuse<ControllerStatus>(R::kBadLength, input::kStatusBlock,
-                                    "status block of " + std::to_string(block.size()) + " registers, expected " +
-                                        std::to_string(input::kStatusCount));
+    return RefuseLength<ControllerStatus>(input::kStatusBlock, "status", block.size(), input::kStatusCount);
   ControllerStatus s;
   const auto state = ControllerStateFrom(block[input::kState]);
   if (!state)

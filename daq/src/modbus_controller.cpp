@@ -369,6 +369,23 @@ std::string ReasonFor(modbus_t* ctx, int e) {
   return RefusalReason(ctx);
 }
 
+//! A whole register block read in one request with `read` (modbus_read_registers or
+//! modbus_read_input_registers) from `first` and decoded: a short read fails the connection with
+//! `item`, a block `decode` refuses is an invalid value of the register `name` names.
+template <typename Block, typename Connection, typename Read, typename Decode, typename Name>
+auto ReadBlock(Connection& c, const std::string& device, const std::string& operation, const std::string& item,
+               std::uint16_t first, Read read, Decode decode, Name name) {
+  Block block{};
+  const int count = static_cast<int>(block.size());
+  const int rc = read(c.ctx(), first, count, block.data());
+  if (rc != count) c.Fail(operation, item, rc == -1 ? errno : EMBBADDATA);
+  const auto decoded = decode(block);
+  if (!decoded.ok())
+    throw DeviceError(DeviceError::Kind::kInvalidValue, device, operation, name(decoded.refusal.address), 0,
+                      decoded.refusal.message);
+  return *decoded.value;
+}
+
 }  // namespace
 
 std::uint16_t ModbusController::WriteSetPoint(const SetPoint& set_point) {
@@ -403,15 +420,10 @@ SetPoint ModbusController::ReadSetPoint() {
   SetPoint result;
   Submit(operation, [&](Connection& c) {
     c.Ensure();
-    reg::SetPointBlock block{};
-    const std::string item = Range("holding", reg::holding::kSetPointBlock, reg::holding::kSetPointCount);
-    const int rc = modbus_read_registers(c.ctx(), reg::holding::kSetPointBlock, reg::holding::kSetPointCount, block.data());
-    if (rc != reg::holding::kSetPointCount) c.Fail(operation, item + " (set-point block)", rc == -1 ? errno : EMBBADDATA);
-    const auto decoded = reg::DecodeSetPoint(block);
-    if (!decoded.ok())
-      throw DeviceError(DeviceError::Kind::kInvalidValue, Describe(), operation, reg::HoldingName(decoded.refusal.address),
-                        0, decoded.refusal.message);
-    result = *decoded.value;
+    result = ReadBlock<reg::SetPointBlock>(
+        c, Describe(), operation,
+        Range("holding", reg::holding::kSetPointBlock, reg::holding::kSetPointCount) + " (set-point block)",
+        reg::holding::kSetPointBlock, modbus_read_registers, reg::DecodeSetPoint, reg::HoldingName);
   });
   return result;
 }
@@ -432,15 +444,9 @@ ControllerStatus ModbusController::ReadStatus() {
   ControllerStatus result;
   Submit(operation, [&](Connection& c) {
     c.Ensure();
-    reg::StatusBlock block{};
-    const std::string item = Range("input", reg::input::kStatusBlock, reg::input::kStatusCount) + " (status block)";
-    const int rc = modbus_read_input_registers(c.ctx(), reg::input::kStatusBlock, reg::input::kStatusCount, block.data());
-    if (rc != reg::input::kStatusCount) c.Fail(operation, item, rc == -1 ? errno : EMBBADDATA);
-    const auto decoded = reg::DecodeStatus(block);
-    if (!decoded.ok())
-      throw DeviceError(DeviceError::Kind::kInvalidValue, Describe(), operation, reg::InputName(decoded.refusal.address),
-                        0, decoded.refusal.message);
-    result = *decoded.value;
+    result = ReadBlock<reg::StatusBlock>(
+        c, Describe(), operation, Range("input", reg::input::kStatusBlock, reg::input::kStatusCount) + " (status block)",
+        reg::input::kStatusBlock, modbus_read_input_registers, reg::DecodeStatus, reg::InputName);
   });
   return result;
 }

@@ -3,16 +3,14 @@
 namespace strut::rig {
 
 daq::Experiment PeriodicExperimentOf(const MatrixEntry& entry, long periods, double sample_rate) {
-  daq::Experiment e;
-  e.label = entry.label;
-  e.kind = daq::ExperimentKind::kPeriodic;
-  e.sample_rate = sample_rate;
-  e.frequency = entry.frequency;
-  e.amplitude = entry.amplitude;
-  e.static_position = entry.static_position;
-  e.periods = periods;
-  e.group = entry.group;
-  return e;
+  return {.label = entry.label,
+          .kind = daq::ExperimentKind::kPeriodic,
+          .sample_rate = sample_rate,
+          .frequency = entry.frequency,
+          .amplitude = entry.amplitude,
+          .static_position = entry.static_position,
+          .periods = periods,
+          .group = entry.group};
 }
 
 std::vector<MatrixEntry> StandardMatrix() {

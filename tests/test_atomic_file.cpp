@@ -12,13 +12,12 @@
 #include "strut/daq/atomic_file.h"
 #include "test_support.h"
 
+namespace strut::daq {
 namespace {
 
-using strut::daq::FileWriteError;
-using strut::daq::WriteFileAtomically;
-using strut::test::FileSizeLimit;
-using strut::test::ReadFile;
-using strut::test::TempDir;
+using test::FileSizeLimit;
+using test::ReadFile;
+using test::TempDir;
 namespace fs = std::filesystem;
 
 // Every byte value, NULs included, in a length that takes more than one write() on most systems.
@@ -57,7 +56,7 @@ TEST(AtomicFile, ReplacesAnExistingFileLongerOrShorter) {
 }
 
 // The message of the FileWriteError a write throws ("" when none).
-constexpr auto ErrorOf = [](auto&& call) { return strut::test::ErrorOf<FileWriteError>(call); };
+constexpr auto ErrorOf = [](auto&& call) { return test::ErrorOf<FileWriteError>(call); };
 
 TEST(AtomicFile, IntoAMissingFolderNamesThePathAndTheStepAndCreatesNothing) {
   TempDir dir;
@@ -131,7 +130,8 @@ TEST(AtomicFile, AFailedRenameLeavesTheTargetAndNoPartialFile) {
 }
 
 TEST(AtomicFile, SyncingTheFolderOfAMissingPathOnlyWarns) {
-  EXPECT_NO_THROW(strut::daq::SyncDirectoryOf("/no/such/folder/file"));
+  EXPECT_NO_THROW(SyncDirectoryOf("/no/such/folder/file"));
 }
 
 }  // namespace
+}  // namespace strut::daq

@@ -10,6 +10,7 @@
 #include <map>
 
 #include "strut/sim/transient.h"
+#include "transient_reference.h"
 
 namespace strut::sim {
 namespace {
@@ -22,17 +23,15 @@ using ident::Scheme;
 // Standard-matrix experiment h: 0.5 Hz, 133 mm static, 34 mm amplitude.
 constexpr double kFrequency = 0.5, kStatic = 0.133, kAmplitude = 0.034;
 
-// The reference: tight IDA tolerances (absolute ones 1e-3 of the unknown scales, so rtol rules)
-// and periods compared to 0.1 of the scales; its error is a few 1e-9 of a channel's range (the gas
+// The reference: IDA at the reference tolerances (test::ReferenceTolerances) and periods compared
+// to 0.1 of the scales; its error is a few 1e-9 of a channel's range (the gas
 // temperature, whose scale 1e-6 K is 5e-8 of its 20 K range, converges slowest).
 PeriodicSteadyStateResult Reference(const Model& model, const PeriodicInput& input) {
-  TransientOptions options;
-  options.rtol = 1e-11;
-  options.atol_factor = 1e-3;
   SteadyStateOptions steady;
   steady.tol = 0.1;
   steady.periods_max = 400;
-  return TransientSimulator(model, options).PeriodicSteadyState(model.defaults().values(), input, steady);
+  return TransientSimulator(model, test::ReferenceTolerances())
+      .PeriodicSteadyState(model.defaults().values(), input, steady);
 }
 
 struct Error {
@@ -217,12 +216,9 @@ TEST(PeriodicVsTransient, SteadyStateDoesNotDependOnTheStart) {
   const Model model = Model::Build("2dof", Causality::kStrokeInput);
   const auto& theta = model.defaults().values();
   const PeriodicInput input = StrokeSine(200);
-  TransientOptions options;
-  options.rtol = 1e-11;
-  options.atol_factor = 1e-3;
   SteadyStateOptions steady;
   steady.tol = 0.1;
-  const TransientSimulator simulator(model, options);
+  const TransientSimulator simulator(model, test::ReferenceTolerances());
   const auto cold = simulator.PeriodicSteadyState(theta, input, steady);
   InitialState warm;
   warm.unknowns = model.StaticEquilibrium(input.values[0], theta);

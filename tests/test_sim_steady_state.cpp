@@ -10,6 +10,7 @@
 
 #include "strut/ident/periodic.h"
 #include "strut/sim/simulated_rig.h"
+#include "transient_reference.h"
 
 namespace strut::sim {
 namespace {
@@ -135,16 +136,13 @@ TEST(SimSteadyState, ForceDrivenTransientAgreesWithThePeriodicSolverToItsDiscret
   ident::PeriodicSolver solver(force_model, options);
   const int reference_n = 6400;
   const ident::PeriodicSolution start = solver.Solve(grid(reference_n), theta);
-  TransientOptions tight;
-  tight.rtol = 1e-11;
-  tight.atol_factor = 1e-3;
   SteadyStateOptions steady;
   steady.tol = 1.0;
   steady.periods_max = 100;
   InitialState initial;
   initial.unknowns.assign(start.unknowns.col(0).data(), start.unknowns.col(0).data() + start.unknowns.rows());
-  const PeriodicSteadyStateResult reference =
-      TransientSimulator(force_model, tight).PeriodicSteadyState(theta, grid(reference_n), steady, initial);
+  const PeriodicSteadyStateResult reference = TransientSimulator(force_model, test::ReferenceTolerances())
+                                                  .PeriodicSteadyState(theta, grid(reference_n), steady, initial);
   std::vector<double> errors;
   for (const int n : {400, 800, 1600, 3200}) {
     const ident::PeriodicSolution s = solver.Solve(grid(n), theta);

@@ -90,6 +90,30 @@ TEST(Discover, GivesTheSameAnswerOnOneAndTwoThreads) {
   }
 }
 
+TEST(Discover, ScreeningLeavesTheAnswerAsRefittingEveryCandidateGivesIt) {
+  // The size score's screen refits fewer candidates; the terms found and the final fit are those of
+  // refitting every candidate.
+  const auto data = Simulate("2dof+charge-loss", "theta37=0.004", 11);
+  DiscoverOptions screened = Options(), every = Options();
+  every.screen_margin = 0.0;
+  const DiscoveryResult a = Discover(data, Baseline("2dof"), screened);
+  const DiscoveryResult b = Discover(data, Baseline("2dof"), every);
+  ASSERT_EQ(a.missing, std::vector<std::string>{"charge-loss"}) << a.conclusion;
+  EXPECT_EQ(a.missing, b.missing);
+  EXPECT_NEAR(a.final_fit.bic, b.final_fit.bic, 1e-9 * std::abs(b.final_fit.bic));
+  int skipped = 0;
+  for (const DiscoveryStep& step : a.steps)
+    for (const CandidateFit& c : step.candidates) {
+      if (!c.screened) continue;
+      ++skipped;
+      // A screened candidate's refit, where it was made, did not pass the BIC threshold.
+      for (const DiscoveryStep& full : b.steps)
+        for (const CandidateFit& f : full.candidates)
+          if (f.term == c.term && f.ok) EXPECT_GT(f.delta_bic, -DiscoverOptions().bic_threshold) << c.term;
+    }
+  EXPECT_GT(skipped, 0);
+}
+
 struct Concealed {
   std::string term;
   std::string changes;  // the effect's level in the truth: present, but small

@@ -50,7 +50,7 @@ FitSummary Baseline(const std::string& truth_model, const std::string& changes, 
 std::map<std::string, double> Start(const std::string& term, const FitSummary& baseline) {
   std::vector<std::string> log;
   const auto t0 = std::chrono::steady_clock::now();
-  const auto values = CandidateStartingValues(term, baseline, &log);
+  const auto values = CandidateStartingValues(term, baseline, &log).values;
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   for (const auto& line : log) std::cout << "  " << term << ": " << line << "\n";
   std::cout << "  " << term << ": starting values in " << seconds << " s\n";
@@ -154,7 +154,7 @@ TEST(CandidateStartingValues, NamesTheUnknownTermAndKeepsDefaultsWithoutARule) {
   empty.model = "2dof";
   EXPECT_THROW(CandidateStartingValues("warp-drive", empty), std::invalid_argument);
   std::vector<std::string> log;
-  EXPECT_TRUE(CandidateStartingValues("cubic-stiffness", empty, &log).empty());  // no 2dof+cubic-stiffness
+  EXPECT_TRUE(CandidateStartingValues("cubic-stiffness", empty, &log).values.empty());  // no 2dof+cubic-stiffness
   EXPECT_FALSE(log.empty());
 }
 

@@ -69,6 +69,7 @@ bool DiscoverOptions::IsValid(std::string* error) const {
   if (!(cv_improvement > 0 && cv_improvement <= 1)) return fail("cv_improvement must be in (0, 1]");
   if (!(min_improvement > 0 && min_improvement < 1)) return fail("min_improvement must be in (0, 1)");
   if (max_terms < 0 || threads < 1) return fail("max_terms must not be negative and threads at least 1");
+  if (!(screen_margin >= 0)) return fail("screen_margin must not be negative");
   return true;
 }
 
@@ -415,7 +416,8 @@ class DiscoveryRun {
     spdlog::info("{}", text);
     if (progress_) progress_(text);
   }
-  FitSummary FitCandidate(const std::string& term, const std::string& composition, const FitSummary& previous) const;
+  FitSummary FitCandidate(const std::string& term, const Model& model, TermStart start, const FitSummary& previous) const;
+  std::optional<std::string> Screened(const TermStart& start, const FitSummary& current) const;
   Round Candidates(const FitSummary& current) const;
   void Refit(Round& round, const FitSummary& current, int number);
   int Select(Round& round, const FitSummary& current, const Model& model, const std::map<std::string, double>& ratio,
@@ -435,15 +437,28 @@ class DiscoveryRun {
   double candidate_seconds_ = 0.0, cv_seconds_ = 0.0;
 };
 
+// Why a candidate is not worth its refit (nullopt: it is): its size score's first-order fall of
+// -2 log-likelihood, screen_margin times over, does not pay for its new parameters by bic_threshold.
+std::optional<std::string> DiscoveryRun::Screened(const TermStart& start, const FitSummary& current) const {
+  if (!(options_.screen_margin > 0) || !std::isfinite(start.size_score)) return std::nullopt;
+  int added = 0;
+  for (int i = 0; i < start.start.size(); ++i)
+    if (start.choices[i].estimate && !current.parameters.find(start.start.spec(i).key())) ++added;
+  const double cost = options_.bic_threshold + added * std::log(static_cast<double>(std::max(1L, current.observations)));
+  const double fall = options_.screen_margin * start.size_score * start.size_score;
+  if (fall >= cost) return std::nullopt;
+  return fmt::format("screened out: size score t {:+.2f}, {} x t^2 = {:.1f} below the {:.1f} its parameters cost",
+                     start.size_score, options_.screen_margin, fall, cost);
+}
+
 // A candidate: the current fit's values and estimated set, plus the new term's own parameters (sizes
 // and shapes estimated, from where the located mismatch puts them: StartWithTerm).
-FitSummary DiscoveryRun::FitCandidate(const std::string& term, const std::string& composition,
+FitSummary DiscoveryRun::FitCandidate(const std::string& term, const Model& model, TermStart term_start,
                                       const FitSummary& previous) const {
   const EstimatorOptions& estimator = session_options_.estimator;
-  const Model model = Model::Build(composition, causality_);
-  std::vector<std::string> log;
-  auto [start, choices] = StartWithTerm(model, term, previous, &log);
-  for (const std::string& line : log) spdlog::debug("candidate {}: {}", term, line);
+  const std::string& composition = model.composition();
+  const ParameterSet& start = term_start.start;
+  const std::vector<ParameterChoice>& choices = term_start.choices;
   const Estimator fitter(model, estimator);
   FitSummary fit = fitter.Fit(data_.experiments, start, choices, data_.issues);
   // Only a stalled candidate that already explains something (its BIC below the current one by the
@@ -506,7 +521,19 @@ void DiscoveryRun::Refit(Round& round, const FitSummary& current, int number) {
     CandidateFit& r = round.results[c];
     r.term = candidates[c].first;
     try {
-      round.fits[c] = FitCandidate(candidates[c].first, candidates[c].second, current);
+      const Model model = Model::Build(candidates[c].second, causality_);
+      std::vector<std::string> log;
+      TermStart start = StartWithTerm(model, r.term, current, &log);
+      for (const std::string& line : log) spdlog::debug("candidate {}: {}", r.term, line);
+      r.size_score = start.size_score;
+      if (const std::optional<std::string> why = Screened(start, current)) {
+        r.screened = true;
+        r.delta_bic = NAN;
+        r.error = r.verdict = *why;
+        seconds[c] = watch.Seconds();
+        return;
+      }
+      round.fits[c] = FitCandidate(r.term, model, std::move(start), current);
       r.ok = round.fits[c].IsSolutionUsable() && round.fits[c].converged;
       if (!r.ok) r.error = round.fits[c].VerdictText();
       r.delta_bic = round.fits[c].bic - current.bic;
@@ -538,7 +565,9 @@ int DiscoveryRun::Select(Round& round, const FitSummary& current, const Model& m
   std::vector<std::size_t> order;
   for (std::size_t c = 0; c < results.size(); ++c) {
     CandidateFit& r = results[c];
-    if (!r.ok) {
+    if (r.screened) {
+      continue;  // its verdict says why
+    } else if (!r.ok) {
       r.verdict = "no converged fit";
     } else if (r.delta_bic > -options_.bic_threshold) {
       r.verdict = fmt::format("BIC does not fall by {}", options_.bic_threshold);

@@ -295,8 +295,11 @@ TermStart StartWithTerm(const Model& model, const std::string& term, const FitSu
       if (!previous.estimates[*p].estimated) t.choices[i] = ParameterChoice{};
     }
   }
-  if (model.causality() == Causality::kStrokeInput)
-    for (const auto& [key, value] : CandidateStartingValues(term, previous, log)) t.start.set(key, value);
+  if (model.causality() == Causality::kStrokeInput) {
+    const CandidateStart candidate = CandidateStartingValues(term, previous, log);
+    for (const auto& [key, value] : candidate.values) t.start.set(key, value);
+    t.size_score = candidate.size_score;
+  }
   return t;
 }
 

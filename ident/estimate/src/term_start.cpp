@@ -253,9 +253,8 @@ int GaussNewtonSizeIndex(const std::string& term) {
 
 }  // namespace
 
-std::vector<std::pair<std::string, double>> CandidateStartingValues(const std::string& term,
-                                                                    const FitSummary& baseline,
-                                                                    std::vector<std::string>* log) {
+CandidateStart CandidateStartingValues(const std::string& term, const FitSummary& baseline,
+                                       std::vector<std::string>* log) {
   const auto& catalogue = Catalogue();
   if (std::none_of(catalogue.begin(), catalogue.end(), [&](const TermEntry& e) { return e.name == term; }))
     throw std::invalid_argument(fmt::format("CandidateStartingValues: '{}' is not a catalogue term", term));
@@ -288,7 +287,8 @@ std::vector<std::pair<std::string, double>> CandidateStartingValues(const std::s
     return p >= 0 ? candidate.value(p) : fallback;
   };
   const std::vector<Sample> samples = Collect(baseline, v);
-  std::vector<std::pair<std::string, double>> out;
+  CandidateStart start;
+  std::vector<std::pair<std::string, double>>& out = start.values;
   const auto give = [&](int index, double value, const std::string& how) {
     const int p = candidate.position_of_index(index);
     if (p < 0 || !std::isfinite(value)) return;
@@ -312,6 +312,7 @@ std::vector<std::pair<std::string, double>> CandidateStartingValues(const std::s
   if (term == "viscous-damping") {
     const Regression r = Regress(samples, with([](const Sample& s) { return s.rate; }, ForceNuisance(v)));
     if (r.ok) give(18, r.coefficient, fmt::format("force equation error on the stroke rate, t {:+.1f}", r.t));
+    if (r.ok) start.size_score = r.t;
   } else if (term == "stribeck-friction") {
     // The excess is linear at 0, the width is not: one Gauss-Newton step for the excess at each
     // width of a log grid, 20 % apart from 0.5 to 40 mm/s; the width whose step leaves the least
@@ -334,6 +335,7 @@ std::vector<std::pair<std::string, double>> CandidateStartingValues(const std::s
       give(19, best.coefficient, fmt::format("one Gauss-Newton step from the baseline with the excess at 0, t {:+.1f}",
                                              best.t));
       give(20, width, "the width in stroke rate whose step explains the residual best");
+      start.size_score = best.t;
     } else {
       note("stribeck-friction: no width gives a positive excess; defaults kept");
     }
@@ -345,6 +347,7 @@ std::vector<std::pair<std::string, double>> CandidateStartingValues(const std::s
     if (best.ok) {
       give(23, position, fmt::format("least residual over stop positions near the least stroke {:.4f} m", q_min));
       give(21, best.coefficient, fmt::format("force equation error on the penetration, t {:+.1f}", best.t));
+      start.size_score = best.t;
     } else {
       note("end-stop: no position gives a positive stiffness; defaults kept");
     }
@@ -358,13 +361,15 @@ std::vector<std::pair<std::string, double>> CandidateStartingValues(const std::s
     std::vector<std::string> problems;
     const Regression r = GaussNewtonSize(baseline, model, theta, size, problems);
     for (const auto& p : problems) note(fmt::format("{}: left out: {}", term, p));
-    if (r.ok)
+    if (r.ok) {
       give(index, r.coefficient,
            fmt::format("one Gauss-Newton step from the baseline with the size at 0, t {:+.1f}", r.t));
+      start.size_score = r.t;
+    }
   } else {
     note(fmt::format("{}: no rule for starting values; defaults kept", term));
   }
-  return out;
+  return start;
 }
 
 }  // namespace strut::ident

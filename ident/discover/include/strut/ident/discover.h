@@ -28,6 +28,11 @@ struct DiscoverOptions {
   int cv_folds = 4;
   double cv_improvement = 0.98;
   int max_terms = 8;
+  //! Screening: a candidate whose size score t (CandidateStart::size_score, the located mismatch's
+  //! regression) cannot lower the BIC by bic_threshold even at `screen_margin` times its first-order
+  //! fall, screen_margin t^2 < bic_threshold + k log(observations) for its k new parameters, is not
+  //! refitted. 0: every candidate is refitted.
+  double screen_margin = 4.0;
   //! Threads: candidate refits and cross-validation folds side by side, and each fit's experiments
   //! too (EstimatorOptions::threads). The answers are the same for any count.
   int threads = 2;
@@ -52,6 +57,8 @@ struct CandidateFit {
   //! Noise ratio of the experiments left out of the fit, over all folds (NaN: not cross-validated)
   double cv_ratio = NAN;
   std::string verdict;     //!< kept, or why not ("BIC", "noise ratio", "cross-validation", "no solution")
+  bool screened = false;   //!< not refitted: its size score says it cannot pay for its parameters
+  double size_score = NAN; //!< CandidateStart::size_score
 };
 
 struct DiscoveryStep {

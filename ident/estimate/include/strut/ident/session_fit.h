@@ -102,6 +102,7 @@ struct SessionFit {
 struct TermStart {
   ParameterSet start;
   std::vector<ParameterChoice> choices;
+  double size_score = NAN;  //!< CandidateStart::size_score (NaN: none, or not under stroke input)
 };
 TermStart StartWithTerm(const Model& model, const std::string& term, const FitSummary& previous,
                         std::vector<std::string>* log = nullptr);

@@ -3,6 +3,7 @@
 // a linear regression says how large it is.
 #pragma once
 
+#include <cmath>
 #include <string>
 #include <utility>
 #include <vector>
@@ -42,8 +43,15 @@ namespace strut::ident {
 //! parameter out: the caller keeps its defaults. `log` (optional) says where each value came from.
 //! Costs a fraction of a second for 7 experiments at n = 400 (the Stribeck grid: 25 sensitivity
 //! passes). Throws std::invalid_argument for a name not in the catalogue.
-std::vector<std::pair<std::string, double>> CandidateStartingValues(const std::string& term,
-                                                                    const FitSummary& baseline,
-                                                                    std::vector<std::string>* log = nullptr);
+struct CandidateStart {
+  std::vector<std::pair<std::string, double>> values;  //!< ("theta23", value)
+  //! The size's t in its regression (coefficient over standard error, with the residual's own
+  //! variance): a score statistic. To first order the size lowers -2 log-likelihood by about t^2
+  //! (Gauss-Newton from the baseline), so a small t says the term cannot pay for its parameters.
+  //! NaN where the term has no rule or the data cannot say.
+  double size_score = NAN;
+};
+CandidateStart CandidateStartingValues(const std::string& term, const FitSummary& baseline,
+                                       std::vector<std::string>* log = nullptr);
 
 }  // namespace strut::ident

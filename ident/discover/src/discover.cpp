@@ -67,6 +67,7 @@ bool DiscoverOptions::IsValid(std::string* error) const {
   if (!(bic_threshold >= 0)) return fail("bic_threshold must not be negative");
   if (cv_folds < 0 || cv_folds == 1) return fail("cv_folds must be 0 (off) or at least 2");
   if (!(cv_improvement > 0 && cv_improvement <= 1)) return fail("cv_improvement must be in (0, 1]");
+  if (!(cv_alpha > 0 && cv_alpha < 1)) return fail("cv_alpha must be in (0, 1)");
   if (!(min_improvement > 0 && min_improvement < 1)) return fail("min_improvement must be in (0, 1)");
   if (max_terms < 0 || threads < 1) return fail("max_terms must not be negative and threads at least 1");
   if (!(screen_margin >= 0)) return fail("screen_margin must not be negative");
@@ -296,21 +297,40 @@ std::optional<std::vector<double>> HeldOutRatios(const FitData& data, const Mode
   return ratios;
 }
 
-// The median of the held-out ratios over all folds' experiments; NaN when a fold had no solution.
-double MedianHeldOut(const std::vector<std::optional<std::vector<double>>>& folds) {
-  std::vector<double> held_ratios;  // one per held-out experiment, all channels pooled
+// The held-out ratios of all folds' experiments (in fold order, the same for every model) and their
+// median; empty and NaN when a fold had no solution.
+struct HeldOut {
+  std::vector<double> ratios;
+  double median = NAN;
+};
+HeldOut PoolHeldOut(const std::vector<std::optional<std::vector<double>>>& folds) {
+  HeldOut out;
   for (const auto& fold : folds) {
-    if (!fold) return NAN;
-    held_ratios.insert(held_ratios.end(), fold->begin(), fold->end());
+    if (!fold) return {};
+    out.ratios.insert(out.ratios.end(), fold->begin(), fold->end());
   }
-  if (held_ratios.empty()) return NAN;
+  if (out.ratios.empty()) return out;
   // The median over the held-out experiments: an effect that only one experiment shows (an end
   // stop that only the deepest low-position experiment reaches) cannot be learnt without that
   // experiment, and its one wild prediction must not outweigh the others, which it fits well.
-  const auto middle = held_ratios.begin() + static_cast<std::ptrdiff_t>(held_ratios.size() / 2);
-  std::nth_element(held_ratios.begin(), middle, held_ratios.end());
-  if (held_ratios.size() % 2 == 1) return *middle;
-  return 0.5 * (*middle + *std::max_element(held_ratios.begin(), middle));
+  std::vector<double> sorted = out.ratios;
+  const auto middle = sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2);
+  std::nth_element(sorted.begin(), middle, sorted.end());
+  out.median = sorted.size() % 2 == 1 ? *middle : 0.5 * (*middle + *std::max_element(sorted.begin(), middle));
+  return out;
+}
+
+// Whether the candidate's held-out predictions beat the current model's: by the median (to
+// cv_improvement), or experiment by experiment (the signed-rank test at cv_alpha).
+bool PredictsHeldOutBetter(const HeldOut& candidate, const HeldOut& current, const DiscoverOptions& options) {
+  if (!std::isfinite(candidate.median)) return false;
+  if (!std::isfinite(current.median)) return true;
+  if (candidate.median <= options.cv_improvement * current.median) return true;
+  if (candidate.ratios.size() != current.ratios.size()) return false;
+  std::vector<double> log_ratios;
+  for (std::size_t e = 0; e < candidate.ratios.size(); ++e)
+    log_ratios.push_back(std::log(candidate.ratios[e] / current.ratios[e]));
+  return SignedRankPValue(log_ratios) < options.cv_alpha;
 }
 
 // A model and its fit whose held-out noise ratio is wanted.
@@ -320,10 +340,10 @@ struct CrossValidation {
 };
 
 // The held-out noise ratios of several models at once: all their folds' refits, `threads` at a time.
-std::vector<double> CrossValidate(const FitData& data, const std::vector<CrossValidation>& models,
-                                  const EstimatorOptions& estimator, int folds, int threads) {
+std::vector<HeldOut> CrossValidate(const FitData& data, const std::vector<CrossValidation>& models,
+                                   const EstimatorOptions& estimator, int folds, int threads) {
   folds = std::min(folds, static_cast<int>(data.experiments.size()));
-  if (folds < 2) return std::vector<double>(models.size(), NAN);
+  if (folds < 2) return std::vector<HeldOut>(models.size());
   // Folds interleave the experiments (a, e, i, m; b, f, j, n; ...), so no fold takes a whole
   // static-position group or frequency away and the refit need not extrapolate.
   std::vector<std::optional<std::vector<double>>> ratios(models.size() * folds);
@@ -335,14 +355,19 @@ std::vector<double> CrossValidate(const FitData& data, const std::vector<CrossVa
     ratios[task] = HeldOutRatios(data, *m.model, *m.fit, estimator, folds, task % folds, iterations[task]);
     seconds[task] = watch.Seconds();
   });
-  std::vector<double> out;
+  std::vector<HeldOut> out;
   for (std::size_t m = 0; m < models.size(); ++m) {
     const auto first = ratios.begin() + static_cast<std::ptrdiff_t>(m * folds);
-    out.push_back(MedianHeldOut({first, first + folds}));
+    out.push_back(PoolHeldOut({first, first + folds}));
     std::string fold_times;
     for (int k = 0; k < folds; ++k)
       fold_times += fmt::format(" {:.2f} s ({} iterations)", seconds[m * folds + k], iterations[m * folds + k]);
     spdlog::debug("timing: cross-validation of {}, folds:{}", models[m].model->composition(), fold_times);
+    std::string held;
+    for (int k = 0; k < folds; ++k)
+      if (const auto& fold = ratios[m * folds + k])
+        for (double r : *fold) held += fmt::format(" {:.3f}", r);
+    spdlog::debug("cross-validation of {}: held-out ratios by fold:{}", models[m].model->composition(), held);
   }
   return out;
 }
@@ -351,7 +376,39 @@ std::vector<double> CrossValidate(const FitData& data, const std::vector<CrossVa
 
 double CrossValidatedNoiseRatio(const FitData& data, const Model& model, const FitSummary& fit,
                                 const EstimatorOptions& estimator, int folds, int threads) {
-  return CrossValidate(data, {{&model, &fit}}, estimator, folds, threads).front();
+  return CrossValidate(data, {{&model, &fit}}, estimator, folds, threads).front().median;
+}
+
+double SignedRankPValue(const std::vector<double>& differences) {
+  std::vector<double> magnitude;
+  std::vector<bool> positive;
+  for (double d : differences)
+    if (d != 0.0 && std::isfinite(d)) magnitude.push_back(std::abs(d)), positive.push_back(d > 0);
+  const int n = static_cast<int>(magnitude.size());
+  if (n == 0) return 1.0;
+  // Twice the mid-ranks, whole numbers.
+  std::vector<int> order(n), rank2(n);
+  std::iota(order.begin(), order.end(), 0);
+  std::sort(order.begin(), order.end(), [&](int a, int b) { return magnitude[a] < magnitude[b]; });
+  for (int i = 0; i < n;) {
+    int j = i;
+    while (j + 1 < n && magnitude[order[j + 1]] == magnitude[order[i]]) ++j;
+    for (int k = i; k <= j; ++k) rank2[order[k]] = i + j + 2;  // 2 x the mean of ranks i+1 .. j+1
+    i = j + 1;
+  }
+  int observed = 0, total = 0;
+  for (int i = 0; i < n; ++i) {
+    total += rank2[i];
+    if (positive[i]) observed += rank2[i];
+  }
+  // The number of sign patterns for every sum of positive ranks: each rank in or out of the sum.
+  std::vector<double> ways(static_cast<std::size_t>(total) + 1, 0.0);
+  ways[0] = 1.0;
+  for (int i = 0; i < n; ++i)
+    for (int sum = total; sum >= rank2[i]; --sum) ways[sum] += ways[sum - rank2[i]];
+  double at_most = 0.0;
+  for (int sum = 0; sum <= observed; ++sum) at_most += ways[sum];
+  return at_most / std::ldexp(1.0, n);
 }
 
 namespace {
@@ -432,8 +489,9 @@ class DiscoveryRun {
   const Causality causality_;
   const std::string base_;
   SessionFitOptions session_options_;
-  std::optional<double> current_cv_;           // held-out noise ratio of the current model, once a candidate needs it
+  std::optional<HeldOut> current_cv_;          // held-out noise ratios of the current model, once a candidate needs them
   std::map<std::string, int> last_iterations_;  // per term, its refit's in the round before
+  std::map<int, HeldOut> held_out_;             // the kept candidate's held-out ratios (this round)
   double candidate_seconds_ = 0.0, cv_seconds_ = 0.0;
 };
 
@@ -586,17 +644,18 @@ int DiscoveryRun::Select(Round& round, const FitSummary& current, const Model& m
     const Model candidate_model = Model::Build(round.candidates[c].second, causality_);
     std::vector<CrossValidation> wanted{{&candidate_model, &round.fits[c]}};
     if (!current_cv_) wanted.push_back({&model, &current});
-    const std::vector<double> cv =
+    const std::vector<HeldOut> cv =
         CrossValidate(data_, wanted, session_options_.estimator, options_.cv_folds, options_.threads);
-    results[c].cv_ratio = cv[0];
+    results[c].cv_ratio = cv[0].median;
     if (!current_cv_) current_cv_ = cv[1];
     cv_seconds_ += cv_watch.Seconds();
     spdlog::debug("timing: round {} cross-validation {:.2f} s", number, cv_watch.Seconds());
     spdlog::info("  {:<20} cross-validated noise ratio {:.3f} against {:.3f}", results[c].term, results[c].cv_ratio,
-                 *current_cv_);
-    if (std::isfinite(results[c].cv_ratio) &&
-        (!std::isfinite(*current_cv_) || results[c].cv_ratio <= options_.cv_improvement * *current_cv_))
+                 current_cv_->median);
+    if (PredictsHeldOutBetter(cv[0], *current_cv_, options_)) {
+      held_out_[c] = cv[0];
       return static_cast<int>(c);
+    }
     results[c].verdict = "does not predict left-out experiments better";
   }
   return -1;
@@ -610,7 +669,7 @@ DiscoveryStep DiscoveryRun::Step(const Round& round, int best, const FitSummary&
   step.delta_bic = kept.delta_bic;
   step.noise_before = ratio;
   step.noise_after = kept.noise_ratio;
-  step.cv_before = current_cv_.value_or(NAN);
+  step.cv_before = current_cv_ ? current_cv_->median : NAN;
   step.cv_after = kept.cv_ratio;
   step.candidates = round.results;
   const TermEntry& entry = CatalogueEntry(step.term);
@@ -696,7 +755,8 @@ DiscoveryResult DiscoveryRun::Run() {
     result.missing.push_back(step.term);
     result.steps.push_back(std::move(step));
     current = round.fits[best];
-    current_cv_ = round.results[best].cv_ratio;
+    current_cv_ = held_out_.count(best) ? std::optional<HeldOut>(held_out_.at(best)) : std::nullopt;
+    held_out_.clear();
     ratio = PooledNoiseRatio(current);
   }
 

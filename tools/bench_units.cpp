@@ -25,8 +25,9 @@ void PrintUnit(const study::UnitFit& unit) {
     line += fmt::format(" restart {} after {} iterations: {:.3g} sd apart{}",
                         unit.restart_converged ? "converged" : "NOT converged", unit.restart_iterations,
                         unit.restart_apart_sd, unit.restart_warning.empty() ? "" : " (" + unit.restart_warning + ")");
-  std::cout << fmt::format("  unit {:5}: {:<18} worst noise ratio {:5.2f}, {:.2f} s{}\n", unit.seed,
+  std::cout << fmt::format("  unit {:5}: {:<18} worst noise ratio {:5.2f}, {:.2f} s{}{}\n", unit.seed,
                            ident::ToString(unit.verdict), unit.worst_noise_ratio, unit.seconds,
+                           unit.truth_composition.find('+') != std::string::npos ? " (" + unit.truth_composition + ")" : "",
                            line.empty() ? "" : ";" + line);
 }
 
@@ -108,10 +109,15 @@ struct BenchUnits {
                              : options.drawn_gains       ? "drawn force, pressure and stroke gain"
                                                          : "perfect",
                              calibrated.empty() ? "none" : calibrated);
-    if (!options.effects.empty())
+    if (options.fit_truth)
+      std::cout << "each unit is fitted with its truth's composition\n";
+    else if (!options.effects.empty())
       std::cout << fmt::format("the units also have {}, which the fitted model {} lacks: the fits stay above the noise "
                                "floor and the coverage is that of the widened intervals\n",
                                fmt::join(options.effects, " and "), options.base);
+    if (options.effects_per_unit > 0)
+      std::cout << fmt::format("each unit draws 1 to {} further effects at random{}\n", options.effects_per_unit,
+                               options.fit_truth ? "" : ", which the fitted model lacks");
     const study::UnitsStudy s = study::RunUnitsStudy(options, PrintUnit);
     PrintSummary(options, s);
     if (!json_path.empty()) WriteJson(s);
@@ -170,6 +176,13 @@ void RegisterBenchUnits(CLI::App& bench) {
                   "An extra effect the units have and the fitted model lacks (repeat for several): the coverage of the "
                   "intervals widened for the misfit. Names as for `strut sim matrix --effect`.")
       ->check(CLI::IsMember(sim::ExtraEffects()));
+  sub->add_option("--effects-per-unit", command->options.effects_per_unit,
+                  "Each unit also draws 1 to this many further effects at random, among those that compose with the "
+                  "base.")
+      ->check(CLI::Range(0, 12));
+  sub->add_flag("--fit-truth", command->options.fit_truth,
+                "Fit each unit with its truth's composition (the base and every effect it has), the coverage of "
+                "intervals of a model that holds the physics.");
   sub->add_option("--json", command->json_path, "Also write the figures as JSON to this file.");
   sub->add_option("--compare", command->compare_path,
                   "Compare this run with an earlier one's --json file: per parameter the largest relative difference "

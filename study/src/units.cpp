@@ -30,6 +30,25 @@ sim::Truth UnitTruth(const UnitsOptions& options, unsigned long seed) {
   sim::UnitDraw draw;
   draw.base = options.base;
   for (const std::string& e : options.effects) draw.effects.push_back({e, std::nullopt});
+  if (options.effects_per_unit > 0) {
+    // Which effects, from a stream of their own: the unit's drawn quantities stay those of its seed.
+    std::vector<std::string> pool;
+    for (const std::string& e : sim::ExtraEffects()) {
+      if (std::find(options.effects.begin(), options.effects.end(), e) != options.effects.end()) continue;
+      try {
+        ident::Model::Build(options.base + "+" + e, ident::Causality::kStrokeInput);
+        pool.push_back(e);
+      } catch (const ident::ModelError&) {  // needs what the base lacks (pressure-heat-transfer on 1dof)
+      }
+    }
+    std::mt19937_64 stream(seed * 104729 + 3);
+    const int count = std::min<int>(static_cast<int>(pool.size()),
+                                    1 + static_cast<int>(sim::UnitUniform(stream()) * options.effects_per_unit));
+    std::shuffle(pool.begin(), pool.end(), stream);
+    pool.resize(count);
+    for (const std::string& e : sim::ExtraEffects())
+      if (std::find(pool.begin(), pool.end(), e) != pool.end()) draw.effects.push_back({e, std::nullopt});
+  }
   sim::Truth truth = sim::DrawUnit(around, draw, seed);
   if (options.drawn_gains) {
     // Transducers off by what the fit's default calibration says they may be (kLabGainSd): the
@@ -72,12 +91,17 @@ void Restart(const ident::SessionFit& fit, const ident::Model& model, const iden
   unit.same_optimum = again.converged && apart < 0.1;
 }
 
-UnitFit FitUnit(const UnitsOptions& options, const ident::SessionFitOptions& fit_options,
-                const ident::EstimatorOptions& uncalibrated, const ident::Model& model, int u, UnitTimes& times) {
+UnitFit FitUnit(const UnitsOptions& options, const ident::SessionFitOptions& base_options,
+                const ident::EstimatorOptions& uncalibrated, const ident::Model& base_model, int u, UnitTimes& times) {
   UnitFit unit;
   unit.seed = options.first_seed + u;
   const sim::Truth truth = UnitTruth(options, unit.seed);
   const sim::SimulatedRig rig(truth);
+  unit.truth_composition = rig.model().composition();
+  ident::SessionFitOptions fit_options = base_options;
+  if (options.fit_truth) fit_options.composition = unit.truth_composition;
+  const ident::Model model =
+      options.fit_truth ? ident::Model::Build(unit.truth_composition, fit_options.causality) : base_model;
   sim::RigRunOptions run;
   run.seed = unit.seed;
   const daq::Session session = rig.RunMatrix(rig::StandardMatrixPlan(), run);

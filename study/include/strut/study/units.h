@@ -28,11 +28,17 @@ struct UnitsOptions {
   std::map<std::string, double> gain_sd = ident::kLabGainSd;
   double start_off = 0.3;            //!< largest relative offset of the restart
   std::vector<std::string> effects;  //!< physics the units have and the fitted model lacks
+  //! Each unit also draws 1 to this many further effects, at random among those that compose with
+  //! the base (sim::ExtraEffects()), from a stream of its own (0: none).
+  int effects_per_unit = 0;
+  //! Fit each unit with its truth's composition (the base and all its effects) rather than the base.
+  bool fit_truth = false;
 };
 
 //! One unit's fit.
 struct UnitFit {
   unsigned long seed = 0;
+  std::string truth_composition;  //!< the unit's physics (its truth model)
   ident::FitVerdict verdict = ident::FitVerdict::kNotConverged;
   bool converged = false;
   double worst_noise_ratio = 0.0;  //!< the largest channel noise ratio

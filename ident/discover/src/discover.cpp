@@ -450,6 +450,7 @@ struct Round {
   std::vector<std::pair<std::string, std::string>> candidates;  // term, composition
   std::vector<CandidateFit> results;
   std::vector<FitSummary> fits;
+  std::vector<HeldOut> held_out;  // per candidate, its held-out ratios where it was cross-validated
 };
 
 // One discovery, stage by stage: the baseline, then per round the candidates, their refits, the
@@ -491,7 +492,6 @@ class DiscoveryRun {
   SessionFitOptions session_options_;
   std::optional<HeldOut> current_cv_;          // held-out noise ratios of the current model, once a candidate needs them
   std::map<std::string, int> last_iterations_;  // per term, its refit's in the round before
-  std::map<int, HeldOut> held_out_;             // the kept candidate's held-out ratios (this round)
   double candidate_seconds_ = 0.0, cv_seconds_ = 0.0;
 };
 
@@ -556,6 +556,7 @@ Round DiscoveryRun::Candidates(const FitSummary& current) const {
   }
   round.results.resize(round.candidates.size());
   round.fits.resize(round.candidates.size());
+  round.held_out.resize(round.candidates.size());
   return round;
 }
 
@@ -646,16 +647,14 @@ int DiscoveryRun::Select(Round& round, const FitSummary& current, const Model& m
     if (!current_cv_) wanted.push_back({&model, &current});
     const std::vector<HeldOut> cv =
         CrossValidate(data_, wanted, session_options_.estimator, options_.cv_folds, options_.threads);
+    round.held_out[c] = cv[0];
     results[c].cv_ratio = cv[0].median;
     if (!current_cv_) current_cv_ = cv[1];
     cv_seconds_ += cv_watch.Seconds();
     spdlog::debug("timing: round {} cross-validation {:.2f} s", number, cv_watch.Seconds());
     spdlog::info("  {:<20} cross-validated noise ratio {:.3f} against {:.3f}", results[c].term, results[c].cv_ratio,
                  current_cv_->median);
-    if (PredictsHeldOutBetter(cv[0], *current_cv_, options_)) {
-      held_out_[c] = cv[0];
-      return static_cast<int>(c);
-    }
+    if (PredictsHeldOutBetter(cv[0], *current_cv_, options_)) return static_cast<int>(c);
     results[c].verdict = "does not predict left-out experiments better";
   }
   return -1;
@@ -755,8 +754,7 @@ DiscoveryResult DiscoveryRun::Run() {
     result.missing.push_back(step.term);
     result.steps.push_back(std::move(step));
     current = round.fits[best];
-    current_cv_ = held_out_.count(best) ? std::optional<HeldOut>(held_out_.at(best)) : std::nullopt;
-    held_out_.clear();
+    current_cv_ = round.held_out[best];
     ratio = PooledNoiseRatio(current);
   }
 

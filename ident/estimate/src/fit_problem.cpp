@@ -649,12 +649,11 @@ ResidualSums FitProblem::Evaluate() const {
   return e;
 }
 
-bool FitProblem::RefreshInputSensitivities(Experiment& s, const std::vector<double>& theta, LinearisationMode mode) {
+bool FitProblem::RefreshInputSensitivities(Experiment& s, const std::vector<double>& at, LinearisationMode mode) {
   const int nc = periodic_channels_;
   if (mode.reuse && static_cast<int>(s.estimate->sensitivity_rows.size()) == nc) return false;
   // d(outputs)/d xi: a forward solve per coefficient with eq. 14's factorisation.
-  const auto sens = s.solver->InputSensitivities(s.solution, model_.AtSessionTime(theta, s.data->session_time),
-                                                 s.estimate->directions, mode.exact);
+  const auto sens = s.solver->InputSensitivities(s.solution, at, s.estimate->directions, mode.exact);
   if (sens.empty()) {
     // A predictor without input sensitivities (transient integration): the input stays as it is.
     spdlog::warn("experiment '{}': the predictor has no input sensitivities; its input is not estimated",
@@ -674,13 +673,12 @@ bool FitProblem::RefreshInputSensitivities(Experiment& s, const std::vector<doub
   return true;
 }
 
-bool FitProblem::RefreshParameterSensitivities(Experiment& s, const std::vector<double>& theta,
+bool FitProblem::RefreshParameterSensitivities(Experiment& s, const std::vector<double>& at,
                                                LinearisationMode mode) const {
   const int nc = periodic_channels_;
   if (mode.reuse && static_cast<int>(s.sensitivity_rows.size()) == nc) return false;
   const int l = static_cast<int>(estimated_.size());
-  const auto sens =
-      s.solver->OutputSensitivities(s.solution, model_.AtSessionTime(theta, s.data->session_time), estimated_, mode.exact);
+  const auto sens = s.solver->OutputSensitivities(s.solution, at, estimated_, mode.exact);
   s.sensitivity_rows.assign(nc, Eigen::MatrixXd());
   for (int b = 0; b < nc; ++b) {
     if (!s.channel_fitted[b]) continue;
@@ -705,9 +703,10 @@ NormalEquations FitProblem::Linearise(const std::vector<double>& theta, const st
   ParallelFor(experiment_count(), threads_, [&](int a) {
     Experiment& s = experiments_[a];
     if (!s.active) return;
-    const bool inputs_fresh = mode.inputs && s.estimate && RefreshInputSensitivities(s, theta, mode);
+    const std::vector<double> at = model_.AtSessionTime(theta, s.data->session_time);
+    const bool inputs_fresh = mode.inputs && s.estimate && RefreshInputSensitivities(s, at, mode);
     const bool with_estimate = mode.inputs && s.estimate;
-    const bool parameters_fresh = RefreshParameterSensitivities(s, theta, mode);
+    const bool parameters_fresh = RefreshParameterSensitivities(s, at, mode);
     // The gradient's noise from the input's: J^T W P dy = (P^T W J)^T dy on the grid (P the
     // interpolation to the phases), so the output weights P^T W J give it by one adjoint solve.
     // (Harmonics the fit estimates carry their noise through their elimination instead.)
@@ -763,8 +762,7 @@ NormalEquations FitProblem::Linearise(const std::vector<double>& theta, const st
       eq.inputs[a] = std::move(block);
     }
     if (with_input) {
-      const Eigen::MatrixXd gradient =
-          s.solver->InputGradients(s.solution, model_.AtSessionTime(theta, s.data->session_time), weights);
+      const Eigen::MatrixXd gradient = s.solver->InputGradients(s.solution, at, weights);
       if (gradient.size() > 0)
         ns[a] = InputNoiseCovariance(*s.data, gradient, estimated_harmonics);
     }

@@ -162,8 +162,9 @@ class FitProblem {
   PeriodicSolution FirstSolve(Experiment& experiment, const std::vector<double>& theta) const;
   // The sensitivities Linearise needs, recomputed unless `mode` reuses current ones; true when
   // recomputed. Without input sensitivities from the predictor the experiment's input estimate is dropped.
-  bool RefreshInputSensitivities(Experiment& experiment, const std::vector<double>& theta, LinearisationMode mode);
-  bool RefreshParameterSensitivities(Experiment& experiment, const std::vector<double>& theta,
+  // `at`: the parameters at the experiment's session time (Model::AtSessionTime).
+  bool RefreshInputSensitivities(Experiment& experiment, const std::vector<double>& at, LinearisationMode mode);
+  bool RefreshParameterSensitivities(Experiment& experiment, const std::vector<double>& at,
                                      LinearisationMode mode) const;
   const Model& model_;
   const EstimatorOptions& options_;

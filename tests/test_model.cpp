@@ -22,7 +22,8 @@ std::vector<Case> AllCases() {
   for (const char* c : {"1dof", "2dof", "1dof+heat-exchange", "2dof+end-stop+viscous-damping",
                         "1dof+end-stop+viscous-damping+stribeck-friction", "1dof+oil-compressibility+real-gas",
                         "2dof+stribeck-friction+oil-compressibility+real-gas",
-                        "2dof+viscous-damping+stribeck-friction+end-stop+oil-compressibility+real-gas"})
+                        "2dof+viscous-damping+stribeck-friction+end-stop+oil-compressibility+real-gas",
+                        "2dof+load-cell-zero"})
     for (Causality k : {Causality::kForceInput, Causality::kStrokeInput}) cases.push_back({c, k});
   // The instant's stroke 0.131 m 4 mm inside the stop: its position and stiffness act.
   for (Causality k : {Causality::kForceInput, Causality::kStrokeInput})
@@ -285,6 +286,28 @@ TEST(Model, ResidualMatchesTheEquationsOfTheMethod) {
   model.Residual<double>(std::vector<double>{q, p_paper, T}, std::vector<double>{qd, 0.0, Td},
                          std::vector<double>{qdd, 0.0, 0.0}, F, 0.0, 0.0, d.values(), r);
   EXPECT_NEAR(r[1], 0.0, 1e-8 * p_paper);
+}
+
+TEST(Model, ALoadCellZeroActsInTheForceBalanceOnlyAndTheForceOffsetInTheHeatBalanceToo) {
+  const Model model = Model::Build("2dof+load-cell-zero", Causality::kForceInput);
+  const double q = 0.12, qd = 0.05, qdd = 0.3, p = 1.5e6, T = 305.0, Td = 0.4, F = 8000.0;
+  const auto residual = [&](int index, double value) {
+    std::vector<double> theta = model.defaults().values();
+    theta[model.defaults().position_of_index(index)] += value;
+    std::vector<double> r(3);
+    model.Residual<double>(std::vector<double>{q, p, T}, std::vector<double>{qd, 0.0, Td},
+                           std::vector<double>{qdd, 0.0, 0.0}, F, 0.0, 0.0, theta, r);
+    return r;
+  };
+  const std::vector<double> base = residual(39, 0.0), zero = residual(39, 60.0), offset = residual(11, 60.0);
+  EXPECT_NEAR(zero[0] - base[0], 60.0, 1e-9 * F);
+  EXPECT_NEAR(offset[0] - base[0], 60.0, 1e-9 * F);
+  EXPECT_EQ(zero[1], base[1]);
+  EXPECT_EQ(zero[2], base[2]);
+  EXPECT_NEAR(offset[2] - base[2], -60.0 * qd, 1e-9);  // the work term (theta4 p + theta11) q'
+  const ParameterSpec& spec = model.defaults().spec(model.defaults().position_of_index(39));
+  EXPECT_EQ(spec.default_value, 0.0);
+  EXPECT_EQ(spec.prior_sd, kLoadCellZeroPriorSd);
 }
 
 TEST(Model, JetDerivativesMatchCentralFiniteDifferences) {

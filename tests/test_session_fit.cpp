@@ -126,6 +126,51 @@ TEST(SessionFit, DefaultsIdentifyADrawnUnitToItsNoiseFloor) {
   }
 }
 
+TEST(SessionFit, ALoadCellZeroGoesToTheMovingMassUnlessTheLoadCellZeroTermHoldsIt) {
+  // The shipped load cell's 60 N zero on drawn unit 12 (ideal actuator, otherwise perfect
+  // calibration). theta11 also does work on the gas in the heat balance, so the plain 2 dof fit
+  // cannot put the zero there alone and gives part of it to the weight theta1 g (+10 sd in theta1);
+  // load-cell-zero holds it in the force balance only: the same noise recorded without the zero is
+  // the reference, and the fits with the term differ by the zero alone.
+  const auto record = [](double zero) {
+    sim::Truth unit = DrawnIdealUnit(12);
+    unit.sensors.force.offset = zero;
+    const sim::SimulatedRig rig(unit);
+    sim::RigRunOptions run;
+    run.seed = 1;
+    return rig.RunMatrix(rig::StandardMatrixPlan(), run);
+  };
+  const daq::Session zeroed = record(60.0), clean = record(0.0);
+  const auto truth = sim::ReadRecordedTruth(zeroed);
+  ASSERT_TRUE(truth);
+  const auto fit = [](const daq::Session& session, const std::string& composition) {
+    SessionFitOptions options;
+    options.composition = composition;
+    const Model model = Model::Build(options.composition, options.causality);
+    SessionFit f = FitPrepared(PrepareFitData(session, "zero", model, options.estimator.n), model, options);
+    EXPECT_EQ(f.summary.Verdict(), FitVerdict::kAtNoiseFloor) << f.summary.FullReport();
+    return f;
+  };
+  const auto value = [](const SessionFit& f, const char* key) {
+    return f.summary.parameters.value(f.summary.parameters.position(key));
+  };
+  const auto sd = [](const SessionFit& f, const char* key) {
+    return f.summary.estimates[f.summary.parameters.position(key)].sd;
+  };
+  const SessionFit plain = fit(zeroed, "2dof");
+  EXPECT_GT((value(plain, "theta1") - truth->parameters.get("theta1")) / sd(plain, "theta1"), 5.0)
+      << plain.summary.FullReport();
+
+  const SessionFit with = fit(zeroed, "2dof+load-cell-zero"), reference = fit(clean, "2dof+load-cell-zero");
+  for (const char* key : {"theta1", "theta3", "theta4", "theta11", "theta15", "theta16"})
+    EXPECT_LT(std::abs(value(with, key) - value(reference, key)), 0.05 * sd(with, key)) << key;
+  EXPECT_NEAR(value(with, "theta39") - value(reference, "theta39"), 60.0, 1.0);
+  for (const char* key : {"theta1", "theta11"})
+    EXPECT_LT(std::abs(value(with, key) - truth->parameters.get(key)), 2.0 * sd(with, key))
+        << key << "\n" << with.summary.FullReport();
+  EXPECT_LT(std::abs(value(with, "theta39") - 60.0), 2.0 * sd(with, "theta39")) << with.summary.FullReport();
+}
+
 TEST(SessionFit, CalibrationPartOfEachSdIsWhatAGainErrorMovesTheEstimateBy) {
   // The independent reference: refit the same session with one transducer reading high (the gauge
   // pressure's reading, not the absolute pressure; the LVDT's whole reading q + theta12) and compare

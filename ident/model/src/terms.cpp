@@ -147,6 +147,29 @@ class ForceOffset final : public Term {
   int offset_ = -1;
 };
 
+//! theta39: the load cell's zero, force reading = true force + theta39. It sits in the force balance
+//! only: theta11 also does work on the gas in the heat balance (the atmosphere on the piston), a
+//! transducer's zero does none, so a zero folded into theta11 is shared with the weight theta1 g.
+class LoadCellZero final : public Term {
+ public:
+  unsigned phases() const override { return kBalancePhase; }
+  std::string_view name() const override { return "load-cell-zero"; }
+  void Declare(ModelBuilder& b) override {
+    b.add_parameter({.index = 39, .name = "load_cell_zero", .unit = "N", .default_value = 0.0,
+                     .description = "load-cell zero: force reading = true force + zero", .estimate_by_default = true,
+                     .typical = 100.0, .prior_sd = kLoadCellZeroPriorSd});
+  }
+  void Bind(const ModelBuilder& b) override { zero_ = b.parameter_position(39); }
+  template <class S>
+  void Eval(TermContext<S>& c) const {
+    if (c.phase == TermContext<S>::Phase::kBalance) c.force += c.theta[zero_];
+  }
+  STRUT_TERM_EVALUATE
+
+ private:
+  int zero_ = -1;
+};
+
 //! theta12: stroke sensor offset, y = q + theta12. Used by Model for inputs and outputs.
 class StrokeOffset final : public Term {
  public:
@@ -914,6 +937,8 @@ const std::vector<TermEntry>& Catalogue() {
       {"pressure-friction", &Make<PressureFriction>, "", "(theta8 + theta9 p) atan(theta10 q')"},
       {"force-offset", &Make<ForceOffset>, "", "constant force offset theta11"},
       {"stroke-offset", &Make<StrokeOffset>, "", "stroke sensor offset theta12"},
+      // Opt-in, no locus: its force is a constant, which the residuals cannot show.
+      {"load-cell-zero", &Make<LoadCellZero>, "", "load-cell zero theta39, in the force balance only", "", ""},
       {"gas-volume", &Make<GasVolume>, "", "gas volume 1 + theta6 q"},
       {"polytropic-gas", &Make<PolytropicGas>, "", "polytropic gas law theta5 / (1 + theta6 q)^theta7"},
       {"heat-exchange", &Make<HeatExchange>, "polytropic-gas", "ideal gas with wall heat exchange (2 dof)", "loop-frequency",

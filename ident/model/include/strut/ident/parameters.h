@@ -17,6 +17,10 @@ namespace strut::ident {
 //! extension stop: a few millimetres (the default prior on theta12).
 inline constexpr double kStrokeZeroPriorSd = 2.0e-3;
 
+//! What a lab knows of its load cell's zero under the fixture's weight: about 100 N for a
+//! 100-250 kN cell (damper-physics.md §1.7; the default prior on theta39).
+inline constexpr double kLoadCellZeroPriorSd = 100.0;
+
 //! theta38: when an experiment was recorded, as a fraction of its session (0 the first, 1 the last;
 //! daq::ExperimentSessionTimes), the condition a drift over the session (charge-loss) is a function of.
 inline constexpr int kSessionTimeIndex = 38;

@@ -22,8 +22,7 @@ std::vector<Case> AllCases() {
   for (const char* c : {"1dof", "2dof", "1dof+heat-exchange", "2dof+end-stop+viscous-damping",
                         "1dof+end-stop+viscous-damping+stribeck-friction", "1dof+oil-compressibility+real-gas",
                         "2dof+stribeck-friction+oil-compressibility+real-gas",
-                        "2dof+viscous-damping+stribeck-friction+end-stop+oil-compressibility+real-gas",
-                        "2dof+load-cell-zero"})
+                        "2dof+viscous-damping+stribeck-friction+end-stop+oil-compressibility+real-gas"})
     for (Causality k : {Causality::kForceInput, Causality::kStrokeInput}) cases.push_back({c, k});
   // The instant's stroke 0.131 m 4 mm inside the stop: its position and stiffness act.
   for (Causality k : {Causality::kForceInput, Causality::kStrokeInput})
@@ -289,7 +288,7 @@ TEST(Model, ResidualMatchesTheEquationsOfTheMethod) {
 }
 
 TEST(Model, ALoadCellZeroActsInTheForceBalanceOnlyAndTheForceOffsetInTheHeatBalanceToo) {
-  const Model model = Model::Build("2dof+load-cell-zero", Causality::kForceInput);
+  const Model model = Model::Build("2dof", Causality::kForceInput);
   const double q = 0.12, qd = 0.05, qdd = 0.3, p = 1.5e6, T = 305.0, Td = 0.4, F = 8000.0;
   const auto residual = [&](int index, double value) {
     std::vector<double> theta = model.defaults().values();

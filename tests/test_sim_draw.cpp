@@ -320,7 +320,12 @@ TEST(SimDraw, TheSessionRecordsTheTruthTheRigSimulated) {
   const auto truth = ReadRecordedTruth(session);
   ASSERT_TRUE(truth);
   EXPECT_EQ(truth->composition, "2dof+viscous-damping");
-  EXPECT_EQ(truth->parameters.values(), rig.theta());  // bit for bit
+  // Bit for bit what the plant ran, and the load cell's zero as theta39 (the plant feels none).
+  EXPECT_EQ(truth->parameters.values(), rig.truth().RecordedParameters(rig.model()).values());
+  std::vector<double> plant = truth->parameters.values();
+  plant[truth->parameters.position_of_index(39)] = 0.0;
+  EXPECT_EQ(plant, rig.theta());
+  EXPECT_EQ(truth->parameters.get("theta39"), rig.truth().sensors.force.offset);
   EXPECT_EQ(truth->parameters.get("theta18"), 200.0);
   ASSERT_TRUE(truth->drawn);
   EXPECT_EQ(truth->drawn->seed, 21u);
@@ -336,7 +341,7 @@ TEST(SimDraw, TheSessionRecordsTheTruthTheRigSimulated) {
   EXPECT_EQ(group->text("name"), "gas_area");
   // A rewrite keeps the truth.
   daq::WriteSession(dir.file("again.h5"), session);
-  EXPECT_EQ(ReadRecordedTruth(daq::ReadSession(dir.file("again.h5")))->parameters.values(), rig.theta());
+  EXPECT_EQ(ReadRecordedTruth(daq::ReadSession(dir.file("again.h5")))->parameters.values(), truth->parameters.values());
 }
 
 TEST(SimDraw, ASessionWithoutATruthGroupHasNoRecordedTruth) {
@@ -352,7 +357,8 @@ TEST(SimDraw, ASessionWithoutATruthGroupHasNoRecordedTruth) {
   const auto truth = ReadRecordedTruth(rig.RunMatrix(plan));
   ASSERT_TRUE(truth);
   EXPECT_FALSE(truth->drawn);
-  EXPECT_EQ(truth->parameters.values(), rig.theta());
+  EXPECT_EQ(truth->parameters.values(), shipped.RecordedParameters(rig.model()).values());
+  EXPECT_EQ(truth->parameters.get("theta39"), 60.0);  // the shipped load cell's zero
 }
 
 }  // namespace

@@ -91,6 +91,10 @@ TEST(SimTruth, MistakesNameTheFileAndLine) {
   const std::string unknown = ErrorOf("[effects]\nheat-exchange = true\n\n[parameters]\ngas_area = 5e-3\ngas_aera = 1\n");
   EXPECT_NE(unknown.find("bad.toml:6"), std::string::npos) << unknown;
   EXPECT_NE(unknown.find("unknown parameter 'gas_aera'"), std::string::npos) << unknown;
+  // The load cell's zero is a sensor's: a plant force of that name would be counted twice.
+  const std::string zero = ErrorOf("[parameters]\ngas_area = 5e-3\nload_cell_zero = 60\n");
+  EXPECT_NE(zero.find("bad.toml:3"), std::string::npos) << zero;
+  EXPECT_NE(zero.find("[sensors.force] offset"), std::string::npos) << zero;
   const std::string not_number = ErrorOf("[parameters]\ngas_area = \"five\"\n");
   EXPECT_NE(not_number.find("bad.toml:2"), std::string::npos) << not_number;
   EXPECT_NE(not_number.find("expected a number"), std::string::npos) << not_number;

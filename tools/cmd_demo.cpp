@@ -120,7 +120,7 @@ struct DemoCommand {
     draw.base = "2dof";
     draw.effects = {{"oil-compressibility", std::nullopt}, {"stribeck-friction", std::nullopt}};
     const sim::SimulatedRig rig(sim::DrawUnit(draw, unit));
-    const ident::ParameterSet truth = rig.truth().Parameters(rig.model());
+    const ident::ParameterSet truth = rig.truth().RecordedParameters(rig.model());
     std::cout << fmt::format("1. drawn unit {} (--unit): {}, parameters scattered around the shipped truth\n", unit,
                              rig.truth().Composition());
     for (const sim::EffectSize& e : rig.truth().drawn->effects)

@@ -146,7 +146,7 @@ struct SimTruthCommand {
         std::cout << fmt::format("\n  effect {}: {} = {:.6g} ({})", e.effect, e.parameter, e.size,
                                  e.given ? "given" : "drawn");
     }
-    std::cout << "\nparameters:\n" << rig.truth().Parameters(rig.model()).table() << "\n";
+    std::cout << "\nparameters:\n" << rig.truth().RecordedParameters(rig.model()).table() << "\n";
     const sim::ActuatorOptions& a = t.actuator;
     if (a.ideal)
       std::cout << "actuator: ideal (the stroke follows the set-point)\n";

@@ -295,6 +295,8 @@ DropPrediction PredictDrop(const ident::Model& model, std::span<const double> th
   std::vector<double> theta(theta_in.begin(), theta_in.end());
   const int fixture = specs.position_of_index(1);
   if (fixture >= 0) theta[fixture] = 0.0;  // no fixture on a drop rig: the dropped mass moves alone
+  // The shaker's load-cell zero is a reading's error, not a force the dropped damper feels.
+  if (const int zero = specs.position_of_index(39); zero >= 0) theta[zero] = 0.0;
 
   const DropRun run(force_model, mass, impact_velocity, options);
   DropPrediction prediction;

@@ -18,7 +18,7 @@ daq::MetadataGroup Group(std::string name) {
 
 void RecordTruth(const Truth& truth, daq::Session& session) {
   const ident::Model model = truth.BuildModel(ident::Causality::kStrokeInput);
-  RecordTruth(truth, truth.Parameters(model), model.composition(), session);
+  RecordTruth(truth, truth.RecordedParameters(model), model.composition(), session);
 }
 
 std::vector<daq::MetadataGroup> TruthMetadata(const Truth& truth) {

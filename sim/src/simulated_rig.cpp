@@ -329,9 +329,7 @@ daq::Session SimulatedRig::NewSession() const {
   session.created_utc = daq::UtcNowIso8601();
   session.damper_serial = truth_.damper_serial;
   session.rig = fmt::format("{} [simulated: {}, truth {}]", truth_.rig, model_.composition(), truth_.source);
-  ident::ParameterSet parameters = model_.defaults();
-  parameters.values() = theta_;
-  RecordTruth(truth_, parameters, model_.composition(), session);
+  RecordTruth(truth_, truth_.RecordedParameters(model_), model_.composition(), session);
   return session;
 }
 

@@ -114,6 +114,10 @@ class Reader {
   void ReadParameters(const toml::table& t, Truth& truth) {
     for (auto&& [k, node] : t) {
       const std::string key(k.str());
+      if (key == "theta39" || key == "load_cell_zero")
+        throw TruthError(fmt::format("{}: [parameters] {}: the load cell's zero is a sensor's, set it as "
+                                     "[sensors.force] offset",
+                                     Where(node), key));
       truth.parameters.emplace_back(key, toml_.Number(node, "[parameters] ", key));
       parameter_lines_.push_back(static_cast<int>(node.source().begin.line));
     }
@@ -331,6 +335,12 @@ ident::ParameterSet Truth::Parameters(const ident::Model& model) const {
   ident::ParameterSet p = model.defaults();
   for (const auto& [key, value] : parameters)
     if (p.find(key)) p.set(key, value);
+  return p;
+}
+
+ident::ParameterSet Truth::RecordedParameters(const ident::Model& model) const {
+  ident::ParameterSet p = Parameters(model);
+  if (const int zero = p.position_of_index(39); zero >= 0) p.values()[zero] = sensors.force.offset;
   return p;
 }
 

@@ -74,7 +74,7 @@ DropFitUnit FitUnit(const DropFitOptions& options, const ident::SessionFitOption
   clean.stroke.assign(r.unknowns.row(0).begin(), r.unknowns.row(0).end());
   clean.force.assign(r.input.begin(), r.input.end());
   const sim::DropFigures want = sim::MeasureDrop(clean, NAN, 0.01);
-  const ident::ParameterSet truth_values = truth.Parameters(rig.model());
+  const ident::ParameterSet truth_values = truth.RecordedParameters(rig.model());
   const std::string name = fmt::format("unit {}", seed);
 
   DropFitUnit unit;

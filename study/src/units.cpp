@@ -105,7 +105,7 @@ UnitFit FitUnit(const UnitsOptions& options, const ident::SessionFitOptions& bas
   sim::RigRunOptions run;
   run.seed = unit.seed;
   const daq::Session session = rig.RunMatrix(rig::StandardMatrixPlan(), run);
-  const ident::ParameterSet truth_values = truth.Parameters(rig.model());
+  const ident::ParameterSet truth_values = truth.RecordedParameters(rig.model());
   const auto start = std::chrono::steady_clock::now();
   const double cpu = ThreadSeconds();
   const ident::SessionFit fit = ident::FitPrepared(

@@ -127,14 +127,14 @@ class PressureFriction final : public Term {
   int base_ = -1, per_pressure_ = -1, sharpness_ = -1, pressure_ = -1;
 };
 
-//! theta11: constant force offset (atmospheric pressure on the piston, load-cell zero).
+//! theta11: constant force on the piston (the atmosphere's pressure on its area).
 class ForceOffset final : public Term {
  public:
   unsigned phases() const override { return kBalancePhase; }
   std::string_view name() const override { return "force-offset"; }
   void Declare(ModelBuilder& b) override {
     b.add_parameter({.index = 11, .name = "force_offset", .unit = "N", .default_value = -507.0,
-                     .description = "constant force offset (-p_atm A plus load-cell zero)", .estimate_by_default = true});
+                     .description = "constant force on the piston (-p_atm A and the fixture's constant forces)", .estimate_by_default = true});
   }
   void Bind(const ModelBuilder& b) override { offset_ = b.parameter_position(11); }
   template <class S>
@@ -937,7 +937,7 @@ const std::vector<TermEntry>& Catalogue() {
       {"pressure-friction", &Make<PressureFriction>, "", "(theta8 + theta9 p) atan(theta10 q')"},
       {"force-offset", &Make<ForceOffset>, "", "constant force offset theta11"},
       {"stroke-offset", &Make<StrokeOffset>, "", "stroke sensor offset theta12"},
-      // Opt-in, no locus: its force is a constant, which the residuals cannot show.
+      // No locus: its force is a constant, which the residuals cannot show.
       {"load-cell-zero", &Make<LoadCellZero>, "", "load-cell zero theta39, in the force balance only", "", ""},
       {"gas-volume", &Make<GasVolume>, "", "gas volume 1 + theta6 q"},
       {"polytropic-gas", &Make<PolytropicGas>, "", "polytropic gas law theta5 / (1 + theta6 q)^theta7"},
@@ -980,9 +980,9 @@ const std::vector<TermEntry>& Catalogue() {
 }
 
 const std::vector<std::string>& BaseTerms(std::string_view base) {
-  static const std::vector<std::string> one = {"inertia",        "gas-force",   "quadratic-damping",
-                                               "pressure-friction", "force-offset", "stroke-offset",
-                                               "gas-volume",     "polytropic-gas"};
+  static const std::vector<std::string> one = {"inertia",        "gas-force",      "quadratic-damping",
+                                               "pressure-friction", "force-offset", "load-cell-zero",
+                                               "stroke-offset",  "gas-volume",     "polytropic-gas"};
   static const std::vector<std::string> two = [] {
     auto t = one;
     t.back() = "heat-exchange";

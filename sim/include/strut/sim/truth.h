@@ -92,6 +92,9 @@ struct Truth {
   //! The model's defaults with this truth's values applied. Throws TruthError for a value the
   //! model cannot take.
   ident::ParameterSet Parameters(const ident::Model& model) const;
+  //! What a fit of this unit's recorded channels should find: Parameters, and the load-cell zero
+  //! theta39 at the force sensor's offset (the plant itself feels no zero; the sensor adds it).
+  ident::ParameterSet RecordedParameters(const ident::Model& model) const;
   //! Throws TruthError naming `source` when a setting is invalid.
   void Validate() const;
 };

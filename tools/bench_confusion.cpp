@@ -64,8 +64,9 @@ struct BenchConfusion {
     for (const std::string& effect : options.effects)
       if (options.study_sizes && effect != "none" && !study::FindStudyRange(effect))
         throw std::invalid_argument(fmt::format("--effects: no study range for '{}'", effect));
-    std::cout << fmt::format("discovery from {} on drawn units ({} per row, seeds {}..), {} actuator, perfect calibration:\n",
-                             options.base, options.units, options.first_seed, options.servo ? "servo" : "ideal");
+    std::cout << fmt::format("discovery from {} on drawn units ({} per row, seeds {}..), {} actuator, {} calibration:\n",
+                             options.base, options.units, options.first_seed, options.servo ? "servo" : "ideal",
+                             options.shipped_calibration ? "shipped" : "perfect");
     std::cout << fmt::format("  {:<20} {:>6} {:>12} {:>12} {:>10} {:>10}  {}\n", "truth holds", "units", "right first",
                              "extra terms", "none found", "median s", "what was added");
     nlohmann::json unit_rows = nlohmann::json::array();
@@ -123,6 +124,8 @@ void RegisterBenchConfusion(CLI::App& bench) {
   sub->add_option("--effects", command->effects, "The effects, separated by commas; 'none' stands for units with nothing missing.")
       ->capture_default_str();
   sub->add_flag("--servo", command->options.servo, "Drive the damper through the servo actuator (default: an ideal actuator).");
+  sub->add_flag("--shipped-calibration", command->options.shipped_calibration,
+                "Keep the shipped transducers' zero and gain errors (default: perfect calibration).");
   sub->add_option("--sizes", command->sizes,
                   "How the effects' sizes are drawn: 'drawn' (the simulated rig's realistic spreads) or 'study' (from "
                   "barely detectable to plain, docs/discovery.md), which also prints the detection size.")

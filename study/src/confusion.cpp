@@ -19,6 +19,7 @@ sim::Truth DrawConfusionUnit(const ConfusionOptions& options, const std::string&
                              unsigned long seed) {
   sim::Truth around = sim::WithIdealRig(sim::DefaultTruth());
   if (options.servo) around.actuator.ideal = false;
+  if (options.shipped_calibration) around.sensors = sim::DefaultTruth().sensors;
   sim::UnitDraw draw;
   draw.base = options.base;
   if (effect != "none") {

@@ -47,6 +47,7 @@ struct ConfusionOptions {
   std::string base = "2dof";         //!< the units' base physics and the baseline model
   std::vector<std::string> effects;  //!< catalogue effects; "none": units with nothing missing
   bool servo = false;                //!< drive through the servo actuator (else an ideal one)
+  bool shipped_calibration = false;  //!< keep the shipped transducers' zero and gain errors
   bool study_sizes = false;          //!< sizes from StudyRanges (else the simulated rig's spreads)
 };
 

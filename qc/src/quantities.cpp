@@ -27,7 +27,8 @@ const std::vector<Definition>& Definitions() {
       {"viscous_damping", "N s/m", "linear damping theta18: seal drag and leakage", {18}},
       {"wall_heat_conductance", "W/K", "heat transfer from gas to wall theta16 (thermal time constant)", {16}},
       {"stroke_offset", "m", "stroke transducer zero theta12", {12}},
-      {"load_cell_zero", "N", "load cell zero: theta11 + p_atm theta4", {4, 11}},
+      {"load_cell_zero", "N", "load cell's reading at atmospheric pressure: theta11 + theta39 + p_atm theta4",
+       {4, 11, 39}},
   };
   return defs;
 }
@@ -46,7 +47,8 @@ double Evaluate(const std::string& name, const ident::Model& model, const std::v
   if (name == "viscous_damping") return Param(d, theta, 18);
   if (name == "wall_heat_conductance") return Param(d, theta, 16);
   if (name == "stroke_offset") return Param(d, theta, 12);
-  if (name == "load_cell_zero") return Param(d, theta, 11) + daq::kGaugeReferencePa * Param(d, theta, 4);
+  if (name == "load_cell_zero")
+    return Param(d, theta, 11) + Param(d, theta, 39) + daq::kGaugeReferencePa * Param(d, theta, 4);
   throw std::logic_error("unknown QC quantity " + name);
 }
 

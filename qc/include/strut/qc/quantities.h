@@ -18,7 +18,7 @@ namespace strut::qc {
 //! at full extension over the piston area, V0/A = -1/theta6; the oil level), friction (N, Coulomb level at the charge (theta8 + theta9 p0) pi/2),
 //! orifice_damping (theta3), viscous_damping (theta18, when the model has the term),
 //! wall_heat_conductance (theta16, with heat exchange), stroke_offset (theta12), load_cell_zero
-//! (N, theta11 + p_atm theta4: the force reading of a damper at atmospheric pressure).
+//! (N, theta11 + theta39 + p_atm theta4: the force reading of a damper at atmospheric pressure).
 const std::vector<std::string>& QuantityNames();
 
 struct Quantity {

@@ -206,6 +206,47 @@ TEST(SessionFiles, ExperimentSessionTimesComeFromStartTimesElseFromTheOrder) {
   EXPECT_EQ(strut::daq::ExperimentSessionTimes(s), (std::vector<double>{0.0}));
 }
 
+TEST(SessionFiles, TransducerZerosAreOptionalMetadataReadBackWithTheirSd) {
+  Session s = MakeSession();
+  EXPECT_TRUE(strut::daq::ReadRecordedZeros(s).empty());  // other tools' sessions stay valid without
+  strut::daq::RecordZeros({.load_cell = strut::daq::MeasuredZero{58.5, 3.0},
+                           .stroke = strut::daq::MeasuredZero{-1.25e-3, 4.0e-5}},
+                          s);
+  TempDir dir;
+  WriteSession(dir.file("s.h5"), s);
+  const Session back = ReadSession(dir.file("s.h5"));
+  const auto zeros = strut::daq::ReadRecordedZeros(back);
+  ASSERT_TRUE(zeros.load_cell && zeros.stroke);
+  EXPECT_EQ(zeros.load_cell->value, 58.5);
+  EXPECT_EQ(zeros.load_cell->sd, 3.0);
+  EXPECT_EQ(zeros.stroke->value, -1.25e-3);
+  EXPECT_EQ(zeros.stroke->sd, 4.0e-5);
+  // One of the two alone.
+  strut::daq::RecordZeros({.stroke = strut::daq::MeasuredZero{2e-3, 1e-4}}, s);
+  EXPECT_FALSE(strut::daq::ReadRecordedZeros(s).load_cell);
+  EXPECT_EQ(strut::daq::ReadRecordedZeros(s).stroke->value, 2e-3);
+  // A zero without its sd, or with one that is not positive, names the file and the attribute.
+  const auto error = [&](const char* attribute, strut::daq::AttributeValue value) {
+    Session bad = back;
+    for (auto& g : bad.metadata)
+      if (g.name == "calibration") g.attributes[attribute] = value;
+    bad.source_path = "bad.h5";
+    try {
+      strut::daq::ReadRecordedZeros(bad);
+    } catch (const SessionError& e) {
+      return std::string(e.what());
+    }
+    return std::string("(no error)");
+  };
+  EXPECT_EQ(error("stroke_zero_sd", 0.0), "bad.h5: group '/calibration', attribute 'stroke_zero_sd': not a positive number");
+  EXPECT_EQ(error("load_cell_zero", std::string("sixty")),
+            "bad.h5: group '/calibration', attribute 'load_cell_zero': not a finite number");
+  Session no_sd = back;
+  for (auto& g : no_sd.metadata)
+    if (g.name == "calibration") g.attributes.erase("load_cell_zero_sd");
+  EXPECT_THROW(strut::daq::ReadRecordedZeros(no_sd), SessionError);
+}
+
 TEST(SessionFiles, WriteReplacesAnExistingFileAndLeavesNoPartialFile) {
   TempDir dir;
   const std::string path = dir.file("s.h5");

@@ -173,6 +173,54 @@ TEST(SessionFit, TheLoadCellZeroIsHeldByItsOwnParameterNotByTheMovingMass) {
         << key << "\n" << with.summary.FullReport();
 }
 
+TEST(SessionFit, RecordedZerosAreThePriorsOfTheStrokeZeroAndTheLoadCellZero) {
+  // Drawn unit 12 through the shipped transducers (60 N load-cell zero); its LVDT zero theta12 is
+  // drawn. The session records both zeros as a lab measures them: the fit starts there, with their
+  // sds as priors, and the gas parameters the stroke zero is confounded with narrow.
+  sim::Truth unit = DrawnIdealUnit(12);
+  unit.sensors = sim::DefaultTruth().sensors;
+  const sim::SimulatedRig rig(unit);
+  sim::RigRunOptions run;
+  run.seed = 1;
+  const daq::Session plain = rig.RunMatrix(rig::StandardMatrixPlan(), run);
+  const auto truth = sim::ReadRecordedTruth(plain);
+  ASSERT_TRUE(truth);
+  const double stroke_zero = truth->parameters.get("theta12"), stroke_sd = 2e-5;
+  daq::Session zeroed = plain;
+  daq::RecordZeros({.load_cell = daq::MeasuredZero{60.0 + 1.5, 3.0},
+                    .stroke = daq::MeasuredZero{stroke_zero + 1e-5, stroke_sd}},
+                   zeroed);
+  const SessionFitOptions options;
+  const Model model = Model::Build(options.composition, options.causality);
+  const auto fit = [&](const daq::Session& session) {
+    SessionFit f = FitPrepared(PrepareFitData(session, "zeros.h5", model, options.estimator.n), model, options);
+    EXPECT_EQ(f.summary.Verdict(), FitVerdict::kAtNoiseFloor) << f.summary.FullReport();
+    return f;
+  };
+  const SessionFit without = fit(plain), with = fit(zeroed);
+  const auto at = [](const SessionFit& f, int index) { return f.summary.parameters.position_of_index(index); };
+  const int s12 = at(with, kStrokeZeroIndex), s39 = at(with, kLoadCellZeroIndex);
+  EXPECT_EQ(*with.plan.choices[s12].prior_sd, stroke_sd);
+  EXPECT_EQ(*with.plan.choices[s39].prior_sd, 3.0);
+  EXPECT_EQ(with.plan.start.value(s12), stroke_zero + 1e-5);
+  EXPECT_NE(with.plan.sources[s12].find("zeros.h5 /calibration stroke_zero"), std::string::npos) << with.plan.sources[s12];
+  EXPECT_EQ(*without.plan.choices[s12].prior_sd, kStrokeZeroPriorSd);
+  // theta12 known to the reference's sd, and the truth inside its interval.
+  EXPECT_LE(with.summary.estimates[s12].sd, stroke_sd * (1 + 1e-9));
+  EXPECT_LT(std::abs(with.summary.parameters.value(s12) - stroke_zero), 2.0 * with.summary.estimates[s12].sd);
+  EXPECT_LT(with.summary.estimates[s39].sd, 3.0);
+  for (int index : {5, 6}) {
+    // What the data and the model give: the lab's pressure calibration (0.2 %) is a floor of
+    // theta5's whole interval that no stroke reference lowers.
+    const double narrower = without.summary.NoiseSd(at(without, index)) / with.summary.NoiseSd(at(with, index));
+    EXPECT_GT(narrower, 5.0) << "theta" << index << " narrower " << narrower << ", whole sd "
+                             << without.summary.estimates[at(without, index)].sd / with.summary.estimates[at(with, index)].sd;
+    const double z = (with.summary.parameters.value(at(with, index)) - truth->parameters.get(fmt::format("theta{}", index))) /
+                     with.summary.estimates[at(with, index)].sd;
+    EXPECT_LT(std::abs(z), 3.0) << "theta" << index;
+  }
+}
+
 TEST(SessionFit, CalibrationPartOfEachSdIsWhatAGainErrorMovesTheEstimateBy) {
   // The independent reference: refit the same session with one transducer reading high (the gauge
   // pressure's reading, not the absolute pressure; the LVDT's whole reading q + theta12) and compare

@@ -167,6 +167,60 @@ double OrderSessionTime(std::size_t index, std::size_t count) {
   return count < 2 ? 0.0 : static_cast<double>(index) / static_cast<double>(count - 1);
 }
 
+namespace {
+
+constexpr std::string_view kCalibrationGroup = "calibration";
+
+struct ZeroAttributes {
+  const char* value;
+  const char* sd;
+};
+constexpr ZeroAttributes kLoadCellZero{"load_cell_zero", "load_cell_zero_sd"};
+constexpr ZeroAttributes kStrokeZero{"stroke_zero", "stroke_zero_sd"};
+
+std::optional<MeasuredZero> ReadZero(const MetadataGroup& group, const ZeroAttributes& names, const std::string& file) {
+  const auto fail = [&](const char* attribute, std::string_view what) {
+    return SessionError(fmt::format("{}: group '/{}', attribute '{}': {}", file, kCalibrationGroup, attribute, what));
+  };
+  if (!group.attributes.count(names.value)) {
+    if (group.attributes.count(names.sd)) throw fail(names.value, fmt::format("missing beside '{}'", names.sd));
+    return std::nullopt;
+  }
+  const std::optional<double> value = group.number(names.value);
+  if (!value || !std::isfinite(*value)) throw fail(names.value, "not a finite number");
+  const std::optional<double> sd = group.number(names.sd);
+  if (!group.attributes.count(names.sd)) throw fail(names.sd, fmt::format("missing: '{}' needs the sd it is known to", names.value));
+  if (!sd || !std::isfinite(*sd) || !(*sd > 0.0)) throw fail(names.sd, "not a positive number");
+  return MeasuredZero{*value, *sd};
+}
+
+}  // namespace
+
+RecordedZeros ReadRecordedZeros(const Session& session) {
+  RecordedZeros zeros;
+  const MetadataGroup* group = session.find_metadata(kCalibrationGroup);
+  if (!group) return zeros;
+  const std::string file = session.source_path.empty() ? "<memory>" : session.source_path;
+  zeros.load_cell = ReadZero(*group, kLoadCellZero, file);
+  zeros.stroke = ReadZero(*group, kStrokeZero, file);
+  return zeros;
+}
+
+void RecordZeros(const RecordedZeros& zeros, Session& session) {
+  std::erase_if(session.metadata, [](const MetadataGroup& g) { return g.name == kCalibrationGroup; });
+  if (zeros.empty()) return;
+  MetadataGroup group;
+  group.name = std::string(kCalibrationGroup);
+  const auto put = [&](const std::optional<MeasuredZero>& zero, const ZeroAttributes& names) {
+    if (!zero) return;
+    group.attributes[names.value] = zero->value;
+    group.attributes[names.sd] = zero->sd;
+  };
+  put(zeros.load_cell, kLoadCellZero);
+  put(zeros.stroke, kStrokeZero);
+  session.metadata.push_back(std::move(group));
+}
+
 std::optional<long> WholeSamplesPerPeriod(double sample_rate, double frequency, long minimum) {
   if (!(sample_rate > 0.0) || !(frequency > 0.0)) return std::nullopt;
   const double n = sample_rate / frequency;

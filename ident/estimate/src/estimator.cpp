@@ -113,7 +113,7 @@ FitSummary Estimator::Fit(const std::vector<ExperimentData>& data, const Paramet
   summary.model = model_.composition();
   summary.parameters = initial;
   summary.estimates.assign(np, ParameterEstimate{});
-  for (int i : est) summary.estimates[i].estimated = true;
+  for (int i : est) summary.estimates[i] = {.estimated = true, .prior_sd = choices[i].prior_sd};
   summary.estimated_positions = est;
 
   // The iterates stay inside the parameters' physical ranges: the line search's trials are projected.

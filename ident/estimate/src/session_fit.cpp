@@ -68,8 +68,24 @@ bool SessionFitOptions::IsValid(std::string* error) const {
 namespace {
 
 //! Prepares one session's experiments into `fit`; `used` marks the exclusions that named something.
+//! `recorded` of one more session folded into `into`: the inverse-variance mean of the records.
+void AddZero(std::optional<SessionZero>& into, const std::optional<daq::MeasuredZero>& recorded,
+             const std::string& source) {
+  if (!recorded) return;
+  if (!into) {
+    into = SessionZero{*recorded, source};
+    return;
+  }
+  const double w0 = 1.0 / (into->zero.sd * into->zero.sd), w1 = 1.0 / (recorded->sd * recorded->sd);
+  into->zero = {(w0 * into->zero.value + w1 * recorded->value) / (w0 + w1), 1.0 / std::sqrt(w0 + w1)};
+  into->source += " and " + source;
+}
+
 void AddSession(FitData& fit, const daq::Session& session, const std::string& path, const Model& model, int n,
                 const std::vector<std::string>& exclude, std::vector<bool>& used) {
+  const daq::RecordedZeros zeros = daq::ReadRecordedZeros(session);
+  AddZero(fit.load_cell_zero, zeros.load_cell, path + " /calibration load_cell_zero");
+  AddZero(fit.stroke_zero, zeros.stroke, path + " /calibration stroke_zero");
   // Whole experiments left out are not prepared at all: a defect there must not stop the rest.
   daq::Session kept = session;
   kept.experiments.clear();
@@ -177,6 +193,16 @@ std::vector<std::string> FitPlan::Describe() const {
 FitPlan PlanFit(const Model& model, const FitData& data, const SessionFitOptions& options) {
   FitPlan plan;
   plan.start = InitialValuesFromData(model, data.experiments, nullptr, &plan.sources);
+  // A zero the lab measured is data too: the mean of its parameter's prior.
+  const std::pair<const std::optional<SessionZero>*, int> zeros[] = {{&data.load_cell_zero, kLoadCellZeroIndex},
+                                                                     {&data.stroke_zero, kStrokeZeroIndex}};
+  for (const auto& [zero, index] : zeros) {
+    const int i = plan.start.position_of_index(index);
+    if (!*zero || i < 0) continue;
+    plan.start.values()[i] = (*zero)->zero.value;
+    plan.sources[i] = fmt::format("recorded zero: {}, sd {:.3g} {}", (*zero)->source, (*zero)->zero.sd,
+                                  plan.start.spec(i).unit);
+  }
   plan.data_start = plan.start;
   plan.data_sources = plan.sources;
   // The user's values win over the data's: the file, then the assignments.
@@ -195,6 +221,10 @@ FitPlan PlanFit(const Model& model, const FitData& data, const SessionFitOptions
         plan.sources[i] = "--set";
   }
   plan.choices = ChoicesFromList(plan.start, options.estimate);
+  for (const auto& [zero, index] : zeros) {
+    const int i = plan.start.position_of_index(index);
+    if (*zero && i >= 0 && plan.choices[i].estimate) plan.choices[i].prior_sd = (*zero)->zero.sd;
+  }
   const bool defaults = options.estimate.empty() || options.estimate == "default";
   for (const ParameterFileEntry& entry : file) {
     const int i = plan.start.position(entry.name);
@@ -292,7 +322,9 @@ TermStart StartWithTerm(const Model& model, const std::string& term, const FitSu
     const auto p = previous.parameters.find(spec.key());
     if (p && previous.parameters.spec(*p).name == spec.name) {
       t.start.values()[i] = previous.parameters.value(*p);
-      if (!previous.estimates[*p].estimated) t.choices[i] = ParameterChoice{};
+      // What the previous fit estimated keeps its prior (a recorded zero's, not only the spec's).
+      t.choices[i] = previous.estimates[*p].estimated ? ParameterChoice{true, previous.estimates[*p].prior_sd}
+                                                      : ParameterChoice{};
     }
   }
   if (model.causality() == Causality::kStrokeInput) {

@@ -166,4 +166,26 @@ std::vector<double> ExperimentSessionTimes(const Session& session);
 //! 0 for a single experiment.
 double OrderSessionTime(std::size_t index, std::size_t count);
 
+//! A transducer zero the lab measured before the test, and the sd it is known to (SI units).
+struct MeasuredZero {
+  double value = 0.0, sd = 0.0;
+};
+
+//! The transducer zeros a session records in its optional root group `/calibration`
+//! (docs/session-files.md): `load_cell_zero` and `load_cell_zero_sd` (N: the force reading less the
+//! force, as found with the load cell unloaded), `stroke_zero` and `stroke_zero_sd` (m: the stroke
+//! reading at full extension, as the top-out reference finds it). Either pair may be absent.
+struct RecordedZeros {
+  std::optional<MeasuredZero> load_cell, stroke;
+  bool empty() const { return !load_cell && !stroke; }
+};
+
+//! The zeros `session` records; none when it has no `/calibration` group. Throws SessionError
+//! naming the file and the attribute when a zero is not a finite number, or its sd is missing, not
+//! a number or not positive.
+RecordedZeros ReadRecordedZeros(const Session& session);
+//! Records `zeros` in `session.metadata` as the `/calibration` group (replacing an earlier one; no
+//! group when `zeros` is empty).
+void RecordZeros(const RecordedZeros& zeros, Session& session);
+
 }  // namespace strut::daq

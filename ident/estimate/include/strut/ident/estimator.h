@@ -201,6 +201,7 @@ const char* ToString(FitVerdict verdict);  //!< "at-noise-floor", "above-noise-f
 //! What the fit says of one parameter.
 struct ParameterEstimate {
   bool estimated = false;
+  std::optional<double> prior_sd;  //!< the fit's prior on it (ParameterChoice::prior_sd)
   double sd = NAN;  //!< posterior sd (NaN when fixed)
   //! sd over the sd from the output noise alone: what the measured input's noise adds (NaN when
   //! fixed, or when the input's noise is unknown or not propagated).

@@ -4,10 +4,12 @@
 #pragma once
 
 #include <functional>
+#include <optional>
 #include <map>
 #include <string>
 #include <vector>
 
+#include "strut/daq/session.h"
 #include "strut/ident/estimator.h"
 #include "strut/ident/experiment_data.h"
 #include "strut/ident/model.h"
@@ -47,6 +49,12 @@ struct SessionFitOptions {
   bool IsValid(std::string* error) const;
 };
 
+//! A transducer zero the sessions record (daq::RecordedZeros), and where it came from.
+struct SessionZero {
+  daq::MeasuredZero zero;
+  std::string source;  //!< "S.h5 /calibration stroke_zero"; of several sessions, their weighted mean
+};
+
 //! The recorded experiments a fit uses, prepared for one model's causality and grid.
 struct FitData {
   std::vector<std::string> sessions;
@@ -56,6 +64,9 @@ struct FitData {
   std::vector<TransientExperimentData> transients;
   std::vector<DataIssue> issues;  //!< data defects found, and the channels excluded by the user
   std::vector<std::string> excluded;  //!< what --exclude left out, in words
+  //! The zeros the sessions record: the starting values and priors of theta39 and theta12. Several
+  //! sessions' records of one zero are taken as measurements of it (inverse-variance mean).
+  std::optional<SessionZero> load_cell_zero, stroke_zero;
 };
 
 //! Reads sessions and prepares their periodic experiments for `model` on the n-point grid, and their

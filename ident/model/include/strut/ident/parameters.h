@@ -21,6 +21,11 @@ inline constexpr double kStrokeZeroPriorSd = 2.0e-3;
 //! 100-250 kN cell (damper-physics.md §1.7; the default prior on theta39).
 inline constexpr double kLoadCellZeroPriorSd = 100.0;
 
+//! The sensor zeros' parameters: theta12 the stroke reading at full extension, theta39 the load
+//! cell's zero. A zero the session records (daq::RecordedZeros) is their prior.
+inline constexpr int kStrokeZeroIndex = 12;
+inline constexpr int kLoadCellZeroIndex = 39;
+
 //! theta38: when an experiment was recorded, as a fraction of its session (0 the first, 1 the last;
 //! daq::ExperimentSessionTimes), the condition a drift over the session (charge-loss) is a function of.
 inline constexpr int kSessionTimeIndex = 38;

@@ -10,6 +10,7 @@ packages=(
   python3-h5py python3-numpy
   chromium
   python3-pymodbus python3-serial-asyncio
+  libpq-dev postgresql slurm-wlm munge
 )
 # npm fetches uPlot for the HTML reports at configure time (report/web/package-lock.json); it comes
 # with the machine's Node.js, and Debian's package provides it where Node.js is missing.

@@ -17,20 +17,6 @@
 namespace strut::tools {
 namespace {
 
-void PrintUnit(const study::UnitFit& unit) {
-  std::string line;
-  for (const auto& [key, z] : unit.z)
-    if (std::abs(z) > 3) line += fmt::format(" {} {:+.1f}", key, z);
-  if (unit.restarted && !unit.same_optimum)
-    line += fmt::format(" restart {} after {} iterations: {:.3g} sd apart{}",
-                        unit.restart_converged ? "converged" : "NOT converged", unit.restart_iterations,
-                        unit.restart_apart_sd, unit.restart_warning.empty() ? "" : " (" + unit.restart_warning + ")");
-  std::cout << fmt::format("  unit {:5}: {:<18} worst noise ratio {:5.2f}, {:.2f} s{}{}\n", unit.seed,
-                           ident::ToString(unit.verdict), unit.worst_noise_ratio, unit.seconds,
-                           unit.truth_composition.find('+') != std::string::npos ? " (" + unit.truth_composition + ")" : "",
-                           line.empty() ? "" : ";" + line);
-}
-
 nlohmann::json UnitJson(const study::UnitFit& unit) {
   nlohmann::json row{{"seed", unit.seed}, {"verdict", ident::ToString(unit.verdict)},
                      {"worst_noise_ratio", unit.worst_noise_ratio}};
@@ -38,25 +24,6 @@ nlohmann::json UnitJson(const study::UnitFit& unit) {
   for (const auto& [key, v] : unit.estimate) row["estimate"][key] = v;
   if (unit.restarted) row["restart_apart_sd"] = unit.restart_apart_sd;
   return row;
-}
-
-void PrintSummary(const study::UnitsOptions& o, const study::UnitsStudy& s) {
-  std::cout << "\n95 % intervals holding the truth (Wilson 95 % range), z = (estimate - truth) / sd:\n";
-  for (const auto& [key, c] : s.coverage)
-    std::cout << fmt::format("  {:<8} {:3}/{:3} = {:.3f} ({:.3f}-{:.3f})  mean z {:+.2f}  sd z {:.2f}\n", key, c.inside,
-                             c.total, c.fraction(), c.wilson95.first, c.wilson95.second, c.mean_z, c.sd_z);
-  const auto [lo, hi] = study::Wilson(s.pooled_inside, s.pooled_total);
-  std::cout << fmt::format(
-      "  pooled   {}/{} = {:.3f} ({:.3f}-{:.3f}); target 0.90-0.98\n"
-      "converged {}/{}; at the noise floor (no channel's pooled ratio above noise at p = {}) {}/{}; worst ratio median {:.3f}, "
-      "max {:.3f}\nfrom {:.0f} % off: the same optimum in {}/{}; fit (read to verdict) median {:.3f} s wall\n"
-      "CPU medians on one thread: the whole entry point (prepare, plan, fit) {:.0f} ms; the fit from the data's "
-      "starting values alone {:.0f} ms (target < 100 ms); the same fit without the calibration {:.0f} ms, unit by "
-      "unit {:.3f} times that (median)\n",
-      s.pooled_inside, s.pooled_total, double(s.pooled_inside) / s.pooled_total, lo, hi, s.converged, o.units,
-      ident::kNoiseFloorFalseAlarm, s.at_floor, o.units, s.worst_ratio_median, s.worst_ratio_max, 100 * o.start_off,
-      s.same_optimum, s.restarts, s.seconds_median, 1e3 * s.cpu_median, 1e3 * s.estimator_cpu_median,
-      1e3 * s.uncalibrated_cpu_median, s.cost_ratio_median);
 }
 
 // A figure's largest difference and its unit, or "-" where the two runs do not both have it.
@@ -101,25 +68,10 @@ struct BenchUnits {
         throw std::invalid_argument(std::string("--calibration: ") + e.what());
       }
     }
-    const std::string calibrated = ident::GainSdText(options.gain_sd);
-    std::cout << fmt::format("identification of {} drawn {} units (seeds {}..), {} actuator, {} transducers, stroke "
-                             "input, default choices; the intervals hold the calibration {}:\n",
-                             options.units, options.base, options.first_seed, options.servo ? "servo" : "ideal",
-                             options.shipped_calibration ? "shipped"
-                             : options.drawn_gains       ? "drawn force, pressure and stroke gain"
-                                                         : "perfect",
-                             calibrated.empty() ? "none" : calibrated);
-    if (options.fit_truth)
-      std::cout << "each unit is fitted with its truth's composition\n";
-    else if (!options.effects.empty())
-      std::cout << fmt::format("the units also have {}, which the fitted model {} lacks: the fits stay above the noise "
-                               "floor and the coverage is that of the widened intervals\n",
-                               fmt::join(options.effects, " and "), options.base);
-    if (options.effects_per_unit > 0)
-      std::cout << fmt::format("each unit draws 1 to {} further effects at random{}\n", options.effects_per_unit,
-                               options.fit_truth ? "" : ", which the fitted model lacks");
-    const study::UnitsStudy s = study::RunUnitsStudy(options, PrintUnit);
-    PrintSummary(options, s);
+    std::cout << study::UnitsHeading(options);
+    const study::UnitsStudy s =
+        study::RunUnitsStudy(options, [](const study::UnitFit& unit) { std::cout << study::UnitLine(unit); });
+    std::cout << study::UnitsSummary(options, s);
     if (!json_path.empty()) WriteJson(s);
     if (compare_path.empty()) return;
     const study::UnitsComparison c = study::CompareUnits(before, study::ToRun(s), tolerance);

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <nlohmann/json.hpp>
 #include <random>
 #include <stdexcept>
 
@@ -111,50 +112,147 @@ std::vector<MeasureBin> Bins(std::vector<std::pair<double, bool>> units) {
   return bins;
 }
 
+ConfusionUnit RunConfusionUnit(const ConfusionOptions& options, const std::string& effect, int u,
+                               daq::Session* session) {
+  ident::SessionFitOptions fit;
+  fit.composition = options.base;
+  const ident::Model model = ident::Model::Build(options.base, fit.causality);
+  daq::Session own;
+  return DiscoverUnit(options, fit, model, effect, options.study_sizes ? FindStudyRange(effect) : nullptr,
+                      options.first_seed + u, session ? *session : own);
+}
+
+ConfusionRow SummariseConfusion(const ConfusionOptions& options, const std::string& effect,
+                                const std::vector<ConfusionUnit>& units) {
+  ConfusionRow row;
+  row.effect = effect;
+  row.units = static_cast<int>(units.size());
+  row.study = options.study_sizes ? FindStudyRange(effect) : nullptr;
+  std::vector<double> seconds;
+  std::vector<std::pair<double, bool>> by_size, by_signal, by_left;  // (measure, right first term)
+  for (const ConfusionUnit& unit : units) {
+    seconds.push_back(unit.seconds);
+    if (unit.found.empty()) ++row.none;
+    if (unit.right_first) ++row.right;
+    const std::size_t expected = effect == "none" ? 0 : 1;
+    if (unit.found.size() > expected || (effect != "none" && !unit.found.empty() && unit.found.front() != effect))
+      ++row.extra;
+    std::string names;
+    for (const auto& t : unit.found) names += (names.empty() ? "" : "+") + t;
+    ++row.added[names.empty() ? "(nothing)" : names];
+    if (unit.signal) {
+      by_signal.emplace_back(unit.signal->rms, unit.right_first);
+      by_left.emplace_back(unit.signal->left_rms, unit.right_first);
+    }
+    if (unit.size) by_size.emplace_back(*unit.size, unit.right_first);
+  }
+  row.detection_signal = DetectionSize(by_signal);
+  row.detection_left = DetectionSize(by_left);
+  if (row.study) row.detection_size = DetectionSize(by_size);
+  row.by_signal = Bins(by_signal);
+  row.median_seconds = Median(seconds);
+  return row;
+}
+
 std::vector<ConfusionRow> RunConfusionStudy(
     const ConfusionOptions& options, const std::function<void(const ConfusionUnit&, const daq::Session&)>& on_unit) {
   for (const std::string& effect : options.effects)
     if (options.study_sizes && effect != "none" && !FindStudyRange(effect))
       throw std::invalid_argument(fmt::format("no study range for the effect '{}'", effect));
-  ident::SessionFitOptions fit;
-  fit.composition = options.base;
-  const ident::Model model = ident::Model::Build(options.base, fit.causality);
   std::vector<ConfusionRow> rows;
   for (const std::string& effect : options.effects) {
-    ConfusionRow row;
-    row.effect = effect;
-    row.units = options.units;
-    row.study = options.study_sizes ? FindStudyRange(effect) : nullptr;
-    std::vector<double> seconds;
-    std::vector<std::pair<double, bool>> by_size, by_signal, by_left;  // (measure, right first term)
+    std::vector<ConfusionUnit> units;
     for (int u = 0; u < options.units; ++u) {
       daq::Session session;
-      const ConfusionUnit unit =
-          DiscoverUnit(options, fit, model, effect, row.study, options.first_seed + u, session);
-      seconds.push_back(unit.seconds);
-      if (unit.found.empty()) ++row.none;
-      if (unit.right_first) ++row.right;
-      const std::size_t expected = effect == "none" ? 0 : 1;
-      if (unit.found.size() > expected || (effect != "none" && !unit.found.empty() && unit.found.front() != effect))
-        ++row.extra;
-      std::string names;
-      for (const auto& t : unit.found) names += (names.empty() ? "" : "+") + t;
-      ++row.added[names.empty() ? "(nothing)" : names];
-      if (unit.signal) {
-        by_signal.emplace_back(unit.signal->rms, unit.right_first);
-        by_left.emplace_back(unit.signal->left_rms, unit.right_first);
-      }
-      if (unit.size) by_size.emplace_back(*unit.size, unit.right_first);
-      if (on_unit) on_unit(unit, session);
+      units.push_back(RunConfusionUnit(options, effect, u, &session));
+      if (on_unit) on_unit(units.back(), session);
     }
-    row.detection_signal = DetectionSize(by_signal);
-    row.detection_left = DetectionSize(by_left);
-    if (row.study) row.detection_size = DetectionSize(by_size);
-    row.by_signal = Bins(by_signal);
-    row.median_seconds = Median(seconds);
-    rows.push_back(std::move(row));
+    rows.push_back(SummariseConfusion(options, effect, units));
   }
   return rows;
+}
+
+nlohmann::json ConfusionUnitJson(const ConfusionUnit& unit) {
+  nlohmann::json row{{"effect", unit.effect}, {"seed", unit.seed}, {"found", unit.found},
+                     {"right_first", unit.right_first}, {"seconds", unit.seconds}};
+  if (const auto& s = unit.signal)
+    row["signal"] = {{"rms", s->rms},           {"experiment", s->experiment},
+                     {"channel", s->channel},   {"chi2", s->chi2},
+                     {"left_rms", s->left_rms}, {"left_experiment", s->left_experiment},
+                     {"left_channel", s->left_channel}};
+  if (unit.size) row["size"] = *unit.size;
+  if (const auto& f = unit.first_round)
+    row["first_round"] = {{"delta_bic", f->delta_bic}, {"cv_ratio", f->cv_ratio}, {"verdict", f->verdict}};
+  return row;
+}
+
+ConfusionUnit ConfusionUnitFromJson(const nlohmann::json& j) {
+  ConfusionUnit unit;
+  unit.effect = j.at("effect").get<std::string>();
+  unit.seed = j.at("seed").get<unsigned long>();
+  unit.found = j.at("found").get<std::vector<std::string>>();
+  unit.right_first = j.at("right_first").get<bool>();
+  unit.seconds = j.at("seconds").get<double>();
+  if (const auto s = j.find("signal"); s != j.end())
+    unit.signal = sim::EffectSignal{s->at("rms").get<double>(),      s->at("experiment").get<std::string>(),
+                                    s->at("channel").get<std::string>(), s->at("chi2").get<double>(),
+                                    s->at("left_rms").get<double>(), s->at("left_experiment").get<std::string>(),
+                                    s->at("left_channel").get<std::string>()};
+  if (const auto s = j.find("size"); s != j.end()) unit.size = s->get<double>();
+  if (const auto f = j.find("first_round"); f != j.end())
+    unit.first_round = ConfusionUnit::FirstRound{f->at("delta_bic").get<double>(), f->at("cv_ratio").get<double>(),
+                                                 f->at("verdict").get<std::string>()};
+  return unit;
+}
+
+nlohmann::json ConfusionRowJson(const ConfusionRow& row) {
+  nlohmann::json j{{"effect", row.effect},      {"units", row.units},
+                   {"right_first", row.right},  {"extra", row.extra},
+                   {"nothing_found", row.none}, {"median_seconds", row.median_seconds},
+                   {"added", row.added}};
+  if (std::isfinite(row.detection_signal)) j["detection_signal"] = row.detection_signal;
+  if (std::isfinite(row.detection_left)) j["detection_left"] = row.detection_left;
+  if (std::isfinite(row.detection_size)) j["detection_size"] = row.detection_size;
+  return j;
+}
+
+std::string ConfusionHeading(const ConfusionOptions& options) {
+  return fmt::format("discovery from {} on drawn units ({} per row, seeds {}..), {} actuator, {} calibration:\n",
+                     options.base, options.units, options.first_seed, options.servo ? "servo" : "ideal",
+                     options.shipped_calibration ? "shipped" : "perfect") +
+         fmt::format("  {:<20} {:>6} {:>12} {:>12} {:>10} {:>10}  {}\n", "truth holds", "units", "right first",
+                     "extra terms", "none found", "median s", "what was added");
+}
+
+std::string ConfusionRowLine(const ConfusionRow& row) {
+  std::string what;
+  for (const auto& [names, count] : row.added) what += fmt::format("{}{} x{}", what.empty() ? "" : ", ", names, count);
+  return fmt::format("  {:<20} {:>6} {:>12} {:>12} {:>10} {:>10.2f}  {}\n", row.effect, row.units,
+                     row.effect == "none" ? std::string("-") : std::to_string(row.right), row.extra, row.none,
+                     row.median_seconds, what);
+}
+
+std::string ConfusionDetection(const std::vector<ConfusionRow>& rows) {
+  const auto shown = [](double x, std::string_view unit) {
+    return std::isfinite(x) ? fmt::format("{:.3g} {}", x, unit) : std::string("not reached");
+  };
+  std::string lines;
+  for (const ConfusionRow& row : rows) {
+    if (row.effect == "none") continue;
+    lines += fmt::format("  {}: detection (>= 95 % right first above it) in the signal {}, in the signal "
+                         "left after the baseline {}",
+                         row.effect, shown(row.detection_signal, "sd"), shown(row.detection_left, "sd"));
+    if (const StudyRange* r = row.study)
+      lines += fmt::format(", in theta{} ({} {:.3g}..{:.3g} {}) {}", r->index, r->log ? "log-uniform" : "uniform",
+                           r->low, r->high, r->unit, shown(row.detection_size, r->unit));
+    lines += "\n";
+    for (const MeasureBin& b : row.by_signal)
+      lines += fmt::format("    {:.3g}..{:.3g} {}: right first {}/{}\n", b.low, b.high, "sd", b.right, b.count);
+  }
+  if (lines.empty()) return lines;
+  return "detection (signal: the effect's largest RMS over the noise sd in one experiment and channel; "
+         "left: what the baseline's linearised refit leaves of it; units sorted by the signal in five bins):\n" +
+         lines;
 }
 
 }  // namespace strut::study

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <nlohmann/json.hpp>
 #include <random>
 
 #include "strut/ident/session_fit.h"
@@ -14,11 +15,6 @@
 
 namespace strut::study {
 namespace {
-
-//! The fit's CPU times of one unit (the study's medians).
-struct UnitTimes {
-  double cpu = 0.0, estimator = 0.0, uncalibrated = 0.0;
-};
 
 sim::Truth UnitTruth(const UnitsOptions& options, unsigned long seed) {
   // The method's own figures: the actuator and the transducers' calibration of the shipped rig
@@ -92,7 +88,7 @@ void Restart(const ident::SessionFit& fit, const ident::Model& model, const iden
 }
 
 UnitFit FitUnit(const UnitsOptions& options, const ident::SessionFitOptions& base_options,
-                const ident::EstimatorOptions& uncalibrated, const ident::Model& base_model, int u, UnitTimes& times) {
+                const ident::EstimatorOptions& uncalibrated, const ident::Model& base_model, int u) {
   UnitFit unit;
   unit.seed = options.first_seed + u;
   const sim::Truth truth = UnitTruth(options, unit.seed);
@@ -112,7 +108,7 @@ UnitFit FitUnit(const UnitsOptions& options, const ident::SessionFitOptions& bas
       ident::PrepareFitData(session, fmt::format("unit {}", unit.seed), model, fit_options.estimator.n), model,
       fit_options);
   unit.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  times.cpu = ThreadSeconds() - cpu;
+  unit.cpu = ThreadSeconds() - cpu;
   // The fit alone (one thread), from the plan the entry point made: the figure of the target;
   // beside it the same fit without the calibration in its intervals (what that costs), the two in
   // turn first.
@@ -122,11 +118,11 @@ UnitFit FitUnit(const UnitsOptions& options, const ident::SessionFitOptions& bas
     return ThreadSeconds() - before;
   };
   if (u % 2 == 0) {
-    times.estimator = time(fit_options.estimator);
-    times.uncalibrated = time(uncalibrated);
+    unit.estimator_cpu = time(fit_options.estimator);
+    unit.uncalibrated_cpu = time(uncalibrated);
   } else {
-    times.uncalibrated = time(uncalibrated);
-    times.estimator = time(fit_options.estimator);
+    unit.uncalibrated_cpu = time(uncalibrated);
+    unit.estimator_cpu = time(fit_options.estimator);
   }
   const ident::FitSummary& s = fit.summary;
   unit.verdict = s.Verdict();
@@ -144,19 +140,21 @@ UnitFit FitUnit(const UnitsOptions& options, const ident::SessionFitOptions& bas
 
 }  // namespace
 
-UnitsStudy RunUnitsStudy(const UnitsOptions& options, const std::function<void(const UnitFit&)>& on_unit) {
+UnitFit FitDrawnUnit(const UnitsOptions& options, int u) {
   ident::SessionFitOptions fit_options;
   fit_options.composition = options.base;
   const ident::Model model = ident::Model::Build(options.base, fit_options.causality);
   fit_options.estimator.gain_sd = options.gain_sd;
   ident::EstimatorOptions uncalibrated = fit_options.estimator;  // the fit's cost without the calibration
   uncalibrated.gain_sd.clear();
+  return FitUnit(options, fit_options, uncalibrated, model, u);
+}
+
+UnitsStudy SummariseUnits(std::vector<UnitFit> units) {
   UnitsStudy out;
   std::map<std::string, std::vector<double>> zs;
   std::vector<double> seconds, cpu, estimator_cpu, uncalibrated_cpu, cost_ratio, ratios;
-  for (int u = 0; u < options.units; ++u) {
-    UnitTimes times;
-    UnitFit unit = FitUnit(options, fit_options, uncalibrated, model, u, times);
+  for (const UnitFit& unit : units) {
     out.converged += unit.converged;
     out.at_floor += unit.verdict == ident::FitVerdict::kAtNoiseFloor;
     out.restarts += unit.restarted;
@@ -164,13 +162,12 @@ UnitsStudy RunUnitsStudy(const UnitsOptions& options, const std::function<void(c
     for (const auto& [key, z] : unit.z) zs[key].push_back(z);
     seconds.push_back(unit.seconds);
     ratios.push_back(unit.worst_noise_ratio);
-    cpu.push_back(times.cpu);
-    estimator_cpu.push_back(times.estimator);
-    uncalibrated_cpu.push_back(times.uncalibrated);
-    cost_ratio.push_back(times.estimator / times.uncalibrated);
-    if (on_unit) on_unit(unit);
-    out.units.push_back(std::move(unit));
+    cpu.push_back(unit.cpu);
+    estimator_cpu.push_back(unit.estimator_cpu);
+    uncalibrated_cpu.push_back(unit.uncalibrated_cpu);
+    cost_ratio.push_back(unit.estimator_cpu / unit.uncalibrated_cpu);
   }
+  out.units = std::move(units);
   for (const auto& [key, z] : zs) {
     const ZCoverage c = SummariseZ(z);
     out.pooled_inside += c.inside;
@@ -185,6 +182,73 @@ UnitsStudy RunUnitsStudy(const UnitsOptions& options, const std::function<void(c
   out.uncalibrated_cpu_median = Median(uncalibrated_cpu);
   out.cost_ratio_median = Median(cost_ratio);
   return out;
+}
+
+UnitsStudy RunUnitsStudy(const UnitsOptions& options, const std::function<void(const UnitFit&)>& on_unit) {
+  std::vector<UnitFit> units;
+  for (int u = 0; u < options.units; ++u) {
+    units.push_back(FitDrawnUnit(options, u));
+    if (on_unit) on_unit(units.back());
+  }
+  return SummariseUnits(std::move(units));
+}
+
+namespace {
+
+nlohmann::json Pairs(const std::vector<std::pair<std::string, double>>& pairs) {
+  nlohmann::json j = nlohmann::json::array();
+  for (const auto& [key, v] : pairs) j.push_back({key, v});  // in order: the study's order of keys
+  return j;
+}
+
+std::vector<std::pair<std::string, double>> PairsFrom(const nlohmann::json& j) {
+  std::vector<std::pair<std::string, double>> out;
+  for (const auto& p : j) out.emplace_back(p.at(0).get<std::string>(), p.at(1).get<double>());
+  return out;
+}
+
+}  // namespace
+
+nlohmann::json UnitFitJson(const UnitFit& u) {
+  return {{"seed", u.seed},
+          {"truth_composition", u.truth_composition},
+          {"verdict", static_cast<int>(u.verdict)},
+          {"verdict_text", ident::ToString(u.verdict)},
+          {"converged", u.converged},
+          {"worst_noise_ratio", u.worst_noise_ratio},
+          {"z", Pairs(u.z)},
+          {"estimate", Pairs(u.estimate)},
+          {"restarted", u.restarted},
+          {"same_optimum", u.same_optimum},
+          {"restart_apart_sd", u.restart_apart_sd},
+          {"restart_converged", u.restart_converged},
+          {"restart_iterations", u.restart_iterations},
+          {"restart_warning", u.restart_warning},
+          {"timing", {{"seconds", u.seconds}, {"cpu", u.cpu}, {"estimator_cpu", u.estimator_cpu},
+                      {"uncalibrated_cpu", u.uncalibrated_cpu}}}};
+}
+
+UnitFit UnitFitFromJson(const nlohmann::json& j) {
+  UnitFit u;
+  u.seed = j.at("seed").get<unsigned long>();
+  u.truth_composition = j.at("truth_composition").get<std::string>();
+  u.verdict = static_cast<ident::FitVerdict>(j.at("verdict").get<int>());
+  u.converged = j.at("converged").get<bool>();
+  u.worst_noise_ratio = j.at("worst_noise_ratio").get<double>();
+  u.z = PairsFrom(j.at("z"));
+  u.estimate = PairsFrom(j.at("estimate"));
+  u.restarted = j.at("restarted").get<bool>();
+  u.same_optimum = j.at("same_optimum").get<bool>();
+  u.restart_apart_sd = j.at("restart_apart_sd").get<double>();
+  u.restart_converged = j.at("restart_converged").get<bool>();
+  u.restart_iterations = j.at("restart_iterations").get<int>();
+  u.restart_warning = j.at("restart_warning").get<std::string>();
+  const nlohmann::json& t = j.at("timing");
+  u.seconds = t.at("seconds").get<double>();
+  u.cpu = t.at("cpu").get<double>();
+  u.estimator_cpu = t.at("estimator_cpu").get<double>();
+  u.uncalibrated_cpu = t.at("uncalibrated_cpu").get<double>();
+  return u;
 }
 
 }  // namespace strut::study

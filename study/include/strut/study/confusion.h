@@ -11,6 +11,8 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json_fwd.hpp>
+
 #include "strut/daq/session.h"
 #include "strut/sim/draw.h"
 
@@ -80,6 +82,27 @@ struct ConfusionRow {
   double detection_signal = NAN, detection_left = NAN, detection_size = NAN;
   std::vector<MeasureBin> by_signal;
 };
+
+//! Unit `u` of `effect`'s row (seed first_seed + u), its session into `session` when given: what
+//! RunConfusionStudy runs for it, so that a study split into ranges of units (strut batch) gives
+//! the same units.
+ConfusionUnit RunConfusionUnit(const ConfusionOptions& options, const std::string& effect, int u,
+                               daq::Session* session = nullptr);
+//! `effect`'s row from its units in unit order (the row RunConfusionStudy gives for them).
+ConfusionRow SummariseConfusion(const ConfusionOptions& options, const std::string& effect,
+                                const std::vector<ConfusionUnit>& units);
+
+//! A unit as `bench confusion --json` and a batch shard keep it, and back (doubles round-trip).
+nlohmann::json ConfusionUnitJson(const ConfusionUnit& unit);
+ConfusionUnit ConfusionUnitFromJson(const nlohmann::json& j);
+//! A row as `bench confusion --json` writes it.
+nlohmann::json ConfusionRowJson(const ConfusionRow& row);
+
+//! The table `strut bench confusion` prints: its heading, one line per row, and the detection
+//! lines of the rows with an effect (empty when there is none).
+std::string ConfusionHeading(const ConfusionOptions& options);
+std::string ConfusionRowLine(const ConfusionRow& row);
+std::string ConfusionDetection(const std::vector<ConfusionRow>& rows);
 
 //! Runs the study; `on_unit` (may be empty) sees each unit and its session as it ends. Throws
 //! std::invalid_argument for an effect without a study range when `study_sizes`.

@@ -11,6 +11,8 @@
 #include <utility>
 #include <vector>
 
+#include <nlohmann/json_fwd.hpp>
+
 #include "strut/ident/estimator.h"
 #include "strut/ident/session_fit.h"
 #include "strut/study/statistics.h"
@@ -51,6 +53,9 @@ struct UnitFit {
   bool restart_converged = false;
   int restart_iterations = 0;
   std::string restart_warning;  //!< the restart's first warning, if any
+  //! CPU on one thread: the entry point; the fit from the data's starting values alone; the same
+  //! fit without the calibration in its intervals.
+  double cpu = 0.0, estimator_cpu = 0.0, uncalibrated_cpu = 0.0;
 };
 
 struct UnitsStudy {
@@ -64,6 +69,21 @@ struct UnitsStudy {
   //! the same fit without the calibration in its intervals; unit by unit the ratio of the two.
   double cpu_median = 0.0, estimator_cpu_median = 0.0, uncalibrated_cpu_median = 0.0, cost_ratio_median = 0.0;
 };
+
+//! Unit `u` (seed first_seed + u): what RunUnitsStudy runs for it, so that a study split into
+//! ranges of units (strut batch) gives the same units.
+UnitFit FitDrawnUnit(const UnitsOptions& options, int u);
+//! The study's figures from its units in unit order (what RunUnitsStudy gives for them).
+UnitsStudy SummariseUnits(std::vector<UnitFit> units);
+
+//! A unit in full as a batch shard keeps it, and back (doubles round-trip).
+nlohmann::json UnitFitJson(const UnitFit& unit);
+UnitFit UnitFitFromJson(const nlohmann::json& j);
+
+//! What `strut bench units` prints: the heading, a line per unit, the summary.
+std::string UnitsHeading(const UnitsOptions& options);
+std::string UnitLine(const UnitFit& unit);
+std::string UnitsSummary(const UnitsOptions& options, const UnitsStudy& study);
 
 //! Runs the study; `on_unit` (may be empty) sees each unit as it ends. The caller checks `gain_sd`
 //! against the model (ident::CheckGainChannels).

@@ -45,7 +45,7 @@ struct QcCommand {
     const std::vector<std::string> inputs{session, reference};
     CheckOutputPath("--json", json_path, inputs);
     CheckOutputPath("--report", report_path, inputs);
-    CheckOutputPath("--db", db_path, inputs);
+    if (!qc::IsPostgresUrl(db_path)) CheckOutputPath("--db", db_path, inputs);
     if (!json_path.empty() && json_path == report_path)
       throw std::invalid_argument("--json and --report name the same file " + json_path);
     if (!time.empty() && db_path.empty()) throw std::invalid_argument("--time is the decision's time in the history: give --db too");
@@ -64,8 +64,8 @@ struct QcCommand {
       spdlog::info("wrote {}", report_path);
     }
     if (history) {
-      const long id = history->Record(d, time);
-      spdlog::info("recorded decision {} for serial {} in {}", id, d.serial, db_path);
+      const qc::Recorded r = history->Record(d, time);
+      spdlog::info("recorded decision {} for serial {} in {}", r.id, d.serial, history->where());
     }
     switch (d.verdict) {
       case qc::Verdict::kPass: spdlog::info("PASS"); break;
@@ -100,7 +100,8 @@ struct HistoryCommand {
   std::optional<std::string> serial, since;
   bool json = false;
   void Run() const {
-    if (!std::filesystem::exists(db_path)) throw std::invalid_argument("--db " + db_path + ": no such QC history");
+    if (!qc::IsPostgresUrl(db_path) && !std::filesystem::exists(db_path))
+      throw std::invalid_argument("--db " + db_path + ": no such QC history");
     const qc::History history(db_path);
     const std::vector<qc::HistoryEntry> entries = history.Query(serial, since);
     const std::vector<qc::QuantityTrend> trends = qc::Trends(entries);
@@ -162,7 +163,9 @@ void RegisterQcCommand(CLI::App& app) {
       ->check(CLI::ExistingFile);
   qc->add_option("--json", command->json_path, "Write the decision as JSON.");
   qc->add_option("--report", command->report_path, "Write a self-contained HTML report.");
-  qc->add_option("--db", command->db_path, "Record the decision in this QC history (SQLite; created when missing).");
+  qc->add_option("--db", command->db_path, "Record the decision in this QC history: an SQLite file (created when missing) or a PostgreSQL "
+                 "URL postgresql://USER@HOST:PORT/DB (the password from PGPASSWORD, ~/.pgpass or a service file, "
+                 "never in the URL; docs/qc.md).");
   qc->add_option("--time", command->time, "With --db: the decision's time (UTC ISO 8601) instead of now.");
   // Replaces AddCommand's callback: with `qc plan` or `qc history` only that subcommand runs.
   qc->callback([command = command, qc = qc] {
@@ -178,7 +181,8 @@ void RegisterQcCommand(CLI::App& app) {
   auto [h, history] = AddCommand<HistoryCommand>(*qc, "history",
                                                  "List QC decisions from the history: a lot, a serial's past results, "
                                                  "and the trend of every quantity.");
-  h->add_option("--db", history->db_path, "The QC history (SQLite).")->required();
+  h->add_option("--db", history->db_path, "The QC history: an SQLite file or a PostgreSQL URL (as for strut qc --db).")
+      ->required();
   h->add_option("--serial", history->serial, "Only this serial.");
   h->add_option("--since", history->since, "Only decisions at or after this date (YYYY-MM-DD) or UTC time.");
   h->add_flag("--json", history->json, "Print JSON (decisions, trends, counts) instead of tables.");

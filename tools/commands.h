@@ -40,6 +40,8 @@ void RegisterBenchDrop(CLI::App& bench);
 void RegisterBenchDropFit(CLI::App& bench);
 //! Adds `rig` (the standard matrix through the drivers on the simulated rig, tools/bench_rig.cpp) under `bench`.
 void RegisterBenchRig(CLI::App& bench);
+//! `batch`: a manifest's jobs in shards, local or as a Slurm array (tools/cmd_batch.cpp).
+void RegisterBatchCommand(CLI::App& app);
 //! `predict drop`: drop-test prediction from a fit.
 void RegisterPredictCommand(CLI::App& app);
 

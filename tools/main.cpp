@@ -62,6 +62,7 @@ int main(int argc, char** argv) {
   strut::tools::RegisterBenchRig(*app.get_subcommand("bench"));
   strut::tools::RegisterQcCommand(app);
   strut::tools::RegisterPredictCommand(app);
+  strut::tools::RegisterBatchCommand(app);
 
   try {
     app.parse(argc, argv);

@@ -16,6 +16,7 @@ inline constexpr int kExitAboveNoiseFloor = 3;  //!< a fit converged, but the mo
 inline constexpr int kExitRunPaused = 4;   //!< `rig run`: paused (operator or a hold trip); resumable
 inline constexpr int kExitRunAborted = 5;  //!< `rig run`: stopped by a trip or a lost device; resumable
 inline constexpr int kExitDifferent = 6;   //!< `bench units --compare`: the runs differ beyond the tolerance
+inline constexpr int kExitIncomplete = 7;  //!< `batch`: shards failed or are missing; running it again resumes
 
 //! Thrown by a command to end with a given exit code after it has printed its results.
 class ExitCode : public std::exception {

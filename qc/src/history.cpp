@@ -1,74 +1,60 @@
 #include "strut/qc/history.h"
 
 #include <fmt/format.h>
-#include <sqlite3.h>
 
 #include <cmath>
 #include <ctime>
 #include <map>
 #include <nlohmann/json.hpp>
+#include <random>
 #include <regex>
+#include <thread>
+#include <chrono>
+#include <cstdlib>
 
+#include "history_store.h"
 #include "strut/daq/session.h"
 
 namespace strut::qc {
 namespace {
 
-constexpr const char* kSchema = R"(
+//! The tables of schema version 2 (version 1, the first, had no decision_key); `id` in the
+//! database's own words.
+std::string Tables(const std::string& id) {
+  return fmt::format(R"(
 CREATE TABLE IF NOT EXISTS decisions (
-  id INTEGER PRIMARY KEY,
+  {},
   serial TEXT NOT NULL,
   time TEXT NOT NULL,            -- UTC ISO 8601
   session TEXT,
   reference TEXT,
   model TEXT,
   verdict TEXT NOT NULL,         -- PASS, FAIL, UNDECIDED
-  reasons TEXT                   -- JSON array of strings
+  reasons TEXT,                  -- JSON array of strings
+  decision_key TEXT              -- unique per decision: a rig's random key, a batch's session key
 );
 CREATE TABLE IF NOT EXISTS quantities (
-  decision INTEGER NOT NULL REFERENCES decisions(id),
-  name TEXT NOT NULL, unit TEXT, value REAL, sd REAL, nominal REAL, lower REAL, upper REAL,
-  status TEXT, meaning TEXT
+  decision BIGINT NOT NULL REFERENCES decisions(id),
+  position INTEGER NOT NULL,     -- its place among the decision's quantities
+  name TEXT NOT NULL, unit TEXT, value DOUBLE PRECISION, sd DOUBLE PRECISION, nominal DOUBLE PRECISION,
+  lower DOUBLE PRECISION, upper DOUBLE PRECISION, status TEXT, meaning TEXT
 );
 CREATE INDEX IF NOT EXISTS decisions_by_serial ON decisions(serial, time);
 CREATE INDEX IF NOT EXISTS quantities_by_decision ON quantities(decision);
-)";
+)",
+                     id);
+}
+constexpr const char* kKeyIndex = "CREATE UNIQUE INDEX IF NOT EXISTS decisions_by_key ON decisions(decision_key)";
 
-//! A prepared statement that finalises itself.
-class Statement {
- public:
-  Statement(sqlite3* db, const std::string& sql, const std::string& path) : db_(db), path_(path) {
-    if (sqlite3_prepare_v2(db, sql.c_str(), -1, &stmt_, nullptr) != SQLITE_OK)
-      throw HistoryError(fmt::format("{}: {}", path, sqlite3_errmsg(db)));
-  }
-  ~Statement() { sqlite3_finalize(stmt_); }
-  Statement(const Statement&) = delete;
-  Statement& operator=(const Statement&) = delete;
-  void Bind(int i, const std::string& v) { Check(sqlite3_bind_text(stmt_, i, v.c_str(), -1, SQLITE_TRANSIENT)); }
-  void Bind(int i, double v) { Check(std::isfinite(v) ? sqlite3_bind_double(stmt_, i, v) : sqlite3_bind_null(stmt_, i)); }
-  void Bind(int i, long v) { Check(sqlite3_bind_int64(stmt_, i, v)); }
-  //! True while there is a row.
-  bool Step() {
-    const int rc = sqlite3_step(stmt_);
-    if (rc == SQLITE_ROW) return true;
-    if (rc == SQLITE_DONE) return false;
-    throw HistoryError(fmt::format("{}: {}", path_, sqlite3_errmsg(db_)));
-  }
-  std::string Text(int col) const {
-    const unsigned char* t = sqlite3_column_text(stmt_, col);
-    return t ? reinterpret_cast<const char*>(t) : "";
-  }
-  double Real(int col) const { return sqlite3_column_type(stmt_, col) == SQLITE_NULL ? NAN : sqlite3_column_double(stmt_, col); }
-  long Int(int col) const { return sqlite3_column_int64(stmt_, col); }
+//! A random key for a decision that brings none: 128 bits, so rigs writing at once never collide.
+std::string RandomKey() {
+  std::random_device device;
+  return fmt::format("qc:{:08x}{:08x}{:08x}{:08x}", device(), device(), device(), device());
+}
 
- private:
-  void Check(int rc) {
-    if (rc != SQLITE_OK) throw HistoryError(fmt::format("{}: {}", path_, sqlite3_errmsg(db_)));
-  }
-  sqlite3* db_;
-  sqlite3_stmt* stmt_ = nullptr;
-  std::string path_;
-};
+double Real(const SqlCell& c) { return c ? std::strtod(c->c_str(), nullptr) : NAN; }
+std::string Text(const SqlCell& c) { return c.value_or(""); }
+long Integer(const SqlCell& c) { return c ? std::stol(*c) : 0; }
 
 Status ParseStatus(const std::string& s) {
   for (Status x : {Status::kIn, Status::kOut, Status::kGuardBand, Status::kUndetermined, Status::kUntoleranced})
@@ -93,73 +79,125 @@ bool IsUtcTime(const std::string& text) {
   return std::regex_match(text, std::regex(R"(\d{4}-\d{2}-\d{2}T\d{2}:\d{2}:\d{2}Z)"));
 }
 
-History::History(const std::string& path) : path_(path) {
-  if (sqlite3_open_v2(path.c_str(), &db_, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE, nullptr) != SQLITE_OK) {
-    const std::string why = db_ ? sqlite3_errmsg(db_) : "out of memory";
-    sqlite3_close(db_);
-    db_ = nullptr;
-    throw HistoryError(fmt::format("{}: cannot open the QC history: {}", path, why));
+bool IsPostgresUrl(const std::string& location) {
+  return location.rfind("postgresql://", 0) == 0 || location.rfind("postgres://", 0) == 0;
+}
+
+std::string RedactedLocation(const std::string& location) {
+  if (!IsPostgresUrl(location)) return location;
+  std::string out = location;
+  const std::size_t scheme = out.find("://") + 3;
+  const std::size_t at = out.find('@', scheme), slash = out.find('/', scheme);
+  if (at != std::string::npos && (slash == std::string::npos || at < slash)) {
+    const std::size_t colon = out.find(':', scheme);
+    if (colon != std::string::npos && colon < at) out.erase(colon, at - colon);
   }
-  sqlite3_busy_timeout(db_, 5000);  // another station writing: wait up to 5 s, then fail with the file's name
+  // ?password=...&...: the parameter and its value go
+  for (std::size_t p; (p = out.find("password=")) != std::string::npos;) {
+    const std::size_t end = out.find('&', p);
+    out.erase(p, end == std::string::npos ? std::string::npos : end + 1 - p);
+  }
+  while (!out.empty() && (out.back() == '?' || out.back() == '&')) out.pop_back();
+  return out;
+}
+
+History::History(const std::string& location) {
+  if (IsPostgresUrl(location)) {
+    if (RedactedLocation(location) != location)
+      throw HistoryError(fmt::format("{}: the URL holds a password, which would show in the process list and the "
+                                     "shell's history; give it in PGPASSWORD, ~/.pgpass or a service file (docs/qc.md)",
+                                     RedactedLocation(location)));
+    store_ = OpenPostgres(location);
+  } else {
+    store_ = OpenSqlite(location);
+  }
   try {
-    Exec(kSchema);
-  } catch (const HistoryError& e) {
-    sqlite3_close(db_);
-    db_ = nullptr;
-    throw HistoryError(fmt::format("{} (is it a strut QC history?)", e.what()));
+    Migrate();
+  } catch (const SqlError& e) {
+    throw HistoryError(fmt::format("{}: {} (is it a strut QC history?)", where(), e.message));
   }
 }
 
-History::~History() { sqlite3_close(db_); }
+History::~History() = default;
 
-void History::Exec(const std::string& sql) const {
-  char* error = nullptr;
-  if (sqlite3_exec(db_, sql.c_str(), nullptr, nullptr, &error) != SQLITE_OK) {
-    const std::string why = error ? error : "unknown error";
-    sqlite3_free(error);
-    throw HistoryError(fmt::format("{}: {}", path_, why));
+const std::string& History::where() const { return store_->where(); }
+
+void History::Migrate() {
+  store_->BeginExclusive();
+  try {
+    store_->Exec("CREATE TABLE IF NOT EXISTS strut_schema (version INTEGER NOT NULL)");
+    const SqlRows v = store_->Query("SELECT MAX(version) FROM strut_schema");
+    version_ = !v.empty() && v[0][0] ? std::stoi(*v[0][0]) : (store_->TableExists("decisions") ? 1 : 0);
+    if (version_ > kHistorySchemaVersion)
+      throw HistoryError(fmt::format("{}: the QC history has schema version {}, newer than this strut's {}; use a "
+                                     "newer strut",
+                                     where(), version_, kHistorySchemaVersion));
+    if (version_ < kHistorySchemaVersion) {
+      if (version_ == 0) store_->Exec(Tables(store_->IdColumn()));
+      if (version_ == 1) {  // the first schema: every old decision gets a key of its own
+        store_->Exec("ALTER TABLE decisions ADD COLUMN decision_key TEXT");
+        store_->Exec("UPDATE decisions SET decision_key = 'legacy:' || id");
+        store_->Exec("ALTER TABLE quantities ADD COLUMN position INTEGER");
+        store_->Exec("UPDATE quantities SET position = rowid");  // SQLite's, the order they were stored in
+      }
+      store_->Exec(kKeyIndex);
+      store_->Query("DELETE FROM strut_schema");
+      store_->Query("INSERT INTO strut_schema (version) VALUES ($1)", {static_cast<long>(kHistorySchemaVersion)});
+      version_ = kHistorySchemaVersion;
+    }
+    store_->Exec("COMMIT");
+  } catch (...) {  // whatever failed, the schema change is undone and the error goes on
+    try {
+      store_->Exec("ROLLBACK");
+    } catch (const SqlError&) {  // a lost connection has nothing to roll back
+    }
+    throw;
   }
 }
 
-long History::Record(const Decision& d, const std::string& time) {
+Recorded History::Record(const Decision& d, const std::string& time, const std::string& key) {
   if (!time.empty() && !IsUtcTime(time))
     throw std::invalid_argument("the decision's time '" + time + "' is not a UTC time YYYY-MM-DDTHH:MM:SSZ");
-  Exec("BEGIN IMMEDIATE");
-  try {
-    Statement s(db_,
-                "INSERT INTO decisions (serial, time, session, reference, model, verdict, reasons) VALUES (?,?,?,?,?,?,?)",
-                path_);
-    s.Bind(1, d.serial);
-    s.Bind(2, time.empty() ? daq::UtcNowIso8601() : time);
-    s.Bind(3, d.session);
-    s.Bind(4, d.reference);
-    s.Bind(5, d.model);
-    s.Bind(6, std::string(ToString(d.verdict)));
-    s.Bind(7, nlohmann::json(d.reasons).dump());
-    s.Step();
-    const long id = sqlite3_last_insert_rowid(db_);
-    for (const QuantityDecision& q : d.quantities) {
-      Statement r(db_,
-                  "INSERT INTO quantities (decision, name, unit, value, sd, nominal, lower, upper, status, meaning) "
-                  "VALUES (?,?,?,?,?,?,?,?,?,?)",
-                  path_);
-      r.Bind(1, id);
-      r.Bind(2, q.quantity.name);
-      r.Bind(3, q.quantity.unit);
-      r.Bind(4, q.quantity.value);
-      r.Bind(5, q.quantity.sd);
-      r.Bind(6, q.nominal);
-      r.Bind(7, q.lower);
-      r.Bind(8, q.upper);
-      r.Bind(9, std::string(ToString(q.status)));
-      r.Bind(10, q.meaning);
-      r.Step();
+  const std::string at = time.empty() ? daq::UtcNowIso8601() : time;
+  const std::string decision_key = key.empty() ? RandomKey() : key;
+  for (int attempt = 1;; ++attempt) {
+    try {
+      store_->Begin();
+      try {
+        const SqlRows id = store_->Query(
+            "INSERT INTO decisions (serial, time, session, reference, model, verdict, reasons, decision_key) "
+            "VALUES ($1,$2,$3,$4,$5,$6,$7,$8) ON CONFLICT (decision_key) DO NOTHING RETURNING id",
+            {d.serial, at, d.session, d.reference, d.model, std::string(ToString(d.verdict)),
+             nlohmann::json(d.reasons).dump(), decision_key});
+        if (id.empty()) {  // the key is there already: that decision stays, nothing is added
+          const SqlRows old = store_->Query("SELECT id FROM decisions WHERE decision_key = $1", {decision_key});
+          store_->Exec("COMMIT");
+          return {old.empty() ? 0 : Integer(old[0][0]), false};
+        }
+        const long decision = Integer(id[0][0]);
+        long position = 0;
+        for (const QuantityDecision& q : d.quantities)
+          store_->Query("INSERT INTO quantities (decision, position, name, unit, value, sd, nominal, lower, upper, "
+                        "status, meaning) VALUES ($1,$2,$3,$4,$5,$6,$7,$8,$9,$10,$11)",
+                        {decision, position++, q.quantity.name, q.quantity.unit, q.quantity.value, q.quantity.sd, q.nominal,
+                         q.lower, q.upper, std::string(ToString(q.status)), q.meaning});
+        store_->Exec("COMMIT");
+        return {decision, true};
+      } catch (...) {  // whatever failed, the transaction is undone and the error goes on
+        try {
+          store_->Exec("ROLLBACK");
+        } catch (const SqlError&) {  // a lost connection has nothing to roll back
+        }
+        throw;
+      }
+    } catch (const SqlError& e) {
+      if (e.failure == SqlFailure::kRetry && attempt < 8) {
+        std::this_thread::sleep_for(std::chrono::milliseconds(20 * attempt));
+        continue;
+      }
+      throw HistoryError(fmt::format("{}: the decision for serial {} was not recorded: {}", where(), d.serial,
+                                     e.message));
     }
-    Exec("COMMIT");
-    return id;
-  } catch (...) {  // whatever failed, the transaction is undone and the error goes on to the caller
-    sqlite3_exec(db_, "ROLLBACK", nullptr, nullptr, nullptr);
-    throw;
   }
 }
 
@@ -167,50 +205,60 @@ std::vector<HistoryEntry> History::Query(const std::optional<std::string>& seria
                                          const std::optional<std::string>& since) const {
   if (since && !std::regex_match(*since, std::regex(R"(\d{4}-\d{2}-\d{2}(T\d{2}:\d{2}(:\d{2})?Z?)?)")))
     throw std::invalid_argument("--since '" + *since + "': give a date YYYY-MM-DD or a UTC time YYYY-MM-DDTHH:MM:SSZ");
-  std::string sql = "SELECT id, serial, time, session, reference, model, verdict, reasons FROM decisions WHERE 1";
-  if (serial) sql += " AND serial = ?1";
-  if (since) sql += " AND time >= ?2";
-  sql += " ORDER BY time, id";
-  Statement s(db_, sql, path_);
-  if (serial) s.Bind(1, *serial);
-  if (since) s.Bind(2, *since);
+  std::string where_clause = " WHERE 1 = 1";
+  std::vector<SqlValue> params;
+  if (serial) {
+    params.push_back(*serial);
+    where_clause += fmt::format(" AND serial = ${}", params.size());
+  }
+  if (since) {
+    params.push_back(*since);
+    where_clause += fmt::format(" AND time >= ${}", params.size());
+  }
   std::vector<HistoryEntry> out;
   std::map<long, std::size_t> at;
-  while (s.Step()) {
-    HistoryEntry e;
-    e.id = s.Int(0);
-    e.serial = s.Text(1);
-    e.time = s.Text(2);
-    e.session = s.Text(3);
-    e.reference = s.Text(4);
-    e.model = s.Text(5);
-    e.verdict = s.Text(6);
-    try {
-      e.reasons = nlohmann::json::parse(s.Text(7)).get<std::vector<std::string>>();
-    } catch (const nlohmann::json::exception&) {  // a row written by hand: its text is the one reason
-      e.reasons = {s.Text(7)};
+  try {
+    for (const auto& row : store_->Query("SELECT id, serial, time, session, reference, model, verdict, reasons, "
+                                         "decision_key FROM decisions" + where_clause + " ORDER BY time, id",
+                                         params)) {
+      HistoryEntry e;
+      e.id = Integer(row[0]);
+      e.serial = Text(row[1]);
+      e.time = Text(row[2]);
+      e.session = Text(row[3]);
+      e.reference = Text(row[4]);
+      e.model = Text(row[5]);
+      e.verdict = Text(row[6]);
+      e.key = Text(row[8]);
+      try {
+        e.reasons = nlohmann::json::parse(Text(row[7])).get<std::vector<std::string>>();
+      } catch (const nlohmann::json::exception&) {  // a row written by hand: its text is the one reason
+        e.reasons = {Text(row[7])};
+      }
+      at[e.id] = out.size();
+      out.push_back(std::move(e));
     }
-    at[e.id] = out.size();
-    out.push_back(std::move(e));
-  }
-  Statement q(db_,
-              "SELECT decision, name, unit, value, sd, nominal, lower, upper, status, meaning FROM quantities "
-              "ORDER BY rowid",
-              path_);
-  while (q.Step()) {
-    const auto it = at.find(q.Int(0));
-    if (it == at.end()) continue;
-    QuantityDecision d;
-    d.quantity.name = q.Text(1);
-    d.quantity.unit = q.Text(2);
-    d.quantity.value = q.Real(3);
-    d.quantity.sd = q.Real(4);
-    d.nominal = q.Real(5);
-    d.lower = q.Real(6);
-    d.upper = q.Real(7);
-    d.status = ParseStatus(q.Text(8));
-    d.meaning = q.Text(9);
-    out[it->second].quantities.push_back(std::move(d));
+    // The quantities in the order they were stored (their decision's, then as Record wrote them).
+    for (const auto& row : store_->Query("SELECT q.decision, q.name, q.unit, q.value, q.sd, q.nominal, q.lower, "
+                                         "q.upper, q.status, q.meaning FROM quantities q JOIN decisions ON "
+                                         "decisions.id = q.decision" + where_clause + " ORDER BY q.decision, q.position",
+                                         params)) {
+      const auto it = at.find(Integer(row[0]));
+      if (it == at.end()) continue;
+      QuantityDecision d;
+      d.quantity.name = Text(row[1]);
+      d.quantity.unit = Text(row[2]);
+      d.quantity.value = Real(row[3]);
+      d.quantity.sd = Real(row[4]);
+      d.nominal = Real(row[5]);
+      d.lower = Real(row[6]);
+      d.upper = Real(row[7]);
+      d.status = ParseStatus(Text(row[8]));
+      d.meaning = Text(row[9]);
+      out[it->second].quantities.push_back(std::move(d));
+    }
+  } catch (const SqlError& e) {
+    throw HistoryError(fmt::format("{}: {}", where(), e.message));
   }
   return out;
 }

@@ -8,12 +8,10 @@
 #include <spdlog/spdlog.h>
 #include <unistd.h>
 
-#include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <iostream>
-#include <thread>
 
 #include "commands.h"
 #include "option_checks.h"
@@ -70,22 +68,11 @@ struct BatchCommand {
   //! Until every shard has its record or the array has left Slurm's queue.
   void Wait(const batch::ResultsFolder& folder) const {
     const bool tty = !no_progress && isatty(fileno(stderr));
-    const auto start = std::chrono::steady_clock::now();
-    const int before = static_cast<int>(folder.Pending().size());
-    for (int last = -1;;) {
-      std::this_thread::sleep_for(std::chrono::duration<double>(poll));
-      const int pending = static_cast<int>(folder.Pending().size());
-      const bool active = !batch::ActiveJobs(folder).empty();
-      batch::Progress p;
-      p.total = folder.plan().Shards();
-      p.done = p.total - pending;
-      p.elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-      const int finished = before - pending;
-      p.eta = finished > 0 ? p.elapsed / finished * pending : -1.0;
-      if (tty || pending != last) Show(p, tty);
-      last = pending;
-      if (pending == 0 || !active) break;
-    }
+    int last = -1;
+    batch::WaitForArrays(folder, poll, [&](const batch::Progress& p) {
+      if (tty || p.done != last) Show(p, tty);
+      last = p.done;
+    });
     if (tty) std::fprintf(stderr, "\n");
   }
 
@@ -136,15 +123,15 @@ void RegisterBatchCommand(CLI::App& app) {
       ->capture_default_str();
   sub->add_flag("--no-progress", command->no_progress, "No progress bar (it is shown only when stderr is a terminal).");
   sub->add_flag("--slurm", command->slurm, "Run the shards as a Slurm job array (sbatch) on a folder the nodes share.");
-  sub->add_option("--partition", command->slurm_options.partition, "--slurm: the partition (default: the cluster's).");
-  sub->add_option("--time-limit", command->slurm_options.time_limit, "--slurm: each task's time limit, as sbatch --time.");
-  sub->add_option("--shards-per-task", command->slurm_options.shards_per_task, "--slurm: shards each array task runs.")
+  sub->add_option("--partition", command->slurm_options.partition, "With --slurm: the partition (default: the cluster's).");
+  sub->add_option("--time-limit", command->slurm_options.time_limit, "With --slurm: each task's time limit, as sbatch --time takes it.");
+  sub->add_option("--shards-per-task", command->slurm_options.shards_per_task, "With --slurm: the shards each array task runs.")
       ->check(Between(1, 100000))
       ->capture_default_str();
   sub->add_option("--sbatch-arg", command->slurm_options.sbatch_args,
-                  "--slurm: a further sbatch argument (repeat), e.g. --sbatch-arg=--account=lab.");
-  sub->add_flag("--no-wait", command->no_wait, "--slurm: return after submitting; strut batch --collect DIR later.");
-  sub->add_option("--poll", command->poll, "--slurm: seconds between looks at the results while waiting.")
+                  "With --slurm: a further sbatch argument (repeat), e.g. --sbatch-arg=--account=lab.");
+  sub->add_flag("--no-wait", command->no_wait, "With --slurm: return after submitting; strut batch --collect DIR later.");
+  sub->add_option("--poll", command->poll, "With --slurm: seconds between looks at the results while waiting.")
       ->check(Between(0.1, 3600.0))
       ->capture_default_str();
   sub->add_option("--collect", command->collect, "Merge what a results folder holds and name the shards missing.")

@@ -42,6 +42,8 @@ void RegisterBenchDropFit(CLI::App& bench);
 void RegisterBenchRig(CLI::App& bench);
 //! `batch`: a manifest's jobs in shards, local or as a Slurm array (tools/cmd_batch.cpp).
 void RegisterBatchCommand(CLI::App& app);
+//! Adds `batch` (the batch engines' shards per minute and overhead) under the `bench` subcommand.
+void RegisterBenchBatch(CLI::App& bench);
 //! `predict drop`: drop-test prediction from a fit.
 void RegisterPredictCommand(CLI::App& app);
 

@@ -63,6 +63,7 @@ int main(int argc, char** argv) {
   strut::tools::RegisterQcCommand(app);
   strut::tools::RegisterPredictCommand(app);
   strut::tools::RegisterBatchCommand(app);
+  strut::tools::RegisterBenchBatch(*app.get_subcommand("bench"));
 
   try {
     app.parse(argc, argv);

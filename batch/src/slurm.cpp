@@ -5,7 +5,9 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <chrono>
 #include <filesystem>
+#include <thread>
 #include <fstream>
 #include <sstream>
 
@@ -144,6 +146,24 @@ std::vector<std::string> ActiveJobs(const ResultsFolder& folder) {
     if (r.exit_code == 0 && !Trim(r.output).empty()) active.push_back(id);
   }
   return active;
+}
+
+void WaitForArrays(const ResultsFolder& folder, double poll, const std::function<void(const Progress&)>& on_progress) {
+  const auto start = std::chrono::steady_clock::now();
+  const int before = static_cast<int>(folder.Pending().size());
+  for (;;) {
+    std::this_thread::sleep_for(std::chrono::duration<double>(poll));
+    const int pending = static_cast<int>(folder.Pending().size());
+    const bool active = !ActiveJobs(folder).empty();
+    Progress p;
+    p.total = folder.plan().Shards();
+    p.done = p.total - pending;
+    p.elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    const int finished = before - pending;
+    p.eta = finished > 0 ? p.elapsed / finished * pending : -1.0;
+    if (on_progress) on_progress(p);
+    if (pending == 0 || !active) return;
+  }
 }
 
 std::string ThisExecutable() {

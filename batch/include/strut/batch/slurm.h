@@ -7,6 +7,9 @@
 #include <string>
 #include <vector>
 
+#include <functional>
+
+#include "strut/batch/engine.h"
 #include "strut/batch/results.h"
 
 namespace strut::batch {
@@ -41,6 +44,10 @@ Submission SubmitArray(const ResultsFolder& folder, const std::vector<ShardId>& 
 
 //! The folder's array jobs that Slurm still has pending or running (squeue); empty when none.
 std::vector<std::string> ActiveJobs(const ResultsFolder& folder);
+
+//! Watches the folder's shard records every `poll` seconds until every shard has one or the
+//! folder's arrays have left Slurm's queue; `on_progress` (may be empty) sees each look.
+void WaitForArrays(const ResultsFolder& folder, double poll, const std::function<void(const Progress&)>& on_progress);
 
 //! This process's executable (what the array tasks run).
 std::string ThisExecutable();

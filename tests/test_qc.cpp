@@ -339,3 +339,74 @@ TEST(QcGolden, ARetestOfTheGoldenUnitPassesAgainstItsOwnFit) {
 
 }  // namespace
 }  // namespace strut::qc
+
+namespace strut::qc {
+namespace {
+
+//! A history of the first schema (version 1: no strut_schema, no keys), written by Python's
+//! sqlite3 module, as the first strut left it: one decision with two quantities.
+void WriteVersionOneHistory(const test::TempDir& dir, const std::string& file, const std::string& extra_sql = "") {
+  const std::string script = R"(
+import sqlite3, sys
+db = sqlite3.connect(sys.argv[1])
+db.executescript('''
+CREATE TABLE decisions (id INTEGER PRIMARY KEY, serial TEXT NOT NULL, time TEXT NOT NULL, session TEXT,
+  reference TEXT, model TEXT, verdict TEXT NOT NULL, reasons TEXT);
+CREATE TABLE quantities (decision INTEGER NOT NULL REFERENCES decisions(id), name TEXT NOT NULL, unit TEXT,
+  value REAL, sd REAL, nominal REAL, lower REAL, upper REAL, status TEXT, meaning TEXT);
+INSERT INTO decisions VALUES (1, 'OLD-1', '2026-10-01T08:00:00Z', 's.h5', 'ref.toml', '2dof', 'PASS', '[]');
+INSERT INTO quantities VALUES (1, 'friction', 'N', 301.5, 2.0, 300, 250, 350, 'in', '');
+INSERT INTO quantities VALUES (1, 'charge_pressure', 'Pa', 7.01e5, 1e3, 7e5, 6.5e5, 7.5e5, 'in', '');
+''' + sys.argv[2])
+db.commit()
+)";
+  std::ofstream(dir.file("v1.py")) << script;
+  const test::ShellResult r = test::Shell("python3 " + dir.file("v1.py") + " " + file + " \"" + extra_sql + "\"",
+                                          dir.file("v1"));
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+}
+
+TEST(QcHistory, MigratesTheFirstSchemaAndRefusesANewerOne) {
+  test::TempDir dir;
+  WriteVersionOneHistory(dir, dir.file("old.db"));
+  {
+    History h(dir.file("old.db"));
+    EXPECT_EQ(h.schema_version(), kHistorySchemaVersion);
+    const auto old = h.Query();
+    ASSERT_EQ(old.size(), 1u);
+    EXPECT_EQ(old[0].key, "legacy:1");
+    ASSERT_EQ(old[0].quantities.size(), 2u);
+    EXPECT_EQ(old[0].quantities[0].quantity.name, "friction");  // the order they were stored in
+    EXPECT_EQ(old[0].quantities[1].quantity.value, 7.01e5);
+    Decision d;
+    d.serial = "NEW-1";
+    d.quantities = {{{"friction", "N", "", 299.0, 2.0}, 300, 250, 350, Status::kIn, ""}};
+    const Recorded first = h.Record(d, "2026-11-01T08:00:00Z", "key-a");
+    EXPECT_TRUE(first.inserted);
+    const Recorded again = h.Record(d, "2026-11-01T09:00:00Z", "key-a");  // the same key: stored once
+    EXPECT_FALSE(again.inserted);
+    EXPECT_EQ(again.id, first.id);
+    EXPECT_NE(h.Record(d).id, first.id);  // no key: a random one of its own
+  }
+  History reopened(dir.file("old.db"));
+  EXPECT_EQ(reopened.Query().size(), 3u);
+
+  WriteVersionOneHistory(dir, dir.file("newer.db"),
+                         "CREATE TABLE strut_schema (version INTEGER NOT NULL); INSERT INTO strut_schema VALUES (3);");
+  const std::string error = test::ErrorOf<HistoryError>([&] { History h(dir.file("newer.db")); });
+  EXPECT_NE(error.find("schema version 3, newer than this strut's 2"), std::string::npos) << error;
+}
+
+TEST(QcHistory, PasswordsNeverLeaveTheUrl) {
+  EXPECT_EQ(RedactedLocation("postgresql://qc:s3cret@db.plant:5433/line4"), "postgresql://qc@db.plant:5433/line4");
+  EXPECT_EQ(RedactedLocation("postgres://db/qc?password=s3cret&sslmode=require"), "postgres://db/qc?sslmode=require");
+  EXPECT_EQ(RedactedLocation("postgresql://db/qc?sslmode=require&password=s3cret"), "postgresql://db/qc?sslmode=require");
+  EXPECT_EQ(RedactedLocation("postgresql://qc@db/qc"), "postgresql://qc@db/qc");
+  EXPECT_EQ(RedactedLocation("qc.db"), "qc.db");
+  const std::string error = test::ErrorOf<HistoryError>([] { History h("postgresql://qc:s3cret@127.0.0.1:1/qc"); });
+  EXPECT_NE(error.find("holds a password"), std::string::npos) << error;
+  EXPECT_EQ(error.find("s3cret"), std::string::npos) << error;
+}
+
+}  // namespace
+}  // namespace strut::qc

@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "strut/daq/atomic_file.h"
+#include "text_file.h"
 
 namespace strut::batch {
 namespace fs = std::filesystem;
@@ -20,13 +21,6 @@ constexpr const char* kPlanFile = "plan.json";
 std::string NewId() {
   std::random_device device;
   return fmt::format("{:08x}{:08x}", device(), device());
-}
-
-std::string ReadText(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::ostringstream text;
-  text << in.rdbuf();
-  return text.str();
 }
 
 std::string HostName() {

@@ -12,6 +12,7 @@
 #include <sstream>
 
 #include "strut/daq/atomic_file.h"
+#include "text_file.h"
 
 extern char** environ;
 
@@ -52,13 +53,6 @@ ProgramResult RunProgram(const std::vector<std::string>& argv) {
   waitpid(pid, &status, 0);
   result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
   return result;
-}
-
-std::string ReadText(const std::string& path) {
-  std::ifstream in(path);
-  std::ostringstream text;
-  text << in.rdbuf();
-  return text.str();
 }
 
 //! A word for a shell script, single-quoted.

@@ -99,6 +99,30 @@ per_shard = 1
   EXPECT_EQ(test::ReadFile(dir.file("mine/notes.txt")), "keep me");
 }
 
+//! The lines of a bench qc table that hold no time (the unit lines, the time and the load lines do).
+std::string LotFigures(const std::string& text) {
+  std::string out;
+  std::istringstream in(text);
+  bool table = false;
+  for (std::string line; std::getline(in, line);) {
+    table = table || line.rfind("confusion matrix", 0) == 0;
+    if (table && line.rfind("decision time", 0) != 0 && !line.empty() && line[0] != '[') out += line + "\n";
+  }
+  return out;
+}
+
+TEST(BatchCli, QcLotStudyInShardsIsTheBenchCommandsLot) {
+  test::TempDir dir;
+  Write(dir.file("lot.toml"), "[[job]]\nname = \"lot\"\nkind = \"qc-lot\"\nunits = 5\nper_shard = 2\n");
+  const auto bench = test::RunStrut("bench qc --units 5 2>/dev/null");
+  ASSERT_EQ(bench.exit_code, 0) << bench.output;
+  const auto run = test::RunStrut("batch " + dir.file("lot.toml") + " --threads 2");
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  const std::string figures = LotFigures(test::ReadFile(dir.file("lot.batch/lot.txt")));
+  EXPECT_NE(figures.find("under-charge         0     1"), std::string::npos) << figures;
+  EXPECT_EQ(figures, LotFigures(bench.output));
+}
+
 TEST(BatchCli, QcJobRecordsEachDecisionOnceAndAFailedShardNamesItsSession) {
   test::TempDir dir;
   ASSERT_EQ(test::RunStrut("qc plan --write-reference " + dir.file("ref.toml") + " >/dev/null").exit_code, 0);

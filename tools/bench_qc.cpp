@@ -22,13 +22,7 @@ namespace {
 void PrintUnit(const study::LotUnitResult& u) {
   if (!u.rig_error.empty())
     spdlog::warn("unit {} ({}): the rig could not run the QC matrix: {}", u.seed, study::ToString(u.kind), u.rig_error);
-  const qc::Decision& d = u.decision;
-  const std::string failed = fmt::format("{}", fmt::join(u.out, ", ")), guarded = fmt::format("{}", fmt::join(u.guard_band, ", "));
-  std::cout << fmt::format("  unit {:5} {:<16} {:<9} {:5.2f} s{}{}{}\n", u.seed, study::ToString(u.kind),
-                           qc::ToString(d.verdict), d.seconds, failed.empty() ? "" : "  out: " + failed,
-                           guarded.empty() ? "" : " (guard band: " + guarded + ")",
-                           d.verdict == qc::Verdict::kUndecided && !d.reasons.empty() ? "  (" + d.reasons.front() + ")"
-                                                                                       : "");
+  std::cout << study::LotUnitLine(u);
 }
 
 nlohmann::json UnitJson(const study::LotUnitResult& u) {
@@ -61,39 +55,15 @@ struct BenchQc {
   void Run() const {
     CheckOutputPath("--json", json_path, {});
     if (truth_ranges > 0) return Ranges();
-    std::cout << fmt::format("QC of a simulated lot: {} units (seeds {}..), {} in 10 defective, QC matrix of {} "
-                             "experiments, reference {}, {} actuator; load average {:.2f} at the start\n",
-                             options.units, options.first_seed, options.defect_tenths, study::QcMatrix().experiments.size(),
-                             study::LotReference().source, options.servo ? "servo" : "ideal", study::LoadAverages()[0]);
+    std::cout << study::LotHeading(options);
     const study::LotStudy s = study::RunLotStudy(options, PrintUnit);
-    std::cout << fmt::format("\nconfusion matrix (true kind: decisions):\n  {:<16} {:>5} {:>5} {:>9} {:>6}  {}\n", "kind",
-                             "PASS", "FAIL", "UNDECIDED", "total", "FAIL naming the defect's quantity");
-    nlohmann::json cj = nlohmann::json::object();
+    std::cout << study::LotSummary(s);
+    nlohmann::json cj = nlohmann::json::object(), cov = nlohmann::json::object();
     for (const auto& k : s.kinds) {
       const std::map<std::string, long>& row = s.confusion.at(k);
-      const long pass = row.at("PASS"), fail = row.at("FAIL"), undecided = row.at("UNDECIDED");
-      const auto named = s.named_right.find(k);
-      std::cout << fmt::format("  {:<16} {:>5} {:>5} {:>9} {:>6}  {}\n", k, pass, fail, undecided,
-                               pass + fail + undecided,
-                               k == "good" ? ""
-                                           : fmt::format("{}/{}", named == s.named_right.end() ? 0 : named->second,
-                                                         fail));
-      cj[k] = {{"PASS", pass}, {"FAIL", fail}, {"UNDECIDED", undecided}};
+      cj[k] = {{"PASS", row.at("PASS")}, {"FAIL", row.at("FAIL")}, {"UNDECIDED", row.at("UNDECIDED")}};
     }
-    std::cout << fmt::format(
-        "defective units passed: {}/{} (target 0); good units failed: {}/{} = {:.1f} % (target < 3 %); guard-band "
-        "decisions {}\n",
-        s.defects_passed, s.defects, s.good_failed, s.good, s.good ? 100.0 * s.good_failed / s.good : 0.0, s.guard_band);
-    std::cout << "95 % intervals of the quantities holding the truth (fits at the noise floor):\n";
-    nlohmann::json cov = nlohmann::json::object();
-    for (const auto& [name, c] : s.coverage) {
-      std::cout << fmt::format("  {:<22} {}/{} = {:.3f}\n", name, c.first, c.second, double(c.first) / c.second);
-      cov[name] = {{"inside", c.first}, {"total", c.second}};
-    }
-    std::cout << fmt::format(
-        "decision time (read session to verdict: prepare, fit, quantities, decide): median {:.3f} s wall, {:.3f} s CPU "
-        "on one thread, max {:.3f} s wall (target < 1 s); rig simulation median {:.2f} s wall per unit\n",
-        s.median_wall, s.median_cpu, s.max_wall, s.median_sim);
+    for (const auto& [name, c] : s.coverage) cov[name] = {{"inside", c.first}, {"total", c.second}};
     if (json_path.empty()) return;
     nlohmann::json rows = nlohmann::json::array();
     for (const study::LotUnitResult& u : s.units) rows.push_back(UnitJson(u));

@@ -48,12 +48,12 @@ JobSpec ReadJob(const Reader& r, const toml::table& t, const fs::path& folder, i
   const std::string where = fmt::format("[[job]] {}: ", index + 1);
   r.RefuseUnknown(t, where,
                   {"name", "kind", "per_shard", "units", "first_seed", "base", "effects", "servo", "sizes", "start_off",
-                   "effects_per_unit", "fit_truth", "sessions", "model", "input", "reference", "db"});
+                   "effects_per_unit", "fit_truth", "defects", "sessions", "model", "input", "reference", "db"});
   const auto kind = r.Text(t, where, "kind");
-  if (!kind) r.Fail(t, where + "kind is missing (identify, discover, qc, confusion or units)");
+  if (!kind) r.Fail(t, where + "kind is missing (identify, discover, qc, confusion, units or qc-lot)");
   j.kind = *kind;
   if (!IsOneOf(j.kind, kSessionKinds) && !IsOneOf(j.kind, kStudyKinds))
-    r.Fail(*t.get("kind"), fmt::format("{}kind '{}': give identify, discover, qc, confusion or units", where, j.kind));
+    r.Fail(*t.get("kind"), fmt::format("{}kind '{}': give identify, discover, qc, confusion, units or qc-lot", where, j.kind));
   j.name = r.Text(t, where, "name").value_or(j.kind);
   if (j.name.empty() || j.name.find_first_not_of("abcdefghijklmnopqrstuvwxyz0123456789_-") != std::string::npos)
     r.Fail(t, fmt::format("{}name '{}': use lower-case letters, digits, - and _", where, j.name));
@@ -66,7 +66,8 @@ JobSpec ReadJob(const Reader& r, const toml::table& t, const fs::path& folder, i
     const auto units = r.Integer(t, where, "units").value_or(10);
     if (units < 1 || units > 1000000) r.Fail(*t.get("units"), where + "units: give 1 to 1000000");
     j.units = static_cast<int>(units);
-    j.first_seed = static_cast<unsigned long>(r.Integer(t, where, "first_seed").value_or(j.kind == "units" ? 1000 : 2000));
+    j.first_seed = static_cast<unsigned long>(r.Integer(t, where, "first_seed")
+                                                           .value_or(j.kind == "units" ? 1000 : j.kind == "qc-lot" ? 5000 : 2000));
     j.base = r.Text(t, where, "base").value_or("2dof");
     j.effects = Strings(r, t, where, "effects");
     if (j.kind == "confusion" && j.effects.empty()) j.effects = {"none"};
@@ -76,6 +77,9 @@ JobSpec ReadJob(const Reader& r, const toml::table& t, const fs::path& folder, i
     j.start_off = r.Number(t, where, "start_off").value_or(0.3);
     j.effects_per_unit = static_cast<int>(r.Integer(t, where, "effects_per_unit").value_or(0));
     j.fit_truth = r.Bool(t, where, "fit_truth").value_or(false);
+    const auto defects = r.Integer(t, where, "defects").value_or(3);
+    if (defects < 0 || defects > 10) r.Fail(*t.get("defects"), where + "defects: give 0 to 10 (defective units per ten)");
+    j.defects = static_cast<int>(defects);
     return j;
   }
   const toml::node* sessions = t.get("sessions");
@@ -168,7 +172,7 @@ nlohmann::json ToJson(const Plan& plan) {
                     {"units", j.units},         {"first_seed", j.first_seed}, {"base", j.base},
                     {"effects", j.effects},     {"servo", j.servo},        {"sizes", j.sizes},
                     {"start_off", j.start_off}, {"effects_per_unit", j.effects_per_unit},
-                    {"fit_truth", j.fit_truth}, {"sessions", j.sessions},  {"model", j.model},
+                    {"fit_truth", j.fit_truth}, {"defects", j.defects}, {"sessions", j.sessions},  {"model", j.model},
                     {"input", j.input},         {"reference", j.reference}, {"db", j.db}});
   return {{"id", plan.id}, {"manifest", plan.manifest}, {"jobs", jobs}};
 }
@@ -191,6 +195,7 @@ Plan PlanFromJson(const nlohmann::json& p) {
     x.at("start_off").get_to(j.start_off);
     x.at("effects_per_unit").get_to(j.effects_per_unit);
     x.at("fit_truth").get_to(j.fit_truth);
+    x.at("defects").get_to(j.defects);
     x.at("sessions").get_to(j.sessions);
     x.at("model").get_to(j.model);
     x.at("input").get_to(j.input);

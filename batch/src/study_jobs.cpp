@@ -3,6 +3,7 @@
 
 #include "jobs_internal.h"
 #include "strut/study/confusion.h"
+#include "strut/study/lot.h"
 #include "strut/study/units.h"
 
 namespace strut::batch {
@@ -97,10 +98,39 @@ class UnitsJob : public JobRunner {
   study::UnitsOptions options_;
 };
 
+class LotJob : public JobRunner {
+ public:
+  explicit LotJob(const JobSpec& job) : job_(job) {
+    options_.units = job.units;
+    options_.first_seed = job.first_seed;
+    options_.defect_tenths = job.defects;
+    options_.servo = job.servo;
+  }
+  nlohmann::json RunItem(int index) const override { return study::LotUnitJson(study::DecideLotUnit(options_, index)); }
+  std::string Table(const std::vector<nlohmann::json>& records, bool complete) const override {
+    std::vector<study::LotUnitResult> units;
+    std::string text = study::LotHeading(options_);
+    for (const nlohmann::json& r : records) {
+      units.push_back(study::LotUnitFromJson(r));
+      text += study::LotUnitLine(units.back());
+    }
+    return text + study::LotSummary(study::SummariseLot(std::move(units))) +
+           Incomplete(complete, records.size(), job_.Items());
+  }
+  std::string ItemName(int index) const override {
+    return fmt::format("unit {} ({})", options_.first_seed + index, study::ToString(options_.KindOf(index)));
+  }
+
+ private:
+  JobSpec job_;
+  study::LotOptions options_;
+};
+
 }  // namespace
 
 std::unique_ptr<JobRunner> MakeStudyRunner(const JobSpec& job) {
   if (job.kind == "confusion") return std::make_unique<ConfusionJob>(job);
+  if (job.kind == "qc-lot") return std::make_unique<LotJob>(job);
   return std::make_unique<UnitsJob>(job);
 }
 

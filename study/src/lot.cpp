@@ -75,21 +75,18 @@ const qc::Band& Needs(const qc::Reference& reference, const char* name, Defect d
 }
 
 //! The truth's place in the decision's 95 % intervals.
-void CountCoverage(const sim::Truth& truth, const qc::Decision& d, LotUnitResult& unit,
-                   std::map<std::string, std::pair<long, long>>& coverage) {
+//! The z of each quantity the truth has (the coverage of its interval).
+void MeasureZ(const sim::Truth& truth, const qc::Decision& d, LotUnitResult& unit) {
   const ident::Model model = truth.BuildModel(ident::Causality::kStrokeInput);
   for (const qc::Quantity& t : qc::ComputeQuantities(model, truth.Parameters(model).values()))
     for (const auto& q : d.quantities)
       if (q.quantity.name == t.name && std::isfinite(q.quantity.sd) && q.quantity.sd > 0) {
-        const double zz = (q.quantity.value - t.value) / q.quantity.sd;
-        unit.z[t.name] = zz;
-        coverage[t.name].first += std::abs(zz) < qc::kGuardBandSigmas;
-        coverage[t.name].second += 1;
+        unit.z[t.name] = (q.quantity.value - t.value) / q.quantity.sd;
       }
 }
 
 LotUnitResult DecideUnit(const LotOptions& options, const qc::Reference& reference, const rig::MatrixPlan& plan,
-                         int i, LotStudy& study) {
+                         int i) {
   LotUnitResult unit;
   unit.seed = options.first_seed + i;
   unit.kind = options.KindOf(i);
@@ -110,18 +107,13 @@ LotUnitResult DecideUnit(const LotOptions& options, const qc::Reference& referen
   unit.decision = qc::RunQc(session, truth.damper_serial, reference);
   unit.cpu_seconds = ThreadSeconds() - before;
   const qc::Decision& d = unit.decision;
-  ++study.confusion[ToString(unit.kind)][qc::ToString(d.verdict)];
   for (const auto& q : d.quantities) {
     if (q.status != qc::Status::kOut && q.status != qc::Status::kGuardBand) continue;
     unit.out.push_back(q.quantity.name);
     unit.named = unit.named || q.quantity.name == QuantityOf(unit.kind);
-    if (q.status == qc::Status::kGuardBand) {
-      ++study.guard_band;
-      unit.guard_band.push_back(q.quantity.name);
-    }
+    if (q.status == qc::Status::kGuardBand) unit.guard_band.push_back(q.quantity.name);
   }
-  if (unit.kind != Defect::kNone && d.verdict == qc::Verdict::kFail && unit.named) ++study.named_right[ToString(unit.kind)];
-  if (d.fit_verdict == "at-noise-floor") CountCoverage(truth, d, unit, study.coverage);  // a fit at the noise floor only
+  if (d.fit_verdict == "at-noise-floor") MeasureZ(truth, d, unit);  // a fit at the noise floor only
   return unit;
 }
 
@@ -258,23 +250,31 @@ Defect LotOptions::KindOf(int i) const {
   return Defects()[k % Defects().size()];
 }
 
-LotStudy RunLotStudy(const LotOptions& options, const std::function<void(const LotUnitResult&)>& on_unit) {
-  const qc::Reference reference = LotReference();
-  const rig::MatrixPlan plan = QcMatrix();
+LotUnitResult DecideLotUnit(const LotOptions& options, int i) {
+  return DecideUnit(options, LotReference(), QcMatrix(), i);
+}
+
+LotStudy SummariseLot(std::vector<LotUnitResult> units) {
   LotStudy study;
-  study.reference = reference.source;
-  study.experiments = plan.experiments.size();
+  study.reference = LotReference().source;
+  study.experiments = QcMatrix().experiments.size();
   study.kinds = {"good"};
   for (Defect d : Defects()) study.kinds.push_back(ToString(d));
   std::vector<double> wall, cpu, sim_seconds;
-  for (int i = 0; i < options.units; ++i) {
-    LotUnitResult unit = DecideUnit(options, reference, plan, i, study);
-    wall.push_back(unit.decision.seconds);
+  for (const LotUnitResult& unit : units) {
+    const qc::Decision& d = unit.decision;
+    ++study.confusion[ToString(unit.kind)][qc::ToString(d.verdict)];
+    study.guard_band += static_cast<long>(unit.guard_band.size());
+    if (unit.kind != Defect::kNone && d.verdict == qc::Verdict::kFail && unit.named) ++study.named_right[ToString(unit.kind)];
+    for (const auto& [name, z] : unit.z) {
+      study.coverage[name].first += std::abs(z) < qc::kGuardBandSigmas;
+      study.coverage[name].second += 1;
+    }
+    wall.push_back(d.seconds);
     cpu.push_back(unit.cpu_seconds);
     sim_seconds.push_back(unit.sim_seconds);
-    if (on_unit) on_unit(unit);
-    study.units.push_back(std::move(unit));
   }
+  study.units = std::move(units);
   for (const auto& k : study.kinds) {
     auto& row = study.confusion[k];  // every kind and verdict gets its entry, 0 when none was decided so
     const long total = row["PASS"] + row["FAIL"] + row["UNDECIDED"];
@@ -291,6 +291,17 @@ LotStudy RunLotStudy(const LotOptions& options, const std::function<void(const L
   study.median_sim = Median(sim_seconds);
   study.max_wall = wall.empty() ? NAN : *std::max_element(wall.begin(), wall.end());
   return study;
+}
+
+LotStudy RunLotStudy(const LotOptions& options, const std::function<void(const LotUnitResult&)>& on_unit) {
+  const qc::Reference reference = LotReference();
+  const rig::MatrixPlan plan = QcMatrix();
+  std::vector<LotUnitResult> units;
+  for (int i = 0; i < options.units; ++i) {
+    units.push_back(DecideUnit(options, reference, plan, i));
+    if (on_unit) on_unit(units.back());
+  }
+  return SummariseLot(std::move(units));
 }
 
 }  // namespace strut::study

@@ -18,7 +18,7 @@ class BatchError : public std::runtime_error {
 
 //! The job kinds: over sessions, or a drawn-unit study.
 inline constexpr const char* kSessionKinds[] = {"identify", "discover", "qc"};
-inline constexpr const char* kStudyKinds[] = {"confusion", "units"};
+inline constexpr const char* kStudyKinds[] = {"confusion", "units", "qc-lot"};
 
 struct JobSpec {
   std::string name, kind;
@@ -33,6 +33,7 @@ struct JobSpec {
   double start_off = 0.3;       //!< units
   int effects_per_unit = 0;     //!< units
   bool fit_truth = false;       //!< units
+  int defects = 3;              //!< qc-lot: defective units per ten
   // Session jobs: the sessions (absolute, in order) after the manifest's globs were expanded.
   std::vector<std::string> sessions;
   std::string model = "2dof", input = "stroke";

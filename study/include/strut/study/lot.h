@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <functional>
 #include <map>
+#include <nlohmann/json_fwd.hpp>
 #include <string>
 #include <string_view>
 #include <utility>
@@ -89,6 +90,22 @@ struct LotStudy {
   double median_wall = 0.0, median_cpu = 0.0, max_wall = 0.0, median_sim = 0.0;
   std::vector<LotUnitResult> units;
 };
+
+//! Unit `i` of the lot (seed first_seed + i): what RunLotStudy decides for it, so that a study split
+//! into ranges of units (strut batch) gives the same units.
+LotUnitResult DecideLotUnit(const LotOptions& options, int i);
+//! The study's figures from its units in unit order (what RunLotStudy gives for them).
+LotStudy SummariseLot(std::vector<LotUnitResult> units);
+
+//! A unit as a batch shard keeps it (its decision as report::QcToJson writes it), and back: what
+//! SummariseLot and LotUnitLine read.
+nlohmann::json LotUnitJson(const LotUnitResult& unit);
+LotUnitResult LotUnitFromJson(const nlohmann::json& j);
+
+//! What `strut bench qc` prints: the heading, a line per unit, the summary.
+std::string LotHeading(const LotOptions& options);
+std::string LotUnitLine(const LotUnitResult& unit);
+std::string LotSummary(const LotStudy& study);
 
 //! Runs the study; `on_unit` (may be empty) sees each unit as it ends.
 LotStudy RunLotStudy(const LotOptions& options, const std::function<void(const LotUnitResult&)>& on_unit = {});

@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <regex>
 #include <sstream>
 
 #include "lot_sessions.h"
@@ -121,6 +122,20 @@ TEST(BatchCli, QcLotStudyInShardsIsTheBenchCommandsLot) {
   const std::string figures = LotFigures(test::ReadFile(dir.file("lot.batch/lot.txt")));
   EXPECT_NE(figures.find("under-charge         0     1"), std::string::npos) << figures;
   EXPECT_EQ(figures, LotFigures(bench.output));
+}
+
+TEST(BatchCli, DropStudyInShardsIsTheBenchCommandsDropStudy) {
+  test::TempDir dir;
+  Write(dir.file("drop.toml"), "[[job]]\nname = \"drop\"\nkind = \"drop\"\nunits = 2\nduration = 10\n");
+  const auto bench = test::RunStrut("bench drop --units 2 --duration 10 2>/dev/null");
+  ASSERT_EQ(bench.exit_code, 0) << bench.output;
+  const auto run = test::RunStrut("batch " + dir.file("drop.toml") + " --threads 2 2>/dev/null");
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  const auto no_times = [](const std::string& text) {  // every "N ms": the predictions' times among them
+    return std::regex_replace(std::regex_replace(text, std::regex("\\d+ ms"), "ms"), std::regex("\n+$"), "");
+  };
+  EXPECT_NE(bench.output.find("peak force"), std::string::npos) << bench.output;
+  EXPECT_EQ(no_times(test::ReadFile(dir.file("drop.batch/drop.txt"))), no_times(bench.output));
 }
 
 TEST(BatchCli, QcJobRecordsEachDecisionOnceAndAFailedShardNamesItsSession) {

@@ -15,15 +15,6 @@
 namespace strut::tools {
 namespace {
 
-void PrintUnit(const study::DropUnit& u) {
-  std::string line = fmt::format("peak force {:+.2f} % ({}), max stroke {:+.2f} % ({}), final {:+.2f} %",
-                                 100 * u.peak_force_error, u.peak_force_inside ? "in" : "OUT", 100 * u.max_stroke_error,
-                                 u.max_stroke_inside ? "in" : "OUT", 100 * u.final_stroke_error);
-  for (const auto& [term, affects] : u.missing_physics) line += fmt::format("; {}: {}", term, affects);
-  std::cout << fmt::format("  unit {:5}: {:<17} {}; prediction {:.0f} ms CPU, with intervals ({} runs) {:.0f} ms\n",
-                           u.seed, ident::ToString(u.verdict), line, 1e3 * u.cpu, u.simulations, 1e3 * u.intervals_cpu);
-}
-
 nlohmann::json UnitJson(const study::DropUnit& u) {
   nlohmann::json row{{"seed", u.seed}, {"verdict", ident::ToString(u.verdict)}};
   for (const study::DropFigureError& f : u.figures) {
@@ -41,26 +32,14 @@ struct BenchDrop {
   void Run() const {
     CheckOutputPath("--json", json_path, {});
     const study::DropOptions& o = options;
-    std::cout << fmt::format("drop prediction from shaker fits of {} drawn 2dof units{} (seeds {}..): {} kg at {} m/s, "
-                             "{} s\n",
-                             o.units, o.effects.empty() ? "" : " with " + fmt::format("{}", fmt::join(o.effects, ", ")),
-                             o.first_seed, o.mass, o.velocity, o.duration);
-    const study::DropStudy s = study::RunDropStudy(o, PrintUnit);
-    std::cout << fmt::format("\nfits at the noise floor {}/{}; peak force and max stroke both within 5 %: {}/{}\n",
-                             s.at_floor, s.fits, s.within5, o.units);
-    std::cout << "figure               median |error|   max |error|   truth inside 95 % interval (times: error in ms)\n";
+    std::cout << study::DropHeading(o);
+    const study::DropStudy s =
+        study::RunDropStudy(o, [](const study::DropUnit& u) { std::cout << study::DropUnitLine(u); });
+    std::cout << study::DropSummary(o, s);
     nlohmann::json summary = nlohmann::json::object();
-    for (const study::DropFigureSummary& f : s.figures) {
-      std::cout << fmt::format("  {:<20} {:8.3f} {}      {:8.3f} {}    {}/{}\n", f.name,
-                               (f.time ? 1e3 : 100) * f.median_abs_error, f.time ? "ms" : "% ",
-                               (f.time ? 1e3 : 100) * f.max_abs_error, f.time ? "ms" : "% ", f.inside, f.counted);
+    for (const study::DropFigureSummary& f : s.figures)
       summary[f.name] = {{"median_abs_error", f.median_abs_error}, {"max_abs_error", f.max_abs_error},
                          {"inside", f.inside}, {"counted", f.counted}};
-    }
-    std::cout << fmt::format(
-        "a {} s drop prediction: median {:.0f} ms CPU ({:.0f} ms wall), target < 1 s; with intervals median {:.0f} ms "
-        "CPU ({:.0f} ms wall)\n",
-        o.duration, 1e3 * s.cpu_median, 1e3 * s.wall_median, 1e3 * s.intervals_cpu_median, 1e3 * s.intervals_wall_median);
     if (json_path.empty()) return;
     nlohmann::json rows = nlohmann::json::array();
     for (const study::DropUnit& u : s.units) rows.push_back(UnitJson(u));

@@ -111,7 +111,7 @@ struct BatchCommand {
 void RegisterBatchCommand(CLI::App& app) {
   auto [sub, command] = AddCommand<BatchCommand>(
       app, "batch",
-      "Run a manifest's jobs (identify, discover, qc over sessions; the confusion, units and qc-lot studies) split into "
+      "Run a manifest's jobs (identify, discover, qc over sessions; the confusion, units, qc-lot and drop studies) split into "
       "shards, on this machine's threads or as a Slurm job array; a finished shard is never run again (docs/batch.md). "
       "Exit code 7 when shards failed or are missing.");
   sub->add_option("manifest", command->manifest, "The batch manifest (TOML, docs/batch.md).")->check(CLI::ExistingFile);

@@ -48,12 +48,12 @@ JobSpec ReadJob(const Reader& r, const toml::table& t, const fs::path& folder, i
   const std::string where = fmt::format("[[job]] {}: ", index + 1);
   r.RefuseUnknown(t, where,
                   {"name", "kind", "per_shard", "units", "first_seed", "base", "effects", "servo", "sizes", "start_off",
-                   "effects_per_unit", "fit_truth", "defects", "sessions", "model", "input", "reference", "db"});
+                   "effects_per_unit", "fit_truth", "defects", "mass", "velocity", "duration", "sessions", "model", "input", "reference", "db"});
   const auto kind = r.Text(t, where, "kind");
-  if (!kind) r.Fail(t, where + "kind is missing (identify, discover, qc, confusion, units or qc-lot)");
+  if (!kind) r.Fail(t, where + "kind is missing (identify, discover, qc, confusion, units, qc-lot or drop)");
   j.kind = *kind;
   if (!IsOneOf(j.kind, kSessionKinds) && !IsOneOf(j.kind, kStudyKinds))
-    r.Fail(*t.get("kind"), fmt::format("{}kind '{}': give identify, discover, qc, confusion, units or qc-lot", where, j.kind));
+    r.Fail(*t.get("kind"), fmt::format("{}kind '{}': give identify, discover, qc, confusion, units, qc-lot or drop", where, j.kind));
   j.name = r.Text(t, where, "name").value_or(j.kind);
   if (j.name.empty() || j.name.find_first_not_of("abcdefghijklmnopqrstuvwxyz0123456789_-") != std::string::npos)
     r.Fail(t, fmt::format("{}name '{}': use lower-case letters, digits, - and _", where, j.name));
@@ -80,6 +80,12 @@ JobSpec ReadJob(const Reader& r, const toml::table& t, const fs::path& folder, i
     const auto defects = r.Integer(t, where, "defects").value_or(3);
     if (defects < 0 || defects > 10) r.Fail(*t.get("defects"), where + "defects: give 0 to 10 (defective units per ten)");
     j.defects = static_cast<int>(defects);
+    j.mass = r.Number(t, where, "mass").value_or(350.0);
+    j.velocity = r.Number(t, where, "velocity").value_or(0.5);
+    j.duration = r.Number(t, where, "duration").value_or(30.0);
+    if (j.mass <= 0) r.Fail(*t.get("mass"), where + "mass: give a number > 0 kg");
+    if (j.velocity < 0) r.Fail(*t.get("velocity"), where + "velocity: give a number >= 0 m/s");
+    if (j.duration < 0.1 || j.duration > 3600) r.Fail(*t.get("duration"), where + "duration: give 0.1 to 3600 s");
     return j;
   }
   const toml::node* sessions = t.get("sessions");
@@ -172,7 +178,8 @@ nlohmann::json ToJson(const Plan& plan) {
                     {"units", j.units},         {"first_seed", j.first_seed}, {"base", j.base},
                     {"effects", j.effects},     {"servo", j.servo},        {"sizes", j.sizes},
                     {"start_off", j.start_off}, {"effects_per_unit", j.effects_per_unit},
-                    {"fit_truth", j.fit_truth}, {"defects", j.defects}, {"sessions", j.sessions},  {"model", j.model},
+                    {"fit_truth", j.fit_truth}, {"defects", j.defects}, {"mass", j.mass}, {"velocity", j.velocity},
+                    {"duration", j.duration}, {"sessions", j.sessions},  {"model", j.model},
                     {"input", j.input},         {"reference", j.reference}, {"db", j.db}});
   return {{"id", plan.id}, {"manifest", plan.manifest}, {"jobs", jobs}};
 }
@@ -196,6 +203,9 @@ Plan PlanFromJson(const nlohmann::json& p) {
     x.at("effects_per_unit").get_to(j.effects_per_unit);
     x.at("fit_truth").get_to(j.fit_truth);
     x.at("defects").get_to(j.defects);
+    x.at("mass").get_to(j.mass);
+    x.at("velocity").get_to(j.velocity);
+    x.at("duration").get_to(j.duration);
     x.at("sessions").get_to(j.sessions);
     x.at("model").get_to(j.model);
     x.at("input").get_to(j.input);

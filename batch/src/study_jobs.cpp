@@ -3,6 +3,7 @@
 
 #include "jobs_internal.h"
 #include "strut/study/confusion.h"
+#include "strut/study/drop.h"
 #include "strut/study/lot.h"
 #include "strut/study/units.h"
 
@@ -126,11 +127,42 @@ class LotJob : public JobRunner {
   study::LotOptions options_;
 };
 
+class DropJob : public JobRunner {
+ public:
+  explicit DropJob(const JobSpec& job) : job_(job) {
+    options_.units = job.units;
+    options_.first_seed = job.first_seed;
+    options_.effects = job.effects;
+    options_.mass = job.mass;
+    options_.velocity = job.velocity;
+    options_.duration = job.duration;
+  }
+  nlohmann::json RunItem(int index) const override { return study::DropUnitJson(study::PredictDropUnit(options_, index)); }
+  std::string Table(const std::vector<nlohmann::json>& records, bool complete) const override {
+    std::vector<study::DropUnit> units;
+    std::string text = study::DropHeading(options_);
+    for (const nlohmann::json& r : records) {
+      units.push_back(study::DropUnitFromJson(r));
+      text += study::DropUnitLine(units.back());
+    }
+    study::DropOptions shown = options_;
+    shown.units = static_cast<int>(units.size());
+    return text + study::DropSummary(shown, study::SummariseDrop(std::move(units))) +
+           Incomplete(complete, records.size(), job_.Items());
+  }
+  std::string ItemName(int index) const override { return fmt::format("unit {}", options_.first_seed + index); }
+
+ private:
+  JobSpec job_;
+  study::DropOptions options_;
+};
+
 }  // namespace
 
 std::unique_ptr<JobRunner> MakeStudyRunner(const JobSpec& job) {
   if (job.kind == "confusion") return std::make_unique<ConfusionJob>(job);
   if (job.kind == "qc-lot") return std::make_unique<LotJob>(job);
+  if (job.kind == "drop") return std::make_unique<DropJob>(job);
   return std::make_unique<UnitsJob>(job);
 }
 

@@ -97,17 +97,20 @@ DropUnit PredictUnit(const DropOptions& options, const sim::UnitDraw& draw, cons
 
 }  // namespace
 
-DropStudy RunDropStudy(const DropOptions& options, const std::function<void(const DropUnit&)>& on_unit) {
+DropUnit PredictDropUnit(const DropOptions& options, int u) {
   sim::UnitDraw draw;
   for (const std::string& e : options.effects) draw.effects.push_back({e, std::nullopt});
   draw.drop_mass = options.mass;
   draw.Validate();
   const ident::SessionFitOptions fit_options;  // the default fit: 2 dof, stroke input, default choices
   const ident::Model model = ident::Model::Build(fit_options.composition, fit_options.causality);
+  return PredictUnit(options, draw, fit_options, model, options.first_seed + u);
+}
+
+DropStudy SummariseDrop(std::vector<DropUnit> units) {
   DropStudy study;
   std::vector<double> cpu, wall, intervals_cpu, intervals_wall;
-  for (int u = 0; u < options.units; ++u) {
-    DropUnit unit = PredictUnit(options, draw, fit_options, model, options.first_seed + u);
+  for (const DropUnit& unit : units) {
     ++study.fits;
     study.at_floor += unit.verdict == ident::FitVerdict::kAtNoiseFloor;
     study.within5 += std::abs(unit.peak_force_error) < 0.05 && std::abs(unit.max_stroke_error) < 0.05;
@@ -115,9 +118,8 @@ DropStudy RunDropStudy(const DropOptions& options, const std::function<void(cons
     wall.push_back(unit.wall);
     intervals_cpu.push_back(unit.intervals_cpu);
     intervals_wall.push_back(unit.intervals_wall);
-    if (on_unit) on_unit(unit);
-    study.units.push_back(std::move(unit));
   }
+  study.units = std::move(units);
   for (const sim::DropFigureName& name : sim::DropFigureNames()) {
     DropFigureSummary s{name.name, std::string(name.unit) == "s"};
     std::vector<double> errors;
@@ -138,6 +140,15 @@ DropStudy RunDropStudy(const DropOptions& options, const std::function<void(cons
   study.intervals_cpu_median = Median(intervals_cpu);
   study.intervals_wall_median = Median(intervals_wall);
   return study;
+}
+
+DropStudy RunDropStudy(const DropOptions& options, const std::function<void(const DropUnit&)>& on_unit) {
+  std::vector<DropUnit> units;
+  for (int u = 0; u < options.units; ++u) {
+    units.push_back(PredictDropUnit(options, u));
+    if (on_unit) on_unit(units.back());
+  }
+  return SummariseDrop(std::move(units));
 }
 
 }  // namespace strut::study

@@ -18,7 +18,7 @@ class BatchError : public std::runtime_error {
 
 //! The job kinds: over sessions, or a drawn-unit study.
 inline constexpr const char* kSessionKinds[] = {"identify", "discover", "qc"};
-inline constexpr const char* kStudyKinds[] = {"confusion", "units", "qc-lot"};
+inline constexpr const char* kStudyKinds[] = {"confusion", "units", "qc-lot", "drop"};
 
 struct JobSpec {
   std::string name, kind;
@@ -34,6 +34,7 @@ struct JobSpec {
   int effects_per_unit = 0;     //!< units
   bool fit_truth = false;       //!< units
   int defects = 3;              //!< qc-lot: defective units per ten
+  double mass = 350.0, velocity = 0.5, duration = 30.0;  //!< drop: kg, m/s at contact, s from contact
   // Session jobs: the sessions (absolute, in order) after the manifest's globs were expanded.
   std::vector<std::string> sessions;
   std::string model = "2dof", input = "stroke";

@@ -6,6 +6,7 @@
 #pragma once
 
 #include <functional>
+#include <nlohmann/json_fwd.hpp>
 #include <string>
 #include <utility>
 #include <vector>
@@ -57,6 +58,21 @@ struct DropStudy {
   int fits = 0, at_floor = 0, within5 = 0;  //!< within5: peak force and max stroke both within 5 %
   double cpu_median = 0.0, wall_median = 0.0, intervals_cpu_median = 0.0, intervals_wall_median = 0.0;
 };
+
+//! Unit `u` (seed first_seed + u): what RunDropStudy predicts for it, so that a study split into
+//! ranges of units (strut batch) gives the same units.
+DropUnit PredictDropUnit(const DropOptions& options, int u);
+//! The study's figures from its units in unit order (what RunDropStudy gives for them).
+DropStudy SummariseDrop(std::vector<DropUnit> units);
+
+//! A unit in full as a batch shard keeps it, and back (doubles round-trip).
+nlohmann::json DropUnitJson(const DropUnit& unit);
+DropUnit DropUnitFromJson(const nlohmann::json& j);
+
+//! What `strut bench drop` prints: the heading, a line per unit, the summary.
+std::string DropHeading(const DropOptions& options);
+std::string DropUnitLine(const DropUnit& unit);
+std::string DropSummary(const DropOptions& options, const DropStudy& study);
 
 //! Runs the study; `on_unit` (may be empty) sees each unit as it ends.
 DropStudy RunDropStudy(const DropOptions& options, const std::function<void(const DropUnit&)>& on_unit = {});

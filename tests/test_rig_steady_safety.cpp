@@ -255,6 +255,9 @@ action = "stop"
 enabled = false
 [stale]
 timeout = 0.2
+[lag]
+max_lag = 1.5
+action = "stop"
 [actuator]
 max_velocity = 0.3
 )",
@@ -264,6 +267,10 @@ max_velocity = 0.3
   EXPECT_EQ(c.stroke.action, SafetyAction::kStop);
   EXPECT_FALSE(c.force.enabled);
   EXPECT_EQ(c.stale.timeout.count(), 200);
+  ASSERT_TRUE(c.lag.max_lag.has_value());
+  EXPECT_EQ(c.lag.max_lag->count(), 1500);
+  EXPECT_EQ(c.lag.action, SafetyAction::kStop);
+  EXPECT_FALSE(ParseSafetyConfig("[lag]\nenabled = true\n", "l.toml").lag.max_lag.has_value());  // the speed's default
   EXPECT_DOUBLE_EQ(c.actuator.max_velocity, 0.3);
   EXPECT_EQ(c.pressure.action, SafetyAction::kInterlock);  // defaults stay
   const auto error = [](const char* text) {
@@ -375,15 +382,33 @@ TEST(SafetyMonitor, FollowingErrorHeartbeatFaultStaleAndUnderPeak) {
   const auto stale = m.CheckStale(59'000'000);
   ASSERT_TRUE(stale);
   EXPECT_EQ(stale->detector, "stale-data");
-  // A stream that runs behind its nominal rate is silent by its samples' times, however recently
-  // their frames arrived: samples timed 0..9 ms whose last frame came at 40 ms trip at 59 ms.
+  // Silence counts from the samples' arrival: samples timed 0..9 ms whose last frame came at 40 ms
+  // are stale at 90 ms, not at 59 ms. Their lag behind their own clock (31 ms) is the lag
+  // detector's: within 40 ms nothing, beyond 30 ms a trip that says what lags.
+  c.lag.max_lag = std::chrono::milliseconds(40);
   SafetyMonitor behind(c, {"stroke", "force"});
   behind.Arm(0);
   daq::AcquiredBlock late = Block(std::vector<double>(10, 0.1), std::vector<double>(10, 0.0));
   late.last_frame_ns = 40'000'000;
-  behind.CheckBlock(late);
-  EXPECT_FALSE(behind.CheckStale(58'000'000));
-  EXPECT_TRUE(behind.CheckStale(59'000'000));
+  EXPECT_TRUE(behind.CheckBlock(late).empty());
+  EXPECT_EQ(behind.largest_lag_ns(), 31'000'000);
+  EXPECT_FALSE(behind.CheckStale(89'000'000));
+  EXPECT_TRUE(behind.CheckStale(90'000'000));
+  c.lag.max_lag = std::chrono::milliseconds(30);
+  for (const double speed : {1.0, 50.0}) {
+    SafetyMonitor lagging(c, {"stroke", "force"}, speed);
+    lagging.Arm(0);
+    const std::vector<Trip> trips = lagging.CheckBlock(late);
+    ASSERT_EQ(trips.size(), 1u);
+    EXPECT_EQ(trips[0].detector, "stream-lag");
+    EXPECT_EQ(trips[0].action, SafetyAction::kHold);
+    EXPECT_NE(trips[0].text.find("31 ms behind their own clock (limit 30 ms)"), std::string::npos) << trips[0].text;
+    EXPECT_EQ(trips[0].text.find("cannot hold 50x real time") != std::string::npos, speed == 50.0) << trips[0].text;
+    EXPECT_TRUE(lagging.CheckBlock(late).empty());  // latched
+  }
+  // The default limit: half a second for a stream at its recorded rate, 3 s for an accelerated one.
+  EXPECT_EQ(SafetyMonitor(SafetyConfig{}, {"stroke", "force"}).max_lag().count(), 500);
+  EXPECT_EQ(SafetyMonitor(SafetyConfig{}, {"stroke", "force"}, 50.0).max_lag().count(), 3000);
   // Under-peak: 0.85 of the commanded amplitude for two cycles.
   CycleSummary cycle;
   cycle.stroke_min = 0.1 - 0.0085;

@@ -146,6 +146,8 @@ struct RigRunCommand {
 
   //! How the run ended, on stdout; a run that did not complete ends with its exit code.
   void PrintOutcome(const rig::RunReport& report) const {
+    spdlog::info("the samples arrived at most {:.3f} s behind their own clock (lag limit {:.1f} s)", report.largest_lag,
+                 report.lag_limit);
     std::cout << fmt::format("{}: run {}\n", output, rig::ToString(report.outcome));
     for (const auto& l : report.complete) std::cout << fmt::format("  {:<10} complete\n", l);
     for (const auto& l : report.not_steady) std::cout << fmt::format("  {:<10} not steady (recorded)\n", l);

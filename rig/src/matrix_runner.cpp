@@ -110,7 +110,7 @@ struct MatrixRunner::Impl {
 
   Impl(MatrixRunner& owner, daq::ActuatorController& c, daq::AcquisitionModule& a, daq::Recorder& r, SafetyConfig s,
        RunnerOptions o)
-      : owner(owner), controller(c), acquisition(a), recorder(r), safety(std::move(s), ChannelNames(a)),
+      : owner(owner), controller(c), acquisition(a), recorder(r), safety(std::move(s), ChannelNames(a), o.stream_speed),
         options(std::move(o)) {}
 
   static std::vector<std::string> ChannelNames(const daq::AcquisitionModule& a) {
@@ -249,13 +249,15 @@ struct MatrixRunner::Impl {
         if (block.empty()) break;
         wait = std::chrono::nanoseconds(0);
       }
+      // Judged when the stream has just been read: a slow controller call after it (a Modbus
+      // response timeout is 500 ms) must not count as the stream's silence.
+      if (!acquisition_lost) {
+        if (auto t = safety.CheckStale(Now())) Handle(*t);
+      }
     } else {
       std::this_thread::sleep_for(options.loop);
     }
     PollController();
-    if (!acquisition_lost) {
-      if (auto t = safety.CheckStale(Now())) Handle(*t);
-    }
     ReportProgress(false);
     if (owner.stop_.load() && !safing) {
       throw Interrupt{Trip{"operator-stop", SafetyAction::kHold, Now(), "stop requested by the operator"}};
@@ -424,14 +426,17 @@ struct MatrixRunner::Impl {
     return s;
   }
 
+  //! `seconds` is what the wait should take on the recorded clock (a move, a ramp, the steady-state
+  //! time limit); the stream delivers it stream_speed times faster.
   template <typename P>
   void WaitUntil(P&& done, double seconds, const std::string& what) {
-    const std::int64_t deadline = Now() + Seconds(seconds) + Ns(options.settle_margin);
+    const double wall_seconds = seconds / options.stream_speed;
+    const std::int64_t deadline = Now() + Seconds(wall_seconds) + Ns(options.settle_margin);
     while (!done()) {
       if (Now() > deadline) {
         const std::string text = fmt::format(
             "{} did not happen within {:.1f} s (controller {}, status {}, stroke {:.6g} m)", what,
-            seconds + options.settle_margin.count() * 1e-3, daq::ToString(status.state),
+            wall_seconds + options.settle_margin.count() * 1e-3, daq::ToString(status.state),
             daq::StatusBitsText(status.status_word), status.stroke);
         if (safing) {
           Event("safing", text);
@@ -653,6 +658,8 @@ RunReport MatrixRunner::Run(const std::vector<RunItem>& items) {
     m.Disarm();
   }
   report.disarmed = m.disarmed;
+  report.largest_lag = static_cast<double>(m.safety.largest_lag_ns()) * 1e-9;
+  report.lag_limit = static_cast<double>(m.safety.max_lag().count()) * 1e-3;
   try {
     m.acquisition.Stop();
   } catch (const daq::DeviceError& e) {

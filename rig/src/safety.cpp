@@ -54,6 +54,7 @@ bool SafetyConfig::IsValid(std::string* error) const {
     return fail(fmt::format("[under_peak] fraction {} must be in (0, 1] and cycles {} >= 1", under_peak.fraction,
                             under_peak.cycles));
   if (stale.timeout.count() < 1) return fail("[stale] timeout must be at least 1 ms");
+  if (lag.max_lag && lag.max_lag->count() < 1) return fail("[lag] max_lag must be at least 1 ms");
   if (heartbeat.controller_timeout.count() < 1) return fail("[heartbeat] controller_timeout must be at least 1 ms");
   if (heartbeat.watchdog.count() < 0 || heartbeat.watchdog.count() > 65535)
     return fail(fmt::format("[heartbeat] watchdog {} ms is outside 0..65535 ms", heartbeat.watchdog.count()));
@@ -130,7 +131,7 @@ class Reader {
     for (auto&& [k, v] : root_) {
       if (!seen_.count(std::string(k.str())))
         Fail(v, fmt::format("unknown section '{}' (known: stroke, force, pressure, following_error, under_peak, stale, "
-                            "heartbeat, actuator, controller)",
+                            "lag, heartbeat, actuator, controller)",
                             k.str()));
     }
   }
@@ -164,6 +165,12 @@ SafetyConfig ParseSafetyConfig(std::string_view text, const std::string& source)
   });
   r.Detector("stale", {"enabled", "timeout", "action"}, c.stale,
              [&](const toml::table& t) { r.Millis(t, "stale", "timeout", c.stale.timeout); });
+  r.Detector("lag", {"enabled", "max_lag", "action"}, c.lag, [&](const toml::table& t) {
+    if (!t.contains("max_lag")) return;
+    std::chrono::milliseconds max_lag{0};
+    r.Millis(t, "lag", "max_lag", max_lag);
+    c.lag.max_lag = max_lag;
+  });
   r.Detector("heartbeat", {"enabled", "controller_timeout", "watchdog", "action"}, c.heartbeat,
              [&](const toml::table& t) {
                r.Millis(t, "heartbeat", "controller_timeout", c.heartbeat.controller_timeout);
@@ -193,9 +200,12 @@ SafetyConfig ReadSafetyConfig(const std::string& path) {
 // ---------------------------------------------------------------------------------------------
 // Run-time detectors
 
-SafetyMonitor::SafetyMonitor(SafetyConfig config, const std::vector<std::string>& channels) : config_(std::move(config)) {
+SafetyMonitor::SafetyMonitor(SafetyConfig config, const std::vector<std::string>& channels, double stream_speed)
+    : config_(std::move(config)), stream_speed_(stream_speed) {
   std::string error;
   if (!config_.IsValid(&error)) throw std::invalid_argument("safety config: " + error);
+  if (!(stream_speed > 0.0 && std::isfinite(stream_speed)))
+    throw std::invalid_argument(fmt::format("safety monitor: stream speed {} must be positive", stream_speed));
   for (std::size_t k = 0; k < channels.size(); ++k) {
     if (channels[k] == "stroke")
       limited_.push_back({k, "stroke-limit", "m", &SafetyConfig::stroke, &SafetyMonitor::stroke_, &Margins::stroke});
@@ -215,7 +225,8 @@ void SafetyMonitor::Arm(std::int64_t now_ns) {
 
 void SafetyMonitor::Reset(std::int64_t now_ns) {
   stroke_ = force_ = pressure_ = following_ = {};
-  stale_latched_ = heartbeat_latched_ = fault_latched_ = under_peak_latched_ = false;
+  stale_latched_ = heartbeat_latched_ = fault_latched_ = under_peak_latched_ = lag_latched_ = false;
+  largest_lag_ns_ = 0;
   under_peak_count_ = 0;
   Arm(now_ns);
 }
@@ -246,11 +257,10 @@ std::optional<Trip> SafetyMonitor::CheckLimit(const char* detector, const char* 
 std::vector<Trip> SafetyMonitor::CheckBlock(const daq::AcquiredBlock& block) {
   std::vector<Trip> trips;
   if (block.empty()) return trips;
-  // The samples' times (the linear time rule), not their frames' arrival: a stream half a second
-  // behind its nominal rate counts as silent, because the runner's cycles start at the block that
-  // arrives after the controller reports full amplitude and must not be the ramp's
-  // (docs/rig-run.md "Benchmark").
-  last_sample_ns_ = std::max(last_sample_ns_, block.time_ns.back());
+  // Silence is judged by the samples' arrival; a stream that arrives but behind its own clock is
+  // the lag detector's (CheckLag), which says which of the two a lagging simulated rig is.
+  last_sample_ns_ = std::max(last_sample_ns_, block.last_frame_ns > 0 ? block.last_frame_ns : block.time_ns.back());
+  if (auto trip = CheckLag(block)) trips.push_back(std::move(*trip));
   for (const LimitedChannel& c : limited_) {
     if (c.k >= block.values.size()) continue;
     const ChannelLimit& l = config_.*c.limit;
@@ -263,6 +273,29 @@ std::vector<Trip> SafetyMonitor::CheckBlock(const daq::AcquiredBlock& block) {
     }
   }
   return trips;
+}
+
+std::chrono::milliseconds SafetyMonitor::max_lag() const {
+  if (config_.lag.max_lag) return *config_.lag.max_lag;
+  return std::chrono::milliseconds(stream_speed_ == 1.0 ? 500 : 3000);
+}
+
+std::optional<Trip> SafetyMonitor::CheckLag(const daq::AcquiredBlock& block) {
+  if (block.last_frame_ns <= 0) return std::nullopt;  // a source without arrival times (replay, tests)
+  const std::int64_t lag = block.last_frame_ns - block.time_ns.back();
+  largest_lag_ns_ = std::max(largest_lag_ns_, lag);
+  const std::chrono::milliseconds limit = max_lag();
+  if (!config_.lag.enabled || lag_latched_ || lag < std::chrono::nanoseconds(limit).count()) return std::nullopt;
+  lag_latched_ = true;
+  const std::string why =
+      stream_speed_ != 1.0
+          ? fmt::format("the simulated rig cannot hold {:g}x real time on this machine (it computes its samples slower "
+                        "than they are due); run it again at a lower --speed (--resume goes on)",
+                        stream_speed_)
+          : "the module's clock runs behind the host's or its frames are held up on the way";
+  return Trip{"stream-lag", config_.lag.action, block.last_frame_ns,
+              fmt::format("the samples arrive {} ms behind their own clock (limit {} ms): {}", lag / 1'000'000,
+                          limit.count(), why)};
 }
 
 std::optional<Trip> SafetyMonitor::CheckStale(std::int64_t now_ns) {

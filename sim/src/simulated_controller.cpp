@@ -223,14 +223,18 @@ struct SimulatedController::Plant {
   PlantState state;
 };
 
+struct SimulatedController::DamperChannels {
+  Eigen::VectorXd stroke, force, pressure;
+};
+
 //! One chunk's results.
 struct SimulatedController::Chunk {
   SampleBlock readings;  //!< the chunk's samples as the sensors read them
   std::vector<double> stroke, command, force, pressure;  //!< noise-free, per sample (command: NaN when off)
   PlantSnapshot end;     //!< the plant at the chunk's end
   long ida_steps = 0;
-  double fit_value_error = 0.0, fit_accel_error = 0.0;  //!< of the last polynomial tried
-  bool smooth = false;  //!< the damper saw the polynomial (else the loop's knots)
+  double fit_value_error = 0.0, fit_accel_error = 0.0;  //!< the worst of the pieces' polynomials
+  bool smooth = false;  //!< the damper saw polynomials over the whole chunk (else the knots somewhere)
 };
 
 SimulatedController::SimulatedController(Truth truth, SimulatedControllerOptions options)
@@ -253,6 +257,89 @@ SimulatedController::SimulatedController(Truth truth, SimulatedControllerOptions
 }
 
 SimulatedController::~SimulatedController() = default;
+
+namespace {
+
+// The worst misfit of a polynomial to the loop's knots within [from, to].
+std::pair<double, double> KnotMisfit(const ChebyshevSignal& fit, const StrokeTrajectory& stroke, double t0, double t1,
+                                     double from, double to) {
+  double worst_value = 0.0, worst_accel = 0.0;
+  for (std::size_t k = 0; k < stroke.knots(); ++k) {
+    const double t = t0 + (t1 - t0) * static_cast<double>(k) / static_cast<double>(stroke.knots() - 1);
+    if (t < from - 1e-12 || t > to + 1e-12) continue;
+    const InputSample a = fit.At(t), b = stroke.At(t);
+    worst_value = std::max(worst_value, std::abs(a.value - b.value));
+    worst_accel = std::max(worst_accel, std::abs(a.accel - b.accel));
+  }
+  return {worst_value, worst_accel};
+}
+
+}  // namespace
+
+std::vector<SimulatedController::StrokePiece> SimulatedController::SmoothPieces(const StrokeTrajectory& stroke,
+                                                                                  double t0, double fine,
+                                                                                  long fine_count, Chunk& out) {
+  // Halving stops at a quarter of the chunk (12.5 ms): below that the knots cost little more than
+  // IDA's restarts at the pieces' ends.
+  constexpr int kMaxHalvings = 2;
+  const double t1 = t0 + static_cast<double>(fine_count) * fine;
+  std::vector<StrokePiece> pieces;
+  out.smooth = true;
+  out.fit_value_error = out.fit_accel_error = 0.0;
+  const std::function<void(long, long, int)> cover = [&](long from, long to, int halvings) {
+    const double a = t0 + static_cast<double>(from) * fine, b = t0 + static_cast<double>(to) * fine;
+    double value = 0.0, accel = 0.0;
+    for (int degree : {16, 32}) {
+      ChebyshevSignal fit = ChebyshevSignal::Fit([&stroke](double t) { return stroke.At(t).value; }, a, b, degree);
+      std::tie(value, accel) = KnotMisfit(fit, stroke, t0, t1, a, b);
+      if (value <= kSmoothStrokeError && accel <= kSmoothAccelError) {
+        out.fit_value_error = std::max(out.fit_value_error, value);
+        out.fit_accel_error = std::max(out.fit_accel_error, accel);
+        pieces.push_back({from, to, std::move(fit)});
+        return;
+      }
+    }
+    if (halvings == kMaxHalvings || to - from < 2) {
+      out.smooth = false;
+      out.fit_value_error = std::max(out.fit_value_error, value);
+      out.fit_accel_error = std::max(out.fit_accel_error, accel);
+      pieces.push_back({from, to, std::nullopt});
+      return;
+    }
+    const long middle = (from + to) / 2;
+    cover(from, middle, halvings + 1);
+    cover(middle, to, halvings + 1);
+  };
+  cover(0, fine_count, 0);
+  return pieces;
+}
+
+SimulatedController::DamperChannels SimulatedController::IntegrateDamper(Plant& plant, const StrokeTrajectory& stroke,
+                                                                         double t0, long fine_count, Chunk& out) {
+  PlantState& s = plant.state;
+  const double fine = s.force.step;
+  const LvdtInverse& lvdt = plant.lvdt;
+  DamperChannels d{Eigen::VectorXd(fine_count + 1), Eigen::VectorXd(fine_count + 1), Eigen::VectorXd(fine_count + 1)};
+  out.ida_steps = 0;
+  // One IDA run per piece, each from where the last ended: the pieces meet within 1e-9 m, which an
+  // integration across the join would take for a discontinuity of the input.
+  for (const StrokePiece& p : SmoothPieces(stroke, t0, fine, fine_count, out)) {
+    const long count = p.to - p.from;
+    std::vector<double> times(static_cast<std::size_t>(count) + 1);
+    for (long j = 0; j <= count; ++j) times[j] = static_cast<double>(j) * fine;
+    const double start = t0 + static_cast<double>(p.from) * fine;
+    const InputSignal input([&p, &stroke, &lvdt, start](double t) {
+      return lvdt(p.fit ? p.fit->At(start + t) : stroke.At(start + t));
+    });
+    const TransientResult r = plant.simulator.Simulate(plant.theta, input, times, s.damper);
+    out.ida_steps += r.steps;
+    s.damper.unknowns.assign(r.unknowns.col(count).data(), r.unknowns.col(count).data() + r.unknowns.rows());
+    d.stroke.segment(p.from, count + 1) = r.channel("stroke");
+    d.force.segment(p.from, count + 1) = r.channel("force");
+    d.pressure.segment(p.from, count + 1) = r.channel("pressure");
+  }
+  return d;
+}
 
 void SimulatedController::Integrate(Plant& plant, const CommandProgram& program, double closed_from,
                                     Chunk& out) const {
@@ -302,37 +389,8 @@ void SimulatedController::Integrate(Plant& plant, const CommandProgram& program,
   const StrokeTrajectory stroke = plant.actuator.Run(command, load, t0, t1 - t0, s.servo, &s.actuator_stats, closed);
 
   // The damper over the chunk, from where the last one ended; the force on the fine grid.
-  std::vector<double> times(static_cast<std::size_t>(fine_count) + 1);
-  for (long j = 0; j <= fine_count; ++j) times[j] = static_cast<double>(j) * fine;
-  const LvdtInverse& lvdt = plant.lvdt;
-  // The stroke reaches the damper as one polynomial over the chunk when that reproduces the loop's
-  // knots (value, rate and acceleration): knots every 0.5 ms would cut IDA's steps short. A chunk
-  // with a sharp transient (the valve's first milliseconds after a move starts) keeps the knots.
-  std::optional<ChebyshevSignal> smooth;
-  for (int degree : {16, 32}) {
-    ChebyshevSignal fit = ChebyshevSignal::Fit([&stroke](double t) { return stroke.At(t).value; }, t0, t1, degree);
-    double worst_value = 0.0, worst_accel = 0.0;
-    for (std::size_t k = 0; k < stroke.knots(); ++k) {
-      const double t = t0 + (t1 - t0) * static_cast<double>(k) / static_cast<double>(stroke.knots() - 1);
-      const InputSample a = fit.At(t), b = stroke.At(t);
-      worst_value = std::max(worst_value, std::abs(a.value - b.value));
-      worst_accel = std::max(worst_accel, std::abs(a.accel - b.accel));
-    }
-    out.fit_value_error = worst_value, out.fit_accel_error = worst_accel;
-    if (worst_value <= kSmoothStrokeError && worst_accel <= kSmoothAccelError) {
-      smooth = std::move(fit);
-      break;
-    }
-  }
-  out.smooth = smooth.has_value();
-  const InputSignal input = smooth ? InputSignal([&smooth, &lvdt, t0](double t) { return lvdt(smooth->At(t0 + t)); })
-                                   : InputSignal([&stroke, &lvdt, t0](double t) { return lvdt(stroke.At(t0 + t)); });
-  const TransientResult r = plant.simulator.Simulate(plant.theta, input, times, s.damper);
-  out.ida_steps = r.steps;
-  s.damper.unknowns.assign(r.unknowns.col(fine_count).data(),
-                           r.unknowns.col(fine_count).data() + r.unknowns.rows());
-  const Eigen::VectorXd stroke_out = r.channel("stroke"), force_out = r.channel("force"),
-                        pressure_out = r.channel("pressure");
+  const DamperChannels d = IntegrateDamper(plant, stroke, t0, fine_count, out);
+  const Eigen::VectorXd &stroke_out = d.stroke, &force_out = d.force, &pressure_out = d.pressure;
   const std::size_t keep = static_cast<std::size_t>(
       std::ceil(std::min(std::isfinite(period) ? period : 0.0, kMaxHistorySeconds) / fine) + 2 * fine_count + 8);
   if (s.force.values.empty()) {

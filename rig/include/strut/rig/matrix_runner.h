@@ -101,6 +101,10 @@ struct RunReport {
   std::string cause;         //!< in words, "" when complete
   std::vector<std::string> remaining;  //!< matrix labels not yet recorded
   bool disarmed = false;     //!< the controller was disarmed at the end
+  //! Wall seconds the stream's samples arrived behind their own clock, at most (the lag detector's
+  //! measure; a simulated rig's shows how close the machine came to not holding --speed).
+  double largest_lag = 0.0;
+  double lag_limit = 0.0;  //!< s, the lag detector's limit in force
 };
 
 //! Runs experiments on the rig. One thread calls Run; RequestPause/RequestStop may be called from

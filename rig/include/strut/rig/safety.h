@@ -70,9 +70,19 @@ struct SafetyConfig {
   } under_peak;
   struct Stale {
     bool enabled = true;
-    std::chrono::milliseconds timeout{500};  //!< no sample for this long
+    std::chrono::milliseconds timeout{500};  //!< no sample arrived for this long (wall clock)
     SafetyAction action = SafetyAction::kStop;
   } stale;
+  //! The stream behind its own clock: the newest sample's time on the linear time rule this far
+  //! before its frame arrived. A real module that lags is delivering old data; a simulated rig that
+  //! lags is computing slower than --speed asks, which the message says.
+  struct Lag {
+    bool enabled = true;
+    //! Wall clock. Unset: 0.5 s for a stream at its recorded rate (a real rig), 3 s for an
+    //! accelerated one (a simulated rig, whose own interlocks judge its samples in time).
+    std::optional<std::chrono::milliseconds> max_lag;
+    SafetyAction action = SafetyAction::kHold;
+  } lag;
   struct Heartbeat {
     bool enabled = true;
     //! The controller's heartbeat counter frozen this long: it is not running its loop.
@@ -121,13 +131,15 @@ class SafetyMonitor {
   //! `channels` names the channels of the blocks CheckBlock gets, in order: the limited ones
   //! (stroke, force, pressure) are found there once; the others are not checked. Throws
   //! std::invalid_argument when the config is not valid.
-  SafetyMonitor(SafetyConfig config, const std::vector<std::string>& channels);
+  //! `stream_speed`: recorded seconds per second of the stream's clock (RunnerOptions::stream_speed),
+  //! for the lag detector's default and its message.
+  SafetyMonitor(SafetyConfig config, const std::vector<std::string>& channels, double stream_speed = 1.0);
   const SafetyConfig& config() const { return config_; }
 
-  //! Channel limits over the samples of a block of the channels given at construction. Also notes
-  //! the samples' arrival for the stale-data detector.
+  //! Channel limits over the samples of a block of the channels given at construction, and the
+  //! stream's lag behind its clock. Also notes the samples' arrival for the stale-data detector.
   std::vector<Trip> CheckBlock(const daq::AcquiredBlock& block);
-  //! Stale data: no sample since `now_ns - timeout` (the clock starts at Arm(now_ns)).
+  //! Stale data: no sample arrived since `now_ns - timeout` (the clock starts at Arm(now_ns)).
   std::optional<Trip> CheckStale(std::int64_t now_ns);
   //! The controller: latched faults, its heartbeat counter frozen, command minus feedback.
   std::vector<Trip> CheckStatus(const daq::ControllerStatus& status, std::int64_t now_ns);
@@ -142,6 +154,10 @@ class SafetyMonitor {
   void Reset(std::int64_t now_ns);
   //! Margins over what was seen since the last TakeMargins (then starts over).
   Margins TakeMargins();
+  //! The lag limit in force (the configured one, or the default for this stream's speed).
+  std::chrono::milliseconds max_lag() const;
+  //! The largest lag seen since Reset, ns (0 when the blocks carry no arrival time).
+  std::int64_t largest_lag_ns() const { return largest_lag_ns_; }
 
  private:
   struct LimitState {
@@ -157,13 +173,17 @@ class SafetyMonitor {
     LimitState SafetyMonitor::*state;
     double Margins::*margin;
   };
+  std::optional<Trip> CheckLag(const daq::AcquiredBlock& block);
   std::optional<Trip> CheckLimit(const char* detector, const char* unit, const ChannelLimit& limit, LimitState& state,
                                  double value, std::int64_t t);
   SafetyConfig config_;
   std::vector<LimitedChannel> limited_;  // in the blocks' order
   LimitState stroke_, force_, pressure_, following_;
+  double stream_speed_ = 1.0;
   bool stale_latched_ = false, heartbeat_latched_ = false, fault_latched_ = false, under_peak_latched_ = false;
+  bool lag_latched_ = false;
   std::int64_t last_sample_ns_ = 0;
+  std::int64_t largest_lag_ns_ = 0;
   std::optional<std::uint16_t> last_heartbeat_;
   std::int64_t heartbeat_changed_ns_ = 0;
   int under_peak_count_ = 0;

@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "strut/daq/controller.h"
+#include "strut/sim/actuator.h"
 #include "strut/sim/simulated_rig.h"
 #include "strut/sim/truth.h"
 
@@ -147,6 +148,18 @@ class SimulatedController final : public daq::ControllerBackend {
  private:
   struct Plant;
   struct Chunk;
+  //! A stretch of a chunk (fine-grid indices from..to) and the polynomial the damper sees there
+  //! (none: the loop's knots).
+  struct StrokePiece {
+    long from = 0, to = 0;
+    std::optional<ChebyshevSignal> fit;
+  };
+  static std::vector<StrokePiece> SmoothPieces(const StrokeTrajectory& stroke, double t0, double fine, long fine_count,
+                                               Chunk& out);
+  //! The damper's stroke, force and pressure on the chunk's fine grid.
+  struct DamperChannels;
+  static DamperChannels IntegrateDamper(Plant& plant, const StrokeTrajectory& stroke, double t0, long fine_count,
+                                        Chunk& out);
   //! Integrates [t0, t0 + chunk) of `plant` under `program`, with the valve closed from
   //! `closed_from`; fills `out`. Touches no shared state.
   void Integrate(Plant& plant, const CommandProgram& program, double closed_from, Chunk& out) const;

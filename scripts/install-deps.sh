@@ -6,7 +6,7 @@ packages=(
   build-essential cmake ninja-build pkg-config
   libeigen3-dev libhdf5-dev hdf5-tools libspdlog-dev libfmt-dev libcli11-dev
   libmodbus-dev libgtest-dev libgmock-dev libsundials-dev liblapack-dev clang-14 libclang-rt-14-dev
-  nlohmann-json3-dev libtomlplusplus-dev libmatio-dev libsqlite3-dev
+  nlohmann-json3-dev libtomlplusplus-dev libmatio-dev libsqlite3-dev libcpp-httplib-dev
   python3-h5py python3-numpy
   chromium
   python3-pymodbus python3-serial-asyncio

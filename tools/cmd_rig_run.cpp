@@ -28,6 +28,7 @@
 #include "strut/rig/campaign.h"
 #include "strut/rig/channel_file.h"
 #include "strut/rig/matrix_runner.h"
+#include "strut/monitor/server.h"
 #include "strut/rig/safety.h"
 #include "strut/rig/test_matrix.h"
 #include "strut/sim/can_module.h"
@@ -51,6 +52,12 @@ extern "C" void OnSignal(int signal) {
   } else {
     runner->RequestStop();
   }
+}
+
+monitor::MonitorOptions MonitorOptionsOf(const std::string& endpoint, bool control) {
+  monitor::MonitorOptions o = monitor::ParseMonitorEndpoint(endpoint.empty() ? "127.0.0.1:8080" : endpoint);
+  o.control = control;
+  return o;
 }
 
 std::string Percent(double margin) {
@@ -96,6 +103,9 @@ struct RigRunCommand {
   std::optional<double> speed;  // a simulated rig's clock: in-process, or served at that speed
   double drift_window = rig::SteadyStateTolerances{}.drift_window;
   TruthOptions truth_options;   // a simulated rig's truth: in-process, or served with the same options
+  std::string monitor_endpoint;  // --monitor [HOST:PORT]
+  CLI::Option* monitor_option = nullptr;
+  bool monitor_control = false;
 
   //! The truth of a simulated rig: run here (--rig sim), or served by `strut rig serve-sim` with
   //! the same options, which the runner cannot ask; either way the session records it. Takes the
@@ -233,6 +243,25 @@ struct RigRunCommand {
     rig::MatrixRunner runner(*devices.controller, *devices.acquisition, recorder, safety, options);
     const bool tty = !no_progress && isatty(fileno(stderr));
     runner.on_progress = ProgressDisplay(tty);
+    std::optional<monitor::MonitorFeed> feed;
+    std::optional<monitor::MonitorServer> page;
+    if (monitor_option->count() > 0) {
+      const monitor::MonitorOptions where = MonitorOptionsOf(monitor_endpoint, monitor_control);
+      const daq::StreamDescription& stream = devices.acquisition->description();
+      std::vector<std::string> names;
+      for (const daq::ChannelDescriptor& ch : stream.channels) names.push_back(ch.name);
+      feed.emplace(names, stream.sample_rate, stream_speed);
+      page.emplace(*feed, monitor::MonitorSetup{fmt::format("{} ({})", output, devices.description), items, safety, options.steady},
+                   where,
+                   monitor::MonitorControls{[&runner] { runner.RequestPause(); }, [&runner] { runner.RequestStop(); }});
+      spdlog::info("monitor: {}{}", page->url(), monitor_control ? " (pause and stop buttons for this machine)" : "");
+      runner.on_progress = [display = runner.on_progress, &feed](const rig::Progress& p) {
+        display(p);
+        feed->Progress(p);
+      };
+      runner.on_event = [&feed](std::string_view kind, const std::string& text) { feed->Event(kind, text); };
+      runner.on_block = [&feed](const daq::AcquiredBlock& block) { feed->Block(block); };
+    }
 
     g_interrupts = 0;
     g_runner = &runner;
@@ -310,6 +339,14 @@ void RegisterRigRunCommand(CLI::App& rig) {
   run->add_flag("--resume", c->resume, "Go on with an interrupted run into the same session (its journal).");
   run->add_flag("--force", c->force, "Replace an existing session or journal at the output.");
   run->add_flag("--no-progress", c->no_progress, "No live progress line on a terminal.");
+  c->monitor_option = run->add_option("--monitor", c->monitor_endpoint,
+                                      "Serve a live view of the run as a web page at HOST:PORT (default 127.0.0.1:8080; "
+                                      "port 0: any free port, logged): traces with the limits, the loops, margins, the "
+                                      "steady-state test, the matrix, events (docs/monitor.md).")
+                          ->expected(0, 1);
+  run->add_flag("--monitor-control", c->monitor_control,
+                "With --monitor: pause and stop buttons on the page (as Ctrl-C once and twice), for requests from this "
+                "machine only.");
   c->truth_options.Add(*run, /*with_actuator=*/true);
 }
 

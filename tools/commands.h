@@ -44,6 +44,8 @@ void RegisterBenchRig(CLI::App& bench);
 void RegisterBatchCommand(CLI::App& app);
 //! Adds `batch` (the batch engines' shards per minute and overhead) under the `bench` subcommand.
 void RegisterBenchBatch(CLI::App& bench);
+//! Adds `served` (the two-process simulated rig run again and again, tools/bench_served.cpp) under `bench`.
+void RegisterBenchServed(CLI::App& bench);
 //! `predict drop`: drop-test prediction from a fit.
 void RegisterPredictCommand(CLI::App& app);
 

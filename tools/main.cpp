@@ -60,6 +60,7 @@ int main(int argc, char** argv) {
   strut::tools::RegisterReplayCommand(app);
   strut::tools::RegisterBenchReplay(*app.get_subcommand("bench"));
   strut::tools::RegisterBenchRig(*app.get_subcommand("bench"));
+  strut::tools::RegisterBenchServed(*app.get_subcommand("bench"));
   strut::tools::RegisterQcCommand(app);
   strut::tools::RegisterPredictCommand(app);
   strut::tools::RegisterBatchCommand(app);

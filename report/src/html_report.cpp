@@ -409,4 +409,7 @@ std::string HtmlReport::Render() const {
 
 void HtmlReport::Write(const std::string& path) const { daq::WriteFileAtomically(path, Render()); }
 
+std::string_view PlotScript() { return detail::ReportScript(); }
+std::string_view PlotStyle() { return detail::ReportStyle(); }
+
 }  // namespace strut::report

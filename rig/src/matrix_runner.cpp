@@ -160,6 +160,7 @@ struct MatrixRunner::Impl {
   // ---- events and trips
 
   void Event(std::string_view kind, const std::string& text, std::int64_t t = 0) {
+    if (owner.on_event) owner.on_event(kind, text);
     try {
       recorder.Event(t != 0 ? t : Now(), kind, text);
     } catch (const daq::RecorderError& e) {
@@ -202,6 +203,8 @@ struct MatrixRunner::Impl {
       progress.periods_recorded = current->spp > 0 ? current->recorded / current->spp : 0;
       progress.steady_measure = current->detector ? current->detector->verdict().measure
                                                   : std::numeric_limits<double>::infinity();
+      progress.steady.reset();
+      if (current->detector) progress.steady = current->detector->verdict();
     }
     owner.on_progress(progress);
   }
@@ -265,6 +268,7 @@ struct MatrixRunner::Impl {
   }
 
   void HandleBlock(const daq::AcquiredBlock& block) {
+    if (owner.on_block) owner.on_block(block);
     for (const daq::AcquisitionEvent& e : block.events) Event(daq::ToString(e.kind), e.text, e.monotonic_ns);
     // The block is recorded first and checked after, so that a trip keeps the samples that caused it.
     RecordBlock(block);

@@ -66,10 +66,13 @@ const SteadyStateVerdict& SteadyStateDetector::Add(const CycleSummary& cycle) {
   if (verdict_.done()) return verdict_;
   verdict_.cycles = static_cast<long>(cycles_.size());
   if (cycles_.size() >= 2) {
-    verdict_.measure = ChangeBetween(cycles_[cycles_.size() - 2], cycle, tolerances_).worst_ratio(tolerances_);
+    verdict_.last_change = ChangeBetween(cycles_[cycles_.size() - 2], cycle, tolerances_);
+    verdict_.measure = verdict_.last_change.worst_ratio(tolerances_);
     verdict_.agreeing = verdict_.measure < 1.0 ? verdict_.agreeing + 1 : 0;
   }
   const double elapsed = (cycle.end_ns - cycles_.front().start_ns) * 1e-9;
+  verdict_.elapsed = elapsed;
+  verdict_.drift = Drift();
   if (verdict_.agreeing >= tolerances_.consecutive && elapsed >= tolerances_.drift_window && !Drifting()) {
     verdict_.steady = true;
     verdict_.steady_at = cycle.cycle;
@@ -77,6 +80,18 @@ const SteadyStateVerdict& SteadyStateDetector::Add(const CycleSummary& cycle) {
   }
   if (verdict_.cycles >= tolerances_.max_cycles || elapsed >= tolerances_.time_limit) verdict_.timed_out = true;
   return verdict_;
+}
+
+double SteadyStateDetector::Drift() const {
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const CycleSummary& last = cycles_.back();
+  if (tolerances_.drift_window <= 0.0 || std::isnan(last.pressure_mean)) return nan;
+  for (auto it = cycles_.rbegin() + 1; it != cycles_.rend(); ++it)
+    if ((last.end_ns - it->end_ns) * 1e-9 >= tolerances_.drift_window) {
+      const double reference = std::max(std::abs(last.pressure_mean), tolerances_.pressure_floor);
+      return std::abs(last.pressure_mean - it->pressure_mean) / reference;
+    }
+  return nan;
 }
 
 bool SteadyStateDetector::Drifting() const {

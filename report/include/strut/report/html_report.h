@@ -105,4 +105,9 @@ class HtmlReport {
   std::unordered_map<std::string, int> array_index_;
 };
 
+//! The plotting script every report writes inline (uPlot, then strut's figure code) and uPlot's
+//! style sheet: for pages served live (monitor/), which embed uPlot the same way.
+std::string_view PlotScript();
+std::string_view PlotStyle();
+
 }  // namespace strut::report

@@ -71,6 +71,7 @@ struct Progress {
   long periods_recorded = 0;
   long periods_requested = 0;
   double steady_measure = 0.0;  //!< last cycle-to-cycle change / tolerance (< 1 agrees; inf before two cycles)
+  std::optional<SteadyStateVerdict> steady;  //!< the steady-state test's figures, while it runs
   Margins margins;              //!< of each limit over the last interval
   double stroke = 0.0, force = 0.0;  //!< from the controller
 };
@@ -129,6 +130,11 @@ class MatrixRunner {
   void RequestStop() { stop_.store(true); }
 
   std::function<void(const Progress&)> on_progress;
+  //! Every event the run records (kind and text as in the session), as it is recorded.
+  std::function<void(std::string_view kind, const std::string& text)> on_event;
+  //! Every block read from the acquisition, on the runner's thread, before it is recorded: a
+  //! consumer (the live monitor) must return at once and never wait on anything.
+  std::function<void(const daq::AcquiredBlock&)> on_block;
 
  private:
   struct Impl;

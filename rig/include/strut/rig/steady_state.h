@@ -9,6 +9,7 @@
 #include <optional>
 #include <span>
 #include <string>
+#include <limits>
 #include <vector>
 
 #include "strut/daq/session.h"
@@ -69,6 +70,11 @@ struct SteadyStateVerdict {
   //! The last change as a multiple of the tolerance (the "steady-state measure"; inf before two cycles).
   double measure = 0.0;
   int agreeing = 0;  //!< consecutive changes within tolerance so far
+  CycleChange last_change;  //!< the last change between consecutive cycles (zeros before two cycles)
+  //! The mean pressure's change over the drift window, as a fraction of max(|mean|, floor);
+  //! NaN before the window has passed (or without pressure, or with the window off).
+  double drift = std::numeric_limits<double>::quiet_NaN();
+  double elapsed = 0.0;  //!< recorded s since the first cycle began
   bool done() const { return steady || timed_out; }
 };
 
@@ -86,6 +92,8 @@ class SteadyStateDetector {
  private:
   //! The mean pressure still drifts over the drift window (or the window has not passed).
   bool Drifting() const;
+  //! SteadyStateVerdict::drift of the cycles so far.
+  double Drift() const;
   SteadyStateTolerances tolerances_;
   std::vector<CycleSummary> cycles_;
   SteadyStateVerdict verdict_;

@@ -110,6 +110,36 @@ TEST(DropPrediction, MatchesTheSimulatedRigsDropOfTheSameDamper) {
   EXPECT_NEAR(p.figures.final_stroke, report.final_stroke, 1e-4 * report.final_stroke);
 }
 
+TEST(DropPrediction, TheDroppedMassCarryingTheta1IsTheRigsDropOfBothMasses) {
+  // Carrying theta1 (the shaker's 40 kg moving mass) is a drop of mass + theta1 on a rig where
+  // theta1 stays on the ground: the simulated rig's own drop of 350 kg + theta1 is the reference.
+  const ident::Model model = DefaultTruth().BuildModel(ident::Causality::kForceInput);
+  const SimulatedRig rig(DefaultTruth());
+  const double theta1 = rig.theta()[model.defaults().position_of_index(1)];
+  ASSERT_GT(theta1, 1.0);
+  std::mt19937_64 rng(1);
+  DropRunReport report;
+  DropSpec spec;
+  spec.duration = 5.0;
+  spec.mass = 350.0 + theta1;
+  rig.RunDrop(spec, rng, &report);
+  DropPredictionOptions options;
+  options.duration = 5.0;
+  options.intervals = false;
+  const DropPrediction alone = PredictDrop(model, rig.theta(), 350.0, 0.5, {}, Eigen::MatrixXd(), options);
+  options.moving_mass = DropMovingMass::kDroppedWithTheta1;
+  const DropPrediction carried = PredictDrop(model, rig.theta(), 350.0, 0.5, {}, Eigen::MatrixXd(), options);
+  EXPECT_NEAR(carried.load.mass, 350.0 + theta1, 1e-12);
+  EXPECT_NEAR(carried.figures.max_stroke, report.peak_stroke, 1e-4 * report.peak_stroke);
+  EXPECT_NEAR(carried.figures.peak_force, report.peak_force, 1e-3 * report.peak_force);
+  EXPECT_NEAR(carried.figures.final_stroke, report.final_stroke, 1e-4 * report.final_stroke);
+  // And it is not the drop of 350 kg alone: the heavier mass goes deeper.
+  EXPECT_GT(carried.figures.max_stroke - alone.figures.max_stroke, 1e-3);
+  EXPECT_EQ(DropMovingMassFrom("dropped+theta1"), DropMovingMass::kDroppedWithTheta1);
+  EXPECT_EQ(DropMovingMassFrom("dropped"), DropMovingMass::kDroppedAlone);
+  EXPECT_FALSE(DropMovingMassFrom("both").has_value());
+}
+
 TEST(DropPrediction, IntervalGradientAgreesWithFinerDifferences) {
   // sd^2 = g' C g with g by differences over +- 1 sd; with a 1 % sd on theta3 and theta4 the figures
   // are close to linear, so differences over +- 0.01 sd give the same gradient.

@@ -48,6 +48,7 @@ std::map<int, double> ParseScales(const std::vector<std::string>& items, const i
 struct PredictDropCommand {
   std::string fit_path;
   std::optional<double> mass, velocity, duration;
+  std::string moving_mass = "dropped";
   std::string compare_path, experiment_label;
   std::vector<std::string> scales;
   std::string json_path, report_path;
@@ -89,6 +90,7 @@ struct PredictDropCommand {
       throw std::invalid_argument("--mass and --velocity are needed (or --compare with a recorded drop to take them from)");
     options.duration = duration.value_or(30.0);
     options.intervals = !no_intervals;
+    options.moving_mass = *sim::DropMovingMassFrom(moving_mass);
 
     report::DropComparison drop;
     drop.fit_path = fit_path;
@@ -98,8 +100,9 @@ struct PredictDropCommand {
     drop.impact_velocity = *velocity;
     drop.options = options;
     for (const auto& [position, factor] : scale) drop.scale[fit.parameters.spec(position).key()] = factor;
-    spdlog::info("predicting a drop of {} kg at {} m/s for {} s with {} from {}", *mass, *velocity, options.duration,
-                 fit.model.composition(), fit_path);
+    spdlog::info("predicting a drop of {} kg{} at {} m/s for {} s with {} from {}", *mass,
+                 options.moving_mass == sim::DropMovingMass::kDroppedAlone ? "" : " carrying theta1", *velocity,
+                 options.duration, fit.model.composition(), fit_path);
     drop.prediction = sim::PredictDropWhatIf(fit.model, fit.parameters.values(), *mass, *velocity,
                                              fit.estimated_positions, fit.covariance, scale, options);
     const sim::DropPrediction& predicted = drop.prediction.predicted;
@@ -164,6 +167,11 @@ void RegisterPredictCommand(CLI::App& app) {
   sub->add_option("--settle-band", command->options.settle_band,
                   "The band that counts as static for time_to_static: the stroke within this fraction of the static stroke.")
       ->check(Between(1e-6, 0.5))
+      ->capture_default_str();
+  sub->add_option("--moving-mass", command->moving_mass,
+                  "Which mass moves in the drop: dropped (the dropped mass alone; theta1, the shaker's moving mass, stays on "
+                  "the ground) or dropped+theta1 (the dropped mass carries theta1); docs/drop-prediction.md.")
+      ->check(CLI::IsMember({"dropped", "dropped+theta1"}))
       ->capture_default_str();
   sub->add_flag("--no-intervals", command->no_intervals, "Skip the intervals (one transient run instead of 1 + 2 per parameter).");
 }

@@ -95,6 +95,7 @@ nlohmann::json DropJson(const DropComparison& drop) {
   j["mass"] = drop.mass;
   j["impact_velocity"] = drop.impact_velocity;
   j["duration"] = drop.options.duration;
+  j["moving_mass"] = std::string(sim::ToString(drop.options.moving_mass));
   j["scale"] = nlohmann::json::object();
   for (const auto& [key, factor] : drop.scale) j["scale"][key] = factor;
   j["uncertainty"] = {{"method", "linearisation: each figure's gradient by central differences over +-1 sd of each "
@@ -135,9 +136,12 @@ void WriteDropReport(const DropComparison& drop, const std::string& path) {
   const sim::DropPredictionOptions& options = drop.options;
   HtmlReport report(fmt::format("strut predict drop: {} kg at {} m/s", drop.mass, drop.impact_velocity));
   report.AddParagraph(fmt::format(
-      "Model {} fitted in {} (verdict {}), integrated in mass-load mode for {} s. Intervals: {:.0f} %, by "
+      "Model {} fitted in {} (verdict {}), integrated in mass-load mode for {} s; moving mass: {}. Intervals: {:.0f} %, by "
       "linearisation (central differences over +-1 sd of each estimated parameter, the fit's covariance).{}",
-      drop.model, drop.fit_path, drop.fit_verdict, options.duration, 100 * options.level,
+      drop.model, drop.fit_path, drop.fit_verdict, options.duration,
+      options.moving_mass == sim::DropMovingMass::kDroppedAlone ? "the dropped mass alone (theta1 stays on the ground)"
+                                                                 : "the dropped mass carrying theta1",
+      100 * options.level,
       drop.scale.empty() ? "" : " What-if scaling applied to the prediction; 'fit unscaled' is the fit as it is."));
   const DropTable table = DropFigureTable(drop);
   report.AddTable(table.header, table.rows, "Figures of the drop (docs/drop-prediction.md)");

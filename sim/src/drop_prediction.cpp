@@ -138,13 +138,23 @@ class DropRun {
         simulator_(force_model, Transient(options)),
         times_(UniformTimes(options.duration, options.output_rate)),
         gravity_(force_model.defaults().position_of_index(2)),
+        carried_(options.moving_mass == DropMovingMass::kDroppedWithTheta1 ? force_model.defaults().position_of_index(1)
+                                                                           : -1),
         mass_(mass),
         impact_velocity_(impact_velocity),
         settle_band_(options.settle_band) {}
 
   //! Trace and figures at parameter values `p`; the trace, load, steps and time into `out` when given.
-  DropFigures Run(const std::vector<double>& p, DropPrediction* out) const {
-    const DropLoad load{mass_, impact_velocity_, gravity_ >= 0 ? p[gravity_] : 9.81};
+  DropFigures Run(const std::vector<double>& values, DropPrediction* out) const {
+    // theta1 carried: it falls with the dropped mass, its weight and inertia theirs (the model's
+    // inertia term, written for the shaker's load cell, is not the drop's: it is zeroed).
+    std::vector<double> p = values;
+    double moving = mass_;
+    if (carried_ >= 0) {
+      moving += p[carried_];
+      p[carried_] = 0.0;
+    }
+    const DropLoad load{moving, impact_velocity_, gravity_ >= 0 ? p[gravity_] : 9.81};
     const auto t0 = Clock::now();
     const TransientResult r = simulator_.Simulate(p, load, times_);
     DropTrace trace;
@@ -188,6 +198,7 @@ class DropRun {
   const TransientSimulator simulator_;
   const std::vector<double> times_;
   const int gravity_;  //!< position of the gravity parameter (-1: none, 9.81 m/s^2)
+  const int carried_;  //!< position of theta1 when it falls with the mass (-1: it stays on the ground)
   const double mass_, impact_velocity_, settle_band_;
 };
 
@@ -270,6 +281,16 @@ void FigureIntervals(const std::vector<int>& used, const Eigen::MatrixXd& covari
 
 }  // namespace
 
+std::string_view ToString(DropMovingMass m) {
+  return m == DropMovingMass::kDroppedAlone ? "dropped" : "dropped+theta1";
+}
+
+std::optional<DropMovingMass> DropMovingMassFrom(std::string_view text) {
+  if (text == "dropped") return DropMovingMass::kDroppedAlone;
+  if (text == "dropped+theta1") return DropMovingMass::kDroppedWithTheta1;
+  return std::nullopt;
+}
+
 DropPrediction PredictDrop(const ident::Model& model, std::span<const double> theta_in, double mass,
                            double impact_velocity, const std::vector<int>& estimated, const Eigen::MatrixXd& covariance,
                            const DropPredictionOptions& options) {
@@ -293,8 +314,9 @@ DropPrediction PredictDrop(const ident::Model& model, std::span<const double> th
     throw std::invalid_argument(fmt::format("drop prediction: a {}x{} covariance for {} estimated parameters",
                                             covariance.rows(), covariance.cols(), ne));
   std::vector<double> theta(theta_in.begin(), theta_in.end());
-  const int fixture = specs.position_of_index(1);
-  if (fixture >= 0) theta[fixture] = 0.0;  // no fixture on a drop rig: the dropped mass moves alone
+  // theta1 stays on the ground (set to 0: the dropped mass moves alone), or moves with the mass.
+  const int fixture = options.moving_mass == DropMovingMass::kDroppedAlone ? specs.position_of_index(1) : -1;
+  if (fixture >= 0) theta[fixture] = 0.0;
   // The shaker's load-cell zero is a reading's error, not a force the dropped damper feels.
   if (const int zero = specs.position_of_index(39); zero >= 0) theta[zero] = 0.0;
 

@@ -10,6 +10,7 @@
 #include <optional>
 #include <span>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "strut/daq/session.h"
@@ -67,7 +68,17 @@ DropFigures MeasureDrop(const DropTrace& trace, double static_stroke, double set
 //! experiment and channel when it is not a drop or lacks stroke or force.
 DropTrace DropTraceFromRecord(const daq::Experiment& experiment, double stroke_offset);
 
+//! Which mass moves in the drop (docs/drop-prediction.md, "The moving mass").
+enum class DropMovingMass {
+  kDroppedAlone,      //!< the dropped mass alone; theta1 (the shaker's moving mass) stays on the ground
+  kDroppedWithTheta1  //!< the dropped mass carries theta1 (a rig whose carriage moves with the damper)
+};
+std::string_view ToString(DropMovingMass m);
+//! "dropped" or "dropped+theta1"; nullopt for anything else.
+std::optional<DropMovingMass> DropMovingMassFrom(std::string_view text);
+
 struct DropPredictionOptions {
+  DropMovingMass moving_mass = DropMovingMass::kDroppedAlone;
   double duration = 30.0;      //!< s simulated from contact (0 < duration <= 3600)
   double output_rate = 1000.0;  //!< Hz, samples of the trace (the figures' time resolution before refinement)
   //! IDA's relative tolerance. 1e-7 keeps the figures' integration error far below their
@@ -103,8 +114,9 @@ struct DropPrediction {
 };
 
 //! Predicts a drop of `mass` (kg) at `impact_velocity` (m/s) with `model` (integrated in its
-//! force-input form) at `theta`. The rig's fixture mass theta1 is set to 0: on a drop rig the
-//! moving mass is the dropped mass alone (as SimulatedRig::RunDrop). `estimated` (positions in
+//! force-input form) at `theta`. By default the rig's fixture mass theta1 is set to 0: on a drop rig
+//! the moving mass is the dropped mass alone (as SimulatedRig::RunDrop); with
+//! options.moving_mass kDroppedWithTheta1 theta1 moves with it (and enters the intervals). `estimated` (positions in
 //! theta) and `covariance` (their posterior covariance) give the intervals: each figure's gradient
 //! by central differences over +- one sd of each parameter, sd^2 = g' C g. Throws
 //! std::invalid_argument for bad arguments, TransientError when the nominal run fails.

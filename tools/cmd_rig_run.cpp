@@ -272,6 +272,10 @@ struct RigRunCommand {
     }();
     g_runner = nullptr;
     if (tty) std::fprintf(stderr, "\r\033[K");
+    if (feed) {
+      feed->Flush();
+      page->Stop();  // after the pages have the run's last event
+    }
 
     recorder.Close(/*keep_journal=*/report.outcome != rig::RunOutcome::kComplete);
     PrintOutcome(report);

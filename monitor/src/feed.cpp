@@ -74,6 +74,11 @@ void MonitorFeed::Offer() {
   Append(shared_, pending_);
 }
 
+void MonitorFeed::Flush() {
+  std::lock_guard lock(mutex_);
+  Append(shared_, pending_);
+}
+
 FeedBatch MonitorFeed::Take() {
   FeedBatch out;
   out.values.resize(channels_.size());

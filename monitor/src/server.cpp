@@ -4,10 +4,12 @@
 #include <httplib.h>
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <condition_variable>
 #include <deque>
+#include <map>
 #include <stdexcept>
 #include <thread>
 
@@ -22,6 +24,8 @@ constexpr std::size_t kHistoryPoints = 20000;
 // Updates kept for pages a little behind; one further behind gets a fresh snapshot.
 constexpr std::size_t kKeptUpdates = 50;
 constexpr auto kHubPeriod = std::chrono::milliseconds(100);
+// How long Stop waits for the connected pages to get the last updates.
+constexpr auto kDrainTimeout = std::chrono::seconds(2);
 
 json ToJson(const rig::Progress& p) {
   json j{{"experiment", p.experiment},
@@ -104,8 +108,12 @@ struct MonitorServer::Impl {
 
   mutable std::mutex mutex;
   std::condition_variable changed;
-  bool stopping = false;
+  bool hub_done = false;  // the hub's last take is published
+  bool closing = false;   // Stop has begun: the hub takes the feed once more, the pages get the rest
+  bool stopping = false;  // the streams end now
   std::uint64_t seq = 0;
+  std::uint64_t next_client = 0;
+  std::map<std::uint64_t, std::uint64_t> delivered;  // per connected page, the last seq written to it
   std::deque<std::pair<std::uint64_t, std::string>> updates;  // seq, SSE text
   std::deque<double> t;
   std::vector<std::deque<double>> values;
@@ -130,42 +138,50 @@ struct MonitorServer::Impl {
 
   void Hub() {
     for (;;) {
+      bool last;
       {
         std::unique_lock lock(mutex);
-        if (changed.wait_for(lock, kHubPeriod, [this] { return stopping; })) return;
+        changed.wait_for(lock, kHubPeriod, [this] { return closing; });
+        last = closing;
       }
-      FeedBatch b = feed.Take();
-      if (b.empty()) continue;
-      json update{{"t", b.t}, {"v", b.values}, {"dropped", b.dropped}, {"now", feed.Elapsed()}};
-      if (b.progress) update["progress"] = ToJson(*b.progress);
-      json ev = json::array();
-      for (const MonitorEvent& e : b.events) ev.push_back(ToJson(e));
-      update["events"] = ev;
-      std::lock_guard lock(mutex);
-      update["seq"] = ++seq;
-      t.insert(t.end(), b.t.begin(), b.t.end());
-      for (std::size_t c = 0; c < values.size(); ++c) values[c].insert(values[c].end(), b.values[c].begin(), b.values[c].end());
-      while (t.size() > kHistoryPoints) {
-        t.pop_front();
-        for (auto& c : values) c.pop_front();
-      }
-      if (b.progress) progress = update["progress"];
-      for (const json& e : ev) events.push_back(e);
-      dropped += b.dropped;
-      updates.emplace_back(seq, Sse("update", update));
-      while (updates.size() > kKeptUpdates) updates.pop_front();
-      changed.notify_all();
+      Publish(feed.Take());
+      if (last) return;
     }
   }
 
+  void Publish(FeedBatch b) {
+    if (b.empty()) return;
+    json update{{"t", b.t}, {"v", b.values}, {"dropped", b.dropped}, {"now", feed.Elapsed()}};
+    if (b.progress) update["progress"] = ToJson(*b.progress);
+    json ev = json::array();
+    for (const MonitorEvent& e : b.events) ev.push_back(ToJson(e));
+    update["events"] = ev;
+    std::lock_guard lock(mutex);
+    update["seq"] = ++seq;
+    t.insert(t.end(), b.t.begin(), b.t.end());
+    for (std::size_t c = 0; c < values.size(); ++c) values[c].insert(values[c].end(), b.values[c].begin(), b.values[c].end());
+    while (t.size() > kHistoryPoints) {
+      t.pop_front();
+      for (auto& c : values) c.pop_front();
+    }
+    if (b.progress) progress = update["progress"];
+    for (const json& e : ev) events.push_back(e);
+    dropped += b.dropped;
+    updates.emplace_back(seq, Sse("update", update));
+    while (updates.size() > kKeptUpdates) updates.pop_front();
+    changed.notify_all();
+  }
+
   // One page's stream: a snapshot first, then every update, a comment every second to keep the
-  // connection (and the page's "connected" state) alive.
-  bool Stream(std::uint64_t& sent, bool& started, httplib::DataSink& sink) {
+  // connection (and the page's "connected" state) alive. When the server stops, the stream ends
+  // once the page has everything the feed was last handed (a pause's event comes last).
+  bool Stream(std::uint64_t client, std::uint64_t& sent, bool& started, httplib::DataSink& sink) {
     std::string out;
+    std::uint64_t upto;
     {
       std::unique_lock lock(mutex);
-      if (started) changed.wait_for(lock, std::chrono::seconds(1), [&] { return stopping || seq > sent; });
-      if (stopping) {
+      if (started) changed.wait_for(lock, std::chrono::seconds(1), [&] { return stopping || (closing && hub_done) || seq > sent; });
+      if (stopping || (closing && started && sent >= seq && hub_done)) {
         sink.done();
         return false;
       }
@@ -176,10 +192,14 @@ struct MonitorServer::Impl {
         for (const auto& [s, text] : updates)
           if (s > sent) out += text;
       }
-      sent = seq;
+      upto = sent = seq;
     }
     if (out.empty()) out = ": alive\n\n";
-    return sink.write(out.data(), out.size());
+    if (!sink.write(out.data(), out.size())) return false;
+    std::lock_guard lock(mutex);
+    delivered[client] = upto;
+    changed.notify_all();
+    return true;
   }
 
   void Routes() {
@@ -194,11 +214,24 @@ struct MonitorServer::Impl {
       res.set_header("Cache-Control", "no-cache");
       auto sent = std::make_shared<std::uint64_t>(0);
       auto started = std::make_shared<bool>(false);
+      std::uint64_t client;
+      {
+        std::lock_guard lock(mutex);
+        client = next_client++;
+        delivered[client] = 0;
+      }
       ++clients;
       res.set_chunked_content_provider(
           "text/event-stream",
-          [this, sent, started](std::size_t, httplib::DataSink& sink) { return Stream(*sent, *started, sink); },
-          [this](bool) { --clients; });
+          [this, client, sent, started](std::size_t, httplib::DataSink& sink) {
+            return Stream(client, *sent, *started, sink);
+          },
+          [this, client](bool) {
+            --clients;
+            std::lock_guard lock(mutex);
+            delivered.erase(client);
+            changed.notify_all();
+          });
     });
     http.Post(R"(/control/(pause|stop))", [this](const httplib::Request& req, httplib::Response& res) {
       if (!options.control || !Loopback(req.remote_addr)) {
@@ -219,6 +252,8 @@ struct MonitorServer::Impl {
 MonitorServer::MonitorServer(MonitorFeed& feed, MonitorSetup setup, MonitorOptions options, MonitorControls controls)
     : impl_(std::make_unique<Impl>(feed, std::move(setup), std::move(options), std::move(controls))) {
   Impl& m = *impl_;
+  // A page that stops reading blocks its stream's write; Stop waits for that write at most this long.
+  m.http.set_write_timeout(kDrainTimeout);
   m.Routes();
   m.port = m.options.port == 0 ? m.http.bind_to_any_port(m.options.host) : m.options.port;
   if (m.port <= 0 || (m.options.port != 0 && !m.http.bind_to_port(m.options.host, m.options.port)))
@@ -234,13 +269,24 @@ void MonitorServer::Stop() {
   Impl& m = *impl_;
   {
     std::lock_guard lock(m.mutex);
-    if (m.stopping && !m.listener.joinable()) return;
+    if (m.stopping) return;
+    m.closing = true;
+  }
+  m.changed.notify_all();
+  if (m.hub.joinable()) m.hub.join();
+  {
+    std::unique_lock lock(m.mutex);
+    m.hub_done = true;
+    m.changed.notify_all();
+    // A page that stopped reading must not hold the run's end: it gets kDrainTimeout.
+    m.changed.wait_for(lock, kDrainTimeout, [&m] {
+      return std::all_of(m.delivered.begin(), m.delivered.end(), [&m](const auto& d) { return d.second >= m.seq; });
+    });
     m.stopping = true;
   }
   m.changed.notify_all();
   m.http.stop();
   if (m.listener.joinable()) m.listener.join();
-  if (m.hub.joinable()) m.hub.join();
 }
 
 int MonitorServer::port() const { return impl_->port; }

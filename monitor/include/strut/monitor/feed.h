@@ -49,6 +49,9 @@ class MonitorFeed {
   void Block(const daq::AcquiredBlock& block);
   void Progress(const rig::Progress& progress);
   void Event(std::string_view kind, const std::string& text);
+  //! The producer's last call: waits for the consumer and hands over everything still pending,
+  //! so the run's last event (a pause, an abort) reaches the page.
+  void Flush();
 
   // ---- the consumer
   FeedBatch Take();

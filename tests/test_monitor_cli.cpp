@@ -2,10 +2,7 @@
 // run serves, draws the traces and loops as the run goes on, shows a trip as an event within a
 // second, and its pause button pauses the run, whose session stays valid (docs/monitor.md).
 #include <gtest/gtest.h>
-#include <arpa/inet.h>
-#include <netinet/in.h>
 #include <sys/socket.h>
-#include <unistd.h>
 
 #include <chrono>
 #include <fstream>
@@ -23,17 +20,6 @@ namespace {
 
 using test::RunStrut;
 using test::TempDir;
-
-bool Listening(int port) {
-  const int s = socket(AF_INET, SOCK_STREAM, 0);
-  sockaddr_in a{};
-  a.sin_family = AF_INET;
-  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  a.sin_port = htons(static_cast<std::uint16_t>(port));
-  const bool ok = connect(s, reinterpret_cast<sockaddr*>(&a), sizeof a) == 0;
-  close(s);
-  return ok;
-}
 
 // The value of <html data-NAME="..."> in a DOM dump, "" when absent.
 std::string HtmlData(const std::string& dom, const std::string& name) {
@@ -62,7 +48,7 @@ TEST(MonitorCli, ChromiumDrawsARunLiveShowsATripAndItsPauseButtonPausesTheRun) {
                                dir.file("m.toml"), dir.file("l.toml"), port, session));
   });
   const auto start = std::chrono::steady_clock::now();
-  while (!Listening(port) && std::chrono::steady_clock::now() - start < std::chrono::seconds(60))
+  while (!test::AcceptsOnLoopback(port) && std::chrono::steady_clock::now() - start < std::chrono::seconds(60))
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
   // Chromium's virtual time runs out once the run
   // has ended and the stream closed, and the DOM is dumped then.

@@ -4,8 +4,6 @@
 // plus `strut rig run --rig modbus-tcp://...`): the recorded file passes the contract check, and
 // `strut identify` on it recovers the simulated truth within its stated uncertainty.
 #include <gtest/gtest.h>
-#include <arpa/inet.h>
-#include <netinet/in.h>
 #include <signal.h>
 #include <spdlog/fmt/fmt.h>
 #include <sys/socket.h>
@@ -99,17 +97,6 @@ TEST(RigSimEndToEnd, TheStandardMatrixRecordedOverTheDriversIdentifiesTheDrawnUn
   ExpectMatrixIdentifiesItsTruth(session, dir);
 }
 
-bool Accepts(int port) {
-  const int s = socket(AF_INET, SOCK_STREAM, 0);
-  sockaddr_in a{};
-  a.sin_family = AF_INET;
-  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  a.sin_port = htons(static_cast<std::uint16_t>(port));
-  const bool ok = connect(s, reinterpret_cast<sockaddr*>(&a), sizeof a) == 0;
-  close(s);
-  return ok;
-}
-
 // The proof as it reads: two processes, the served rig and the runner, over Modbus TCP and
 // CAN frames in UDP datagrams, at 100x.
 TEST(RigSimEndToEnd, ServeSimAndRigRunAsTwoProcessesRecordTheMatrixThatIdentifiesTheTruth) {
@@ -136,8 +123,8 @@ TEST(RigSimEndToEnd, ServeSimAndRigRunAsTwoProcessesRecordTheMatrixThatIdentifie
     }
   } reaper{server};
   const auto until = std::chrono::steady_clock::now() + 10s;
-  while (!Accepts(modbus) && std::chrono::steady_clock::now() < until) std::this_thread::sleep_for(20ms);
-  ASSERT_TRUE(Accepts(modbus)) << test::ReadFile(dir.file("serve.log"));
+  while (!test::AcceptsOnLoopback(modbus) && std::chrono::steady_clock::now() < until) std::this_thread::sleep_for(20ms);
+  ASSERT_TRUE(test::AcceptsOnLoopback(modbus)) << test::ReadFile(dir.file("serve.log"));
 
   const std::string session = dir.file("served.h5");
   const test::CommandResult run =

@@ -87,6 +87,18 @@ int FreeLoopbackPort(int type) {
   return ntohs(a.sin_port);
 }
 
+bool AcceptsOnLoopback(int port) {
+  const int s = socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+  if (s < 0) return false;
+  sockaddr_in a{};
+  a.sin_family = AF_INET;
+  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  a.sin_port = htons(static_cast<std::uint16_t>(port));
+  const bool ok = connect(s, reinterpret_cast<sockaddr*>(&a), sizeof a) == 0;
+  close(s);
+  return ok;
+}
+
 FileSizeLimit::FileSizeLimit(unsigned long bytes) {
   rlimit limit{};
   getrlimit(RLIMIT_FSIZE, &limit);

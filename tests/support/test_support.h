@@ -59,6 +59,9 @@ std::size_t Count(const std::string& haystack, const std::string& needle);
 //! Modbus TCP server, SOCK_DGRAM for a CAN-over-UDP receiver.
 int FreeLoopbackPort(int type);
 
+//! Whether a TCP connection to the loopback port is accepted now (a server is listening there).
+bool AcceptsOnLoopback(int port);
+
 //! Lowers the file size limit while alive, so that writes fail half-way (EFBIG, not a signal).
 class FileSizeLimit {
  public:

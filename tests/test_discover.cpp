@@ -170,6 +170,7 @@ TEST_P(DiscoverConcealedEffect, NamesItFirst) {
   const DiscoveryResult r = Discover(data, Baseline("2dof"), options);
   ASSERT_FALSE(r.missing.empty()) << r.conclusion;
   EXPECT_EQ(r.missing.front(), c.term) << r.conclusion;
+  EXPECT_FALSE(r.discrepancy.has_value()) << "the catalogue holds it: nothing is empirical";
 }
 
 INSTANTIATE_TEST_SUITE_P(

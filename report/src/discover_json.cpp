@@ -36,6 +36,7 @@ nlohmann::json DiscoveryJson(const ident::DiscoveryResult& r) {
   j["steps"] = nlohmann::json::array();
   for (const auto& s : r.steps) {
     nlohmann::json step{{"term", s.term},
+                        {"empirical", s.empirical},
                         {"evidence", s.evidence},
                         {"delta_bic", s.delta_bic},
                         {"noise_before", RatiosJson(s.noise_before)},
@@ -58,6 +59,22 @@ nlohmann::json DiscoveryJson(const ident::DiscoveryResult& r) {
   }
   j["unexplained"] = nlohmann::json::array();
   for (const auto& f : r.unexplained) j["unexplained"].push_back(FindingJson(f));
+  if (r.discrepancy && !r.discrepancy->functions.empty()) {
+    const ident::EmpiricalDiscrepancy& d = *r.discrepancy;
+    nlohmann::json e{{"empirical", true}, {"functions", nlohmann::json::array()}, {"dependence", d.dependence},
+                     {"resembles", d.resembles}, {"curves", nlohmann::json::array()}};
+    for (const auto& f : d.functions)
+      e["functions"].push_back({{"parameter", "theta" + std::to_string(f.index)},
+                                {"name", f.name},
+                                {"shape", f.shape},
+                                {"resembles", f.resembles},
+                                {"value", f.value},
+                                {"sd", std::isfinite(f.sd) ? nlohmann::json(f.sd) : nlohmann::json(nullptr)}});
+    for (const auto& c : d.curves) e["curves"].push_back({{"label", c.label}, {"x", c.x}, {"force", c.force}});
+    j["discrepancy"] = e;
+  } else {
+    j["discrepancy"] = nullptr;
+  }
   j["conclusion"] = r.conclusion;
   j["final_fit"] = report::FitToJson(r.final_fit);
   return j;

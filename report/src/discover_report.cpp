@@ -83,6 +83,41 @@ void WriteDiscoveryReport(const DiscoveryResult& r, const std::string& path) {
                     fmt::format("Round {}: every candidate refitted (ΔBIC negative is better).", k + 1));
   }
 
+  if (r.discrepancy && !r.discrepancy->functions.empty()) {
+    const EmpiricalDiscrepancy& d = *r.discrepancy;
+    report.AddHeading("Empirical discrepancy (not a catalogue term)");
+    std::string words;
+    for (const auto& line : d.dependence) words += (words.empty() ? "" : "; ") + line;
+    report.AddParagraph("What no catalogue term explains is modelled by functions of the model's own stroke, rate, "
+                        "pressure and recording time, fitted with the physical parameters. It is empirical: it says "
+                        "what the missing force depends on, not which physics it is. " +
+                        (words.empty() ? std::string() : "It depends on the data this way: " + words + ".") +
+                        (d.resembles.empty() ? std::string()
+                                             : " Its shape resembles the signature of: " + [&] {
+                                                 std::string t;
+                                                 for (const auto& term : d.resembles) t += (t.empty() ? "" : ", ") + term;
+                                                 return t;
+                                               }() + "."));
+    rows.clear();
+    for (const auto& f : d.functions)
+      rows.push_back({"theta" + std::to_string(f.index), f.name, Number(f.value, "{:.4g}"), Number(f.sd, "{:.2g}"),
+                      f.shape, f.resembles.empty() ? "—" : f.resembles});
+    report.AddTable({"parameter", "function", "coefficient", "sd", "shape", "resembles"}, rows,
+                    "The discrepancy's functions discovery selected, in the order it added them (coefficients are "
+                    "dimensionless: 1 is as large as the model level each is scaled by).");
+    std::vector<LinePlot> plots;
+    for (const auto& c : d.curves) {
+      Series line{"missing force", c.x, {}};
+      for (double f : c.force) line.y.push_back(f * 1e-3);
+      plots.push_back({c.label, c.label.find("rate") != std::string::npos ? "stroke rate (m/s)" : "stroke (m)",
+                       "missing force (kN)", {line}});
+    }
+    if (!plots.empty())
+      report.AddLinePlots(plots, "The missing force the discrepancy models: against the stroke rate at the middle "
+                                 "static position (negative rates: extension), and against the stroke in compression "
+                                 "and in extension at the matrix's median peak rate.");
+  }
+
   report.AddHeading("Where the baseline did not fit");
   rows.clear();
   for (const auto& f : r.mismatch) rows.push_back({f.locus, f.channel, fmt::format("{:.1f}", f.score), f.detail});

@@ -13,6 +13,7 @@
 #include "strut/ident/parallel.h"
 #include "strut/ident/initial_values.h"
 #include "strut/ident/catalogue.h"
+#include "strut/ident/term_start.h"
 
 namespace strut::ident {
 namespace {
@@ -71,6 +72,11 @@ bool DiscoverOptions::IsValid(std::string* error) const {
   if (!(min_improvement > 0 && min_improvement < 1)) return fail("min_improvement must be in (0, 1)");
   if (max_terms < 0 || threads < 1) return fail("max_terms must not be negative and threads at least 1");
   if (!(screen_margin >= 0)) return fail("screen_margin must not be negative");
+  if (max_discrepancy_functions < 0 || discrepancy_refits < 1)
+    return fail("max_discrepancy_functions must not be negative and discrepancy_refits at least 1");
+  for (const std::string& term : leave_out)
+    if (std::none_of(Catalogue().begin(), Catalogue().end(), [&](const TermEntry& e) { return e.name == term; }))
+      return fail(fmt::format("leave_out: '{}' is not a catalogue term", term));
   return true;
 }
 
@@ -413,6 +419,188 @@ double SignedRankPValue(const std::vector<double>& differences) {
 
 namespace {
 
+// The families of the discrepancy's functions, by coefficient index (DiscrepancyLibrary).
+bool IsDamping(int index) { return index >= 70 && index <= 76; }
+bool IsFriction(int index) { return index == 77 || index == 78; }
+bool IsStiffness(int index) { return index == 79 || index == 80; }
+
+double Median(std::vector<double> v) {
+  if (v.empty()) return NAN;
+  std::sort(v.begin(), v.end());
+  return v.size() % 2 ? v[v.size() / 2] : 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]);
+}
+
+// Where the matrix goes: the stroke range, the middle static position, the median and largest peak
+// rate, and the measured pressure against the stroke (a quadratic through all the averaged data).
+struct MatrixReach {
+  double q_lo = INFINITY, q_hi = -INFINITY, q_mid = NAN, v_typical = NAN, v_max = 0.0;
+  Eigen::Vector3d pressure = Eigen::Vector3d::Zero();  // p(q) = c0 + c1 q + c2 q^2
+  double PressureAt(double q) const { return pressure[0] + q * (pressure[1] + q * pressure[2]); }
+};
+
+MatrixReach Reach(const FitSummary& fit) {
+  MatrixReach m;
+  std::vector<double> statics, peaks;
+  std::vector<double> qs, ps;
+  for (const ExperimentFit& e : fit.experiments) {
+    const auto stroke = e.measured.find("stroke");
+    if (stroke == e.measured.end() || stroke->second.size() == 0) continue;
+    m.q_lo = std::min(m.q_lo, stroke->second.minCoeff());
+    m.q_hi = std::max(m.q_hi, stroke->second.maxCoeff());
+    statics.push_back(e.static_position);
+    const double peak = 2.0 * std::numbers::pi * e.frequency * e.amplitude;
+    peaks.push_back(peak);
+    m.v_max = std::max(m.v_max, peak);
+    if (const auto p = e.measured.find("pressure"); p != e.measured.end() && p->second.size() == stroke->second.size())
+      for (Eigen::Index i = 0; i < p->second.size(); ++i) qs.push_back(stroke->second[i]), ps.push_back(p->second[i]);
+  }
+  m.q_mid = Median(statics);
+  m.v_typical = Median(peaks);
+  if (qs.size() >= 3) {
+    Eigen::MatrixXd a(qs.size(), 3);
+    Eigen::VectorXd b(qs.size());
+    for (std::size_t i = 0; i < qs.size(); ++i) a.row(i) << 1.0, qs[i], qs[i] * qs[i], b[i] = ps[i];
+    m.pressure = a.colPivHouseholderQr().solve(b);
+  }
+  return m;
+}
+
+std::string Times(double ratio) { return fmt::format("{:.2g} times", ratio); }
+
+}  // namespace
+
+EmpiricalDiscrepancy DescribeDiscrepancy(const FitSummary& fit) {
+  EmpiricalDiscrepancy d;
+  const ParameterSet& p = fit.parameters;
+  std::vector<int> selected;  // positions of the estimated coefficients
+  for (const DiscrepancyFunction& f : DiscrepancyLibrary()) {
+    const int position = p.position_of_index(f.index);
+    if (position < 0 || position >= static_cast<int>(fit.estimates.size()) || !fit.estimates[position].estimated) continue;
+    selected.push_back(position);
+    d.functions.push_back({f.index, f.name, f.shape, f.resembles, p.value(position), fit.estimates[position].sd});
+    if (!f.resembles.empty() && std::find(d.resembles.begin(), d.resembles.end(), f.resembles) == d.resembles.end())
+      d.resembles.push_back(f.resembles);
+  }
+  if (d.functions.empty()) return d;
+  const MatrixReach m = Reach(fit);
+  if (!std::isfinite(m.q_mid) || !(m.v_typical > 0)) return d;
+  const Model model = Model::Build(fit.model, Causality::kStrokeInput);
+  const auto has = [&](auto&& family) {
+    return std::any_of(d.functions.begin(), d.functions.end(), [&](const DiscrepancyTerm& f) { return family(f.index); });
+  };
+  const auto value_of = [&](int index) {
+    const int position = p.position_of_index(index);
+    return position >= 0 ? p.value(position) : 0.0;
+  };
+  // The model's force at stroke q and rate v with the gas at the measured pressure there (the force
+  // balance's residual with the force unknown 0): with the coefficients of one family as fitted and
+  // the rest of the discrepancy at 0, less the same without the discrepancy, is that family's force.
+  const int m_count = model.unknown_count();
+  const auto force = [&](const std::vector<double>& theta, double q, double v) {
+    std::vector<double> x(m_count, 0.0), xd(m_count, 0.0), xdd(m_count, 0.0), r(m_count, 0.0);
+    for (int j = 1; j < m_count; ++j) {
+      const StateSpec spec = model.unknown_spec(j);
+      x[j] = spec.name == "pressure" ? m.PressureAt(q) : spec.name == "temperature" ? -value_of(17) : spec.typical_value;
+    }
+    model.Residual<double>(x, xd, xdd, q, v, 0.0, model.AtSessionTime(theta, 0.0), r);
+    return r[0];
+  };
+  std::vector<double> without = p.values();
+  for (int position : selected) without[position] = 0.0;
+  const auto family_force = [&](auto&& family, double q, double v) {
+    std::vector<double> with = without;
+    for (const DiscrepancyTerm& f : d.functions)
+      if (family(f.index)) with[p.position_of_index(f.index)] = f.value;
+    return force(with, q, v) - force(without, q, v);
+  };
+  const auto any = [](int) { return true; };
+  const double v = m.v_typical;
+  const std::string at = fmt::format("at {:.2f} m/s", v);
+  const std::string over = fmt::format("from {:.0f} mm to {:.0f} mm of stroke", m.q_lo * 1e3, m.q_hi * 1e3);
+
+  if (has(IsDamping)) {
+    // The whole damping force's size in each direction: the orifice's (and a viscous term's) plus
+    // the discrepancy's damping functions.
+    const double viscous = value_of(18);
+    const double base = value_of(3) * v * v + viscous * v;
+    const auto compression = [&](double q) { return base + family_force(IsDamping, q, v); };
+    const auto extension = [&](double q) { return base - family_force(IsDamping, q, -v); };
+    if (has([](int i) { return i == 70 || i == 72 || i == 75; })) {
+      const double ratio = extension(m.q_mid) / compression(m.q_mid);
+      d.dependence.push_back(ratio >= 1.0 ? fmt::format("damping in extension {} compression {}", Times(ratio), at)
+                                          : fmt::format("damping in compression {} extension {}", Times(1.0 / ratio), at));
+    }
+    if (has([](int i) { return i == 71 || i == 72 || i == 73; })) {
+      const double c = compression(m.q_hi) / compression(m.q_lo), e = extension(m.q_hi) / extension(m.q_lo);
+      const auto trend = [&](double g) { return g >= 1.0 ? "grows " + Times(g) : "falls to " + fmt::format("{:.2g}", g); };
+      d.dependence.push_back(std::abs(c - e) < 0.1 * std::max(c, e)
+                                 ? fmt::format("damping {} {} {}", trend(0.5 * (c + e)), over, at)
+                                 : fmt::format("damping in compression {}, in extension {}, {} {}", trend(c), trend(e),
+                                               over, at));
+    }
+    if (has([](int i) { return i == 74; }))
+      d.dependence.push_back(fmt::format("damping linear in the rate, {:.0f} N s/m",
+                                         family_force([](int i) { return i == 74; }, m.q_mid, v) / v));
+    if (has([](int i) { return i == 76; }))
+      d.dependence.push_back(fmt::format("a force in phase with the rate that grows with the pressure: {:+.0f} N {} at "
+                                         "{:.1f} MPa, {:+.0f} N at {:.1f} MPa",
+                                         family_force([](int i) { return i == 76; }, m.q_hi, v), at,
+                                         m.PressureAt(m.q_hi) * 1e-6, family_force([](int i) { return i == 76; }, m.q_lo, v),
+                                         m.PressureAt(m.q_lo) * 1e-6));
+  }
+  for (const DiscrepancyTerm& f : d.functions) {
+    // Sliding friction (past the reversals, atan at +-pi/2) is A pi/2 (1 + c) in compression and
+    // A pi/2 (1 - c) in extension for friction-direction, A pi/2 (1 + c q / 0.1 m) for friction-stroke.
+    if (f.index == 77)
+      d.dependence.push_back(fmt::format("friction in compression {} extension", Times((1.0 + f.value) / (1.0 - f.value))));
+    if (f.index == 78)
+      d.dependence.push_back(fmt::format("friction at the deepest stroke {} that at the least, {}",
+                                         Times((1.0 + f.value * m.q_hi / 0.1) / (1.0 + f.value * m.q_lo / 0.1)), over));
+  }
+  if (has(IsStiffness))
+    d.dependence.push_back(fmt::format("a force of the stroke alone beyond the gas law, {:+.0f} N at {:.0f} mm against "
+                                       "{:+.0f} N at {:.0f} mm",
+                                       family_force(IsStiffness, m.q_hi, 0.0), m.q_hi * 1e3,
+                                       family_force(IsStiffness, m.q_lo, 0.0), m.q_lo * 1e3));
+  for (const DiscrepancyTerm& f : d.functions) {
+    const double s_hi = m.q_hi / 0.1;
+    if (f.index == 81)
+      d.dependence.push_back(fmt::format("a force level moving by {:+.0f} N from the session's first experiment to its last",
+                                         f.value * value_of(4) * 1e6));
+    else if (f.index == 82 || f.index == 83)
+      d.dependence.push_back(fmt::format("a gas volume {:+.2f} % of the charge volume off the linear volume law at {:.0f} mm",
+                                         100.0 * f.value * std::pow(s_hi, f.index == 82 ? 2 : 3), m.q_hi * 1e3));
+    else if (f.index == 84)
+      d.dependence.push_back(fmt::format("free gas changing with the pressure, {:+.2f} % of the charge per 10 MPa",
+                                         100.0 * f.value));
+    else if (f.index == 85)
+      d.dependence.push_back(fmt::format("free gas changing by {:+.2f} % of the charge from the first experiment to the last",
+                                         100.0 * f.value));
+  }
+  // The curves: the missing force (every force function) against the rate at the middle static
+  // position, and against the stroke in each direction at the median peak rate.
+  EmpiricalDiscrepancy::Curve rate{"against stroke rate (m/s) at the middle static position", {}, {}};
+  for (int k = -20; k <= 20; ++k) {
+    const double r = m.v_max * k / 20.0;
+    rate.x.push_back(r);
+    rate.force.push_back(family_force(any, m.q_mid, r) - family_force(any, m.q_mid, 0.0));
+  }
+  d.curves.push_back(std::move(rate));
+  for (const double sign : {1.0, -1.0}) {
+    EmpiricalDiscrepancy::Curve stroke{fmt::format("against stroke (m), {} at {:.2f} m/s", sign > 0 ? "compression" : "extension", v),
+                                       {}, {}};
+    for (int k = 0; k <= 20; ++k) {
+      const double q = m.q_lo + (m.q_hi - m.q_lo) * k / 20.0;
+      stroke.x.push_back(q);
+      stroke.force.push_back(family_force(any, q, sign * v));
+    }
+    d.curves.push_back(std::move(stroke));
+  }
+  return d;
+}
+
+namespace {
+
 double WorstRatio(const std::map<std::string, double>& ratio) {
   double worst = 0.0;
   for (const auto& [c, r] : ratio) worst = std::max(worst, std::isfinite(r) ? r : INFINITY);
@@ -448,6 +636,10 @@ const TermEntry& CatalogueEntry(const std::string& term) {
 // One round's candidates: each term that composes with the current model, its refit and its verdict.
 struct Round {
   std::vector<std::pair<std::string, std::string>> candidates;  // term, composition
+  // Empirical rounds: per candidate the discrepancy coefficient's index and its start, worked out
+  // before the refits (only the largest size scores are refitted).
+  std::vector<int> function;
+  std::vector<std::optional<TermStart>> starts;
   std::vector<CandidateFit> results;
   std::vector<FitSummary> fits;
   std::vector<HeldOut> held_out;  // per candidate, its held-out ratios where it was cross-validated
@@ -474,15 +666,19 @@ class DiscoveryRun {
     spdlog::info("{}", text);
     if (progress_) progress_(text);
   }
-  FitSummary FitCandidate(const std::string& term, const Model& model, TermStart start, const FitSummary& previous) const;
+  FitSummary FitCandidate(const std::string& term, const Model& model, TermStart start, const FitSummary& previous,
+                          bool empirical) const;
   std::optional<std::string> Screened(const TermStart& start, const FitSummary& current) const;
   Round Candidates(const FitSummary& current) const;
+  Round EmpiricalCandidates(const FitSummary& current) const;
   void Refit(Round& round, const FitSummary& current, int number);
   int Select(Round& round, const FitSummary& current, const Model& model, const std::map<std::string, double>& ratio,
              int number);
   DiscoveryStep Step(const Round& round, int best, const FitSummary& current, const std::vector<Finding>& findings,
                      const std::map<std::string, double>& ratio) const;
   void Conclude(DiscoveryResult& result, bool exhausted, const std::map<std::string, double>& ratio) const;
+  bool Advance(int number, bool empirical, FitSummary& current, std::map<std::string, double>& ratio,
+               DiscoveryResult& result);
 
   const FitData& data_;
   const DiscoverOptions& options_;
@@ -512,7 +708,7 @@ std::optional<std::string> DiscoveryRun::Screened(const TermStart& start, const 
 // A candidate: the current fit's values and estimated set, plus the new term's own parameters (sizes
 // and shapes estimated, from where the located mismatch puts them: StartWithTerm).
 FitSummary DiscoveryRun::FitCandidate(const std::string& term, const Model& model, TermStart term_start,
-                                      const FitSummary& previous) const {
+                                      const FitSummary& previous, bool empirical) const {
   const EstimatorOptions& estimator = session_options_.estimator;
   const std::string& composition = model.composition();
   const ParameterSet& start = term_start.start;
@@ -528,7 +724,9 @@ FitSummary DiscoveryRun::FitCandidate(const std::string& term, const Model& mode
   // identify` does. The converged fit with the higher likelihood is kept.
   const Stopwatch retry_watch;
   std::vector<FitSummary> tries{fitter.Fit(data_.experiments, fit.parameters, choices, data_.issues)};
-  if (!tries.front().converged) {
+  // (An empirical candidate's estimated set is discovery's choice: the data's own start would fit
+  // the whole library.)
+  if (!tries.front().converged && !empirical) {
     SessionFitOptions own = session_options_;
     own.composition = composition;
     tries.push_back(FitPrepared(data_, model, own).summary);
@@ -545,7 +743,9 @@ Round DiscoveryRun::Candidates(const FitSummary& current) const {
   const Model model = Model::Build(current.model, causality_);
   Round round;
   for (const TermEntry& entry : Catalogue()) {
-    if (entry.locus.empty() || model.has_term(entry.name)) continue;
+    if (entry.locus.empty() || model.has_term(entry.name) ||
+        std::find(options_.leave_out.begin(), options_.leave_out.end(), entry.name) != options_.leave_out.end())
+      continue;
     const std::string composition = current.model + "+" + entry.name;
     try {
       Model::Build(composition, causality_);
@@ -557,6 +757,63 @@ Round DiscoveryRun::Candidates(const FitSummary& current) const {
   round.results.resize(round.candidates.size());
   round.fits.resize(round.candidates.size());
   round.held_out.resize(round.candidates.size());
+  round.function.assign(round.candidates.size(), 0);
+  round.starts.resize(round.candidates.size());
+  return round;
+}
+
+// The discrepancy's functions not yet in the current fit, each started by its Gauss-Newton step;
+// all but the `discrepancy_refits` largest size scores are screened out before any refit.
+Round DiscoveryRun::EmpiricalCandidates(const FitSummary& current) const {
+  const bool has = Model::Build(current.model, causality_).has_term("discrepancy");
+  const std::string composition = has ? current.model : current.model + "+discrepancy";
+  const Model model = Model::Build(composition, causality_);
+  Round round;
+  for (const DiscrepancyFunction& f : DiscrepancyLibrary()) {
+    const int position = model.defaults().position_of_index(f.index);
+    if (position < 0) continue;
+    if (const auto p = current.parameters.find(model.defaults().spec(position).key()); p && current.estimates[*p].estimated)
+      continue;
+    round.candidates.emplace_back("discrepancy:" + f.name, composition);
+    round.function.push_back(f.index);
+  }
+  const std::size_t n = round.candidates.size();
+  round.results.resize(n);
+  round.fits.resize(n);
+  round.held_out.resize(n);
+  round.starts.resize(n);
+  ParallelFor(static_cast<int>(n), options_.threads, [&](int c) {
+    // The current fit's values and estimated set; of the discrepancy, only what it estimated and this one.
+    std::vector<std::string> log;
+    TermStart t = StartWithTerm(model, "discrepancy", current);
+    for (const DiscrepancyFunction& f : DiscrepancyLibrary()) {
+      const int position = model.defaults().position_of_index(f.index);
+      if (position < 0) continue;
+      const auto p = current.parameters.find(model.defaults().spec(position).key());
+      if (!(p && current.estimates[*p].estimated) && f.index != round.function[c]) t.choices[position] = ParameterChoice{};
+    }
+    const CandidateStart start = DiscrepancyStartingValue(model, round.function[c], current, &log);
+    for (const std::string& line : log) spdlog::debug("candidate {}: {}", round.candidates[c].first, line);
+    for (const auto& [key, value] : start.values) t.start.set(key, value);
+    t.size_score = start.size_score;
+    round.starts[c] = std::move(t);
+  });
+  std::vector<std::size_t> order(n);
+  std::iota(order.begin(), order.end(), 0);
+  const auto score = [&](std::size_t c) {
+    const double t = round.starts[c]->size_score;
+    return std::isfinite(t) ? std::abs(t) : -1.0;
+  };
+  std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return score(a) > score(b); });
+  for (std::size_t k = static_cast<std::size_t>(options_.discrepancy_refits); k < n; ++k) {
+    CandidateFit& r = round.results[order[k]];
+    r.term = round.candidates[order[k]].first;
+    r.size_score = round.starts[order[k]]->size_score;
+    r.screened = true;
+    r.delta_bic = NAN;
+    r.error = r.verdict = fmt::format("screened out: size score t {:+.2f}, not among the {} largest", r.size_score,
+                                      options_.discrepancy_refits);
+  }
   return round;
 }
 
@@ -578,11 +835,13 @@ void DiscoveryRun::Refit(Round& round, const FitSummary& current, int number) {
     const int c = queue[k];
     const Stopwatch watch;
     CandidateFit& r = round.results[c];
+    if (r.screened) return;  // before the refits (EmpiricalCandidates)
     r.term = candidates[c].first;
+    const bool empirical = round.function[c] > 0;
     try {
       const Model model = Model::Build(candidates[c].second, causality_);
       std::vector<std::string> log;
-      TermStart start = StartWithTerm(model, r.term, current, &log);
+      TermStart start = round.starts[c] ? *round.starts[c] : StartWithTerm(model, r.term, current, &log);
       for (const std::string& line : log) spdlog::debug("candidate {}: {}", r.term, line);
       r.size_score = start.size_score;
       if (const std::optional<std::string> why = Screened(start, current)) {
@@ -592,7 +851,7 @@ void DiscoveryRun::Refit(Round& round, const FitSummary& current, int number) {
         seconds[c] = watch.Seconds();
         return;
       }
-      round.fits[c] = FitCandidate(r.term, model, std::move(start), current);
+      round.fits[c] = FitCandidate(r.term, model, std::move(start), current, empirical);
       r.ok = round.fits[c].IsSolutionUsable() && round.fits[c].converged;
       if (!r.ok) r.error = round.fits[c].VerdictText();
       r.delta_bic = round.fits[c].bic - current.bic;
@@ -671,18 +930,62 @@ DiscoveryStep DiscoveryRun::Step(const Round& round, int best, const FitSummary&
   step.cv_before = current_cv_ ? current_cv_->median : NAN;
   step.cv_after = kept.cv_ratio;
   step.candidates = round.results;
-  const TermEntry& entry = CatalogueEntry(step.term);
-  step.evidence = entry.signature;
-  for (const Finding& f : findings)
-    if (f.locus == entry.locus) {
-      step.evidence += "; " + f.detail;
-      break;
-    }
+  if (round.function[best] > 0) {
+    step.empirical = true;
+    for (const DiscrepancyFunction& f : DiscrepancyLibrary())
+      if (f.index == round.function[best]) step.evidence = "empirical, not a catalogue term: " + f.shape;
+  } else {
+    const TermEntry& entry = CatalogueEntry(step.term);
+    step.evidence = entry.signature;
+    for (const Finding& f : findings)
+      if (f.locus == entry.locus) {
+        step.evidence += "; " + f.detail;
+        break;
+      }
+  }
   const FitSummary& chosen = round.fits[best];
   for (int i = 0; i < chosen.parameters.size(); ++i)
     if (!current.parameters.find(chosen.parameters.spec(i).key()) && chosen.estimates[i].estimated)
       step.parameters.emplace_back(chosen.parameters.spec(i).key(), chosen.parameters.value(i));
   return step;
+}
+
+// One round: the candidates (catalogue terms, or the discrepancy's functions), their refits and the
+// selection; the kept one becomes the current fit. Whether one was kept.
+bool DiscoveryRun::Advance(int number, bool empirical, FitSummary& current, std::map<std::string, double>& ratio,
+                           DiscoveryResult& result) {
+  const std::vector<Finding> findings = LocateMismatch(current);
+  const Model model = Model::Build(current.model, causality_);
+  Round round = empirical ? EmpiricalCandidates(current) : Candidates(current);
+  Say(fmt::format("round {}: {} {} refitted, {} at a time", number, round.candidates.size(),
+                  empirical ? "empirical functions" : "candidates", options_.threads));
+  Refit(round, current, number);
+  if (!empirical)
+    for (CandidateFit& c : round.results) {
+      const TermEntry& entry = CatalogueEntry(c.term);
+      for (const Finding& f : findings)
+        if (f.locus == entry.locus) c.evidence = std::max(c.evidence, f.score);
+    }
+  const int best = Select(round, current, model, ratio, number);
+  for (const CandidateFit& c : round.results)
+    spdlog::info("  {:<20} ΔBIC {:>12.1f}  worst noise ratio {:8.2f}  evidence {:6.1f}  {}", c.term, c.delta_bic,
+                 WorstRatio(c.noise_ratio), c.evidence, c.ok ? c.verdict : c.error);
+  if (best < 0) {
+    Say(empirical ? "no further function of the discrepancy improves the fit beyond what it costs and predicts "
+                    "left-out experiments better"
+                  : "no candidate improves the fit beyond what its parameters cost and predicts left-out experiments "
+                    "better");
+    return false;
+  }
+  round.results[best].verdict = "kept";
+  DiscoveryStep step = Step(round, best, current, findings, ratio);
+  Say(fmt::format("added {}: ΔBIC {:+.1f}; {}", step.term, step.delta_bic, step.evidence));
+  if (!empirical) result.missing.push_back(step.term);
+  result.steps.push_back(std::move(step));
+  current = round.fits[best];
+  current_cv_ = round.held_out[best];
+  ratio = PooledNoiseRatio(current);
+  return true;
 }
 
 void DiscoveryRun::Conclude(DiscoveryResult& result, bool exhausted, const std::map<std::string, double>& ratio) const {
@@ -702,10 +1005,22 @@ void DiscoveryRun::Conclude(DiscoveryResult& result, bool exhausted, const std::
   for (const auto& t : result.missing) added += (added.empty() ? "" : ", ") + t;
   std::string after;
   for (const auto& [c, r] : ratio) after += fmt::format(" {} {:.2f}", c, r);
+  std::string empirical;
+  if (result.discrepancy && !result.discrepancy->functions.empty()) {
+    const EmpiricalDiscrepancy& d = *result.discrepancy;
+    std::string names, dependence, resembles;
+    for (const DiscrepancyTerm& f : d.functions) names += (names.empty() ? "" : ", ") + f.name;
+    for (const std::string& line : d.dependence) dependence += (dependence.empty() ? "" : "; ") + line;
+    for (const std::string& term : d.resembles) resembles += (resembles.empty() ? "" : ", ") + term;
+    empirical = fmt::format(" What {} leaves is modelled empirically (an empirical discrepancy, not a catalogue term: {}): "
+                            "{}.{}",
+                            added.empty() ? "the catalogue" : "it", names, dependence,
+                            resembles.empty() ? "" : " Its shape resembles the signature of " + resembles + ".");
+  }
   result.conclusion = fmt::format(
-      "{} left residuals above the noise floor (noise ratios{}). {} Final model {} (noise ratios{}{}).{}", base_, ratios,
-      added.empty() ? "No catalogue term explains them." : "Missing: " + added + ".", result.final_model, after,
-      at_floor ? ", at the noise floor" : ", still above the noise floor",
+      "{} left residuals above the noise floor (noise ratios{}). {}{} Final model {} (noise ratios{}{}).{}", base_, ratios,
+      added.empty() ? "No catalogue term explains them." : "Missing: " + added + ".", empirical, result.final_model,
+      after, at_floor ? ", at the noise floor" : ", still above the noise floor",
       result.unexplained.empty()
           ? ""
           : (exhausted ? " What is left matches no catalogue term: "
@@ -728,34 +1043,17 @@ DiscoveryResult DiscoveryRun::Run() {
   result.nothing_missing = AtNoiseFloor(result.baseline);
   if (!result.baseline.converged) Say("the baseline fit did not converge: " + result.baseline.VerdictText());
 
-  for (int number = 1; number <= options_.max_terms && !AtNoiseFloor(current); ++number) {
-    const std::vector<Finding> findings = LocateMismatch(current);
-    const Model model = Model::Build(current.model, causality_);
-    Round round = Candidates(current);
-    Say(fmt::format("round {}: {} candidates refitted, {} at a time", number, round.candidates.size(), options_.threads));
-    Refit(round, current, number);
-    for (CandidateFit& c : round.results) {
-      const TermEntry& entry = CatalogueEntry(c.term);
-      for (const Finding& f : findings)
-        if (f.locus == entry.locus) c.evidence = std::max(c.evidence, f.score);
-    }
-    const int best = Select(round, current, model, ratio, number);
-    for (const CandidateFit& c : round.results)
-      spdlog::info("  {:<20} ΔBIC {:>12.1f}  worst noise ratio {:8.2f}  evidence {:6.1f}  {}", c.term, c.delta_bic,
-                   WorstRatio(c.noise_ratio), c.evidence, c.ok ? c.verdict : c.error);
-    if (best < 0) {
-      Say("no candidate improves the fit beyond what its parameters cost and predicts left-out experiments better");
+  int number = 1;
+  for (; number <= options_.max_terms && !AtNoiseFloor(current); ++number)
+    if (!Advance(number, /*empirical=*/false, current, ratio, result)) {
       exhausted = true;
       break;
     }
-    round.results[best].verdict = "kept";
-    DiscoveryStep step = Step(round, best, current, findings, ratio);
-    Say(fmt::format("added {}: ΔBIC {:+.1f}; {}", step.term, step.delta_bic, step.evidence));
-    result.missing.push_back(step.term);
-    result.steps.push_back(std::move(step));
-    current = round.fits[best];
-    current_cv_ = round.held_out[best];
-    ratio = PooledNoiseRatio(current);
+  if (exhausted && options_.discrepancy && options_.max_discrepancy_functions > 0 && !AtNoiseFloor(current)) {
+    Say("no catalogue term explains what is left: it is modelled empirically, the discrepancy's functions one at a time");
+    for (int added = 0; added < options_.max_discrepancy_functions && !AtNoiseFloor(current); ++added, ++number)
+      if (!Advance(number, /*empirical=*/true, current, ratio, result)) break;
+    if (Model::Build(current.model, causality_).has_term("discrepancy")) result.discrepancy = DescribeDiscrepancy(current);
   }
 
   result.final_model = current.model;

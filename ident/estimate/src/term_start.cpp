@@ -372,4 +372,29 @@ CandidateStart CandidateStartingValues(const std::string& term, const FitSummary
   return start;
 }
 
+CandidateStart DiscrepancyStartingValue(const Model& model, int index, const FitSummary& baseline,
+                                        std::vector<std::string>* log) {
+  CandidateStart start;
+  const ParameterSet& candidate = model.defaults();
+  const int size = candidate.position_of_index(index);
+  if (size < 0) return start;
+  std::vector<double> theta = candidate.values();
+  for (int i = 0; i < candidate.size(); ++i)
+    if (const auto p = baseline.parameters.find(candidate.spec(i).key())) theta[i] = baseline.parameters.value(*p);
+  theta[size] = 0.0;
+  std::vector<std::string> problems;
+  const Regression r = GaussNewtonSize(baseline, model, theta, size, problems);
+  if (log) {
+    for (const auto& p : problems) log->push_back(fmt::format("{}: left out: {}", candidate.spec(size).name, p));
+    if (r.ok)
+      log->push_back(fmt::format("{} {} = {:.4g} (one Gauss-Newton step from the baseline with it at 0, t {:+.1f})",
+                                 candidate.spec(size).key(), candidate.spec(size).name, r.coefficient, r.t));
+  }
+  if (r.ok && std::isfinite(r.coefficient)) {
+    start.values.emplace_back(candidate.spec(size).key(), r.coefficient);
+    start.size_score = r.t;
+  }
+  return start;
+}
+
 }  // namespace strut::ident

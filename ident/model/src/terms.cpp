@@ -127,47 +127,46 @@ class PressureFriction final : public Term {
   int base_ = -1, per_pressure_ = -1, sharpness_ = -1, pressure_ = -1;
 };
 
-//! theta11: constant force on the piston (the atmosphere's pressure on its area).
-class ForceOffset final : public Term {
+//! A constant force in the force balance, one parameter of its own.
+class ConstantForce : public Term {
  public:
   unsigned phases() const override { return kBalancePhase; }
-  std::string_view name() const override { return "force-offset"; }
-  void Declare(ModelBuilder& b) override {
-    b.add_parameter({.index = 11, .name = "force_offset", .unit = "N", .default_value = -507.0,
-                     .description = "constant force on the piston (-p_atm A and the fixture's constant forces)", .estimate_by_default = true});
-  }
-  void Bind(const ModelBuilder& b) override { offset_ = b.parameter_position(11); }
+  void Declare(ModelBuilder& b) override { b.add_parameter(spec_); }
+  void Bind(const ModelBuilder& b) override { position_ = b.parameter_position(spec_.index); }
   template <class S>
   void Eval(TermContext<S>& c) const {
-    if (c.phase == TermContext<S>::Phase::kBalance) c.force += c.theta[offset_];
+    if (c.phase == TermContext<S>::Phase::kBalance) c.force += c.theta[position_];
   }
   STRUT_TERM_EVALUATE
 
+ protected:
+  explicit ConstantForce(ParameterSpec spec) : spec_(std::move(spec)) {}
+
  private:
-  int offset_ = -1;
+  ParameterSpec spec_;
+  int position_ = -1;
+};
+
+//! theta11: constant force on the piston (the atmosphere's pressure on its area).
+class ForceOffset final : public ConstantForce {
+ public:
+  ForceOffset()
+      : ConstantForce({.index = 11, .name = "force_offset", .unit = "N", .default_value = -507.0,
+                       .description = "constant force on the piston (-p_atm A and the fixture's constant forces)",
+                       .estimate_by_default = true}) {}
+  std::string_view name() const override { return "force-offset"; }
 };
 
 //! theta39: the load cell's zero, force reading = true force + theta39. It sits in the force balance
 //! only: theta11 also does work on the gas in the heat balance (the atmosphere on the piston), a
 //! transducer's zero does none, so a zero folded into theta11 is shared with the weight theta1 g.
-class LoadCellZero final : public Term {
+class LoadCellZero final : public ConstantForce {
  public:
-  unsigned phases() const override { return kBalancePhase; }
+  LoadCellZero()
+      : ConstantForce({.index = 39, .name = "load_cell_zero", .unit = "N", .default_value = 0.0,
+                       .description = "load-cell zero: force reading = true force + zero", .estimate_by_default = true,
+                       .typical = 100.0, .prior_sd = kLoadCellZeroPriorSd}) {}
   std::string_view name() const override { return "load-cell-zero"; }
-  void Declare(ModelBuilder& b) override {
-    b.add_parameter({.index = 39, .name = "load_cell_zero", .unit = "N", .default_value = 0.0,
-                     .description = "load-cell zero: force reading = true force + zero", .estimate_by_default = true,
-                     .typical = 100.0, .prior_sd = kLoadCellZeroPriorSd});
-  }
-  void Bind(const ModelBuilder& b) override { zero_ = b.parameter_position(39); }
-  template <class S>
-  void Eval(TermContext<S>& c) const {
-    if (c.phase == TermContext<S>::Phase::kBalance) c.force += c.theta[zero_];
-  }
-  STRUT_TERM_EVALUATE
-
- private:
-  int zero_ = -1;
 };
 
 //! theta12: stroke sensor offset, y = q + theta12. Used by Model for inputs and outputs.
@@ -769,6 +768,192 @@ class ChargeLoss final : public Term {
 };
 
 // ---------------------------------------------------------------------------------------------
+// The empirical discrepancy (docs/discovery.md): what no catalogue term explains, as a sparse sum of
+// functions of the model's own states and inputs. Each function is scaled by a level of the model it
+// is added to (the orifice damping theta3, the friction amplitude, the gas force per bar theta4 p_ref)
+// so that its coefficient is dimensionless, 0 means absent and 1 is as large as that level. Discovery
+// estimates only the coefficients it selects (the rest stay 0); `--model ...+discrepancy` estimates
+// every one, each with a N(0, typical) prior.
+
+namespace discrepancy {
+
+constexpr double kStroke = 0.1;       // m: the stroke unit of the shapes (q / 0.1 m)
+constexpr double kRate = 0.1;         // m/s: the rate at which the linear damping equals theta3 kRate^2
+constexpr double kDirection = 2e-3;   // m/s: the width of the smoothed direction sgn(q')
+constexpr double kPressure = 1e6;     // Pa: the gas force unit theta4 kPressure
+constexpr double kLoopPressure = 1e7; // Pa: the pressure unit of the pressure-damping shape
+
+enum class Shape {
+  kDampingDirection,        // theta3 q'^2: even in the rate
+  kDampingStroke,           // theta3 (q/L) q'|q'|
+  kDampingStrokeDirection,  // theta3 (q/L) q'^2
+  kDampingStrokeSquared,    // theta3 (q/L)^2 q'|q'|
+  kViscous,                 // theta3 v_r q'
+  kViscousDirection,        // theta3 v_r q' sgn(q')
+  kDampingPressure,         // theta3 v_r q' p / p_r
+  kFrictionDirection,       // F_f (2/pi) atan(theta10 q')^2
+  kFrictionStroke,          // F_f atan(theta10 q') (q/L)
+  kStiffnessSquared,        // theta4 p_u (q/L)^2
+  kStiffnessCubed,          // theta4 p_u (q/L)^3
+  kForceDrift,              // theta4 p_u s
+  kVolumeSquared,           // gas volume + (q/L)^2
+  kVolumeCubed,             // gas volume + (q/L)^3
+  kGasPressure,             // free gas + p / p_r
+  kGasDrift,                // free gas + s
+};
+
+struct Function {
+  Shape shape;
+  DiscrepancyFunction public_part;
+  const char* needs;  // the term whose level scales it
+  const char* twin;   // a catalogue term it duplicates: left out beside it
+  bool gas = false;   // acts on the gas state, not the force
+};
+
+const std::vector<Function>& Library() {
+  static const std::vector<Function> functions = {
+      {Shape::kDampingDirection, {70, "damping-direction", "theta3 q'^2 (orifice damping more in compression for c > 0, in extension for c < 0)", "recoil-damping", 0.5}, "quadratic-damping", "recoil-damping"},
+      {Shape::kDampingStroke, {71, "damping-stroke", "theta3 (q / 0.1 m) q'|q'| (orifice damping growing with the stroke)", "metering-pin", 0.5}, "quadratic-damping", "metering-pin"},
+      {Shape::kDampingStrokeDirection, {72, "damping-stroke-direction", "theta3 (q / 0.1 m) q'^2 (the direction asymmetry growing with the stroke)", "", 0.5}, "quadratic-damping", ""},
+      {Shape::kDampingStrokeSquared, {73, "damping-stroke-squared", "theta3 (q / 0.1 m)^2 q'|q'| (orifice damping curving with the stroke)", "metering-pin", 0.5}, "quadratic-damping", ""},
+      {Shape::kViscous, {74, "viscous", "theta3 (0.1 m/s) q' (damping linear in the rate)", "viscous-damping", 0.5}, "quadratic-damping", "viscous-damping"},
+      {Shape::kViscousDirection, {75, "viscous-direction", "theta3 (0.1 m/s) |q'| (linear damping that differs with the direction)", "recoil-damping", 0.5}, "quadratic-damping", ""},
+      {Shape::kDampingPressure, {76, "damping-pressure", "theta3 (0.1 m/s) q' p / 10 MPa (a loop growing with the pressure)", "pressure-heat-transfer", 0.5}, "quadratic-damping", ""},
+      {Shape::kFrictionDirection, {77, "friction-direction", "(theta8 + theta9 p) (2/pi) atan(theta10 q')^2 (friction that differs with the direction)", "friction-asymmetry", 0.2}, "pressure-friction", "friction-asymmetry"},
+      {Shape::kFrictionStroke, {78, "friction-stroke", "(theta8 + theta9 p) atan(theta10 q') (q / 0.1 m) (friction growing with the stroke)", "", 0.2}, "pressure-friction", ""},
+      {Shape::kStiffnessSquared, {79, "stiffness-squared", "theta4 (1 MPa) (q / 0.1 m)^2 (a force growing with the stroke squared)", "dead-volume", 0.1}, "gas-force", ""},
+      {Shape::kStiffnessCubed, {80, "stiffness-cubed", "theta4 (1 MPa) (q / 0.1 m)^3 (a force growing with the stroke cubed)", "dead-volume", 0.1}, "gas-force", ""},
+      {Shape::kForceDrift, {81, "force-drift", "theta4 (1 MPa) s (a force level drifting with the recording time s)", "charge-loss", 0.01}, "gas-force", ""},
+      {Shape::kVolumeSquared, {82, "volume-stroke-squared", "gas volume + (q / 0.1 m)^2 (a gas volume law curving with the stroke)", "dead-volume", 0.01}, "gas-volume", "", true},
+      {Shape::kVolumeCubed, {83, "volume-stroke-cubed", "gas volume + (q / 0.1 m)^3", "dead-volume", 0.01}, "gas-volume", "", true},
+      {Shape::kGasPressure, {84, "gas-pressure", "free gas + p / 10 MPa (free gas that changes with the pressure)", "gas-solubility", 0.01}, "gas-volume", "", true},
+      {Shape::kGasDrift, {85, "gas-drift", "free gas + s (free gas that changes with the recording time s)", "charge-loss", 0.01}, "gas-volume", "charge-loss", true},
+  };
+  return functions;
+}
+
+}  // namespace discrepancy
+
+//! theta70..theta85: the empirical discrepancy, the library above. Functions whose level the model
+//! lacks, or whose catalogue twin it has, are left out.
+class Discrepancy final : public Term {
+ public:
+  unsigned phases() const override { return kBalancePhase | kGasStatePhase; }
+  std::string_view name() const override { return "discrepancy"; }
+  void Declare(ModelBuilder& b) override {
+    for (const discrepancy::Function& f : discrepancy::Library()) {
+      if (!b.has_term(f.needs) || (*f.twin && b.has_term(f.twin))) continue;
+      const DiscrepancyFunction& p = f.public_part;
+      b.add_parameter({.index = p.index, .name = "discrepancy_" + p.name, .unit = "-", .default_value = 0.0,
+                       .description = "empirical: " + p.shape, .estimate_by_default = true, .typical = p.typical,
+                       .prior_sd = p.typical});
+      used_.push_back({f.shape, -1});
+      if (f.shape == discrepancy::Shape::kForceDrift || f.shape == discrepancy::Shape::kGasDrift) drift_ = true;
+    }
+    if (used_.empty()) throw ModelError("discrepancy needs a damper model (quadratic-damping, gas-force, gas-volume)");
+    if (drift_)
+      b.add_parameter({.index = kSessionTimeIndex, .name = "session_time", .unit = "-", .default_value = 0.0,
+                       .description = "when the experiment was recorded, as a fraction of the session (set from the recording)",
+                       .typical = 1.0, .range = {0.0, 1.0, false, false}, .experiment_condition = true});
+  }
+  void Bind(const ModelBuilder& b) override {
+    std::size_t k = 0;
+    for (const discrepancy::Function& f : discrepancy::Library())
+      if (k < used_.size() && used_[k].shape == f.shape) used_[k++].position = b.parameter_position(f.public_part.index);
+    const auto position = [&](const char* term, int index) { return b.has_term(term) ? b.parameter_position(index) : -1; };
+    damping_ = position("quadratic-damping", 3);
+    friction_base_ = position("pressure-friction", 8);
+    friction_pressure_ = position("pressure-friction", 9);
+    sharpness_ = position("pressure-friction", 10);
+    area_ = position("gas-force", 4);
+    time_ = drift_ ? b.parameter_position(kSessionTimeIndex) : -1;
+    pressure_ = b.has_state("pressure") ? b.state_position("pressure", name()) : -1;
+  }
+  template <class S>
+  void Eval(TermContext<S>& c) const {
+    using discrepancy::Shape;
+    namespace d = discrepancy;
+    const auto& v = *c.v;
+    const bool balance = c.phase == TermContext<S>::Phase::kBalance;
+    if (!balance && c.phase != TermContext<S>::Phase::kGasState) return;
+    const S& rate = v.stroke_rate;
+    const S s = v.stroke * (1.0 / d::kStroke);
+    for (const Used& u : used_) {
+      const S& coefficient = c.theta[u.position];
+      switch (u.shape) {
+        case Shape::kDampingDirection:
+          if (balance) c.force += coefficient * c.theta[damping_] * rate * rate;
+          break;
+        case Shape::kDampingStroke:
+          if (balance) c.force += coefficient * c.theta[damping_] * s * rate * Abs(rate);
+          break;
+        case Shape::kDampingStrokeDirection:
+          if (balance) c.force += coefficient * c.theta[damping_] * s * rate * rate;
+          break;
+        case Shape::kDampingStrokeSquared:
+          if (balance) c.force += coefficient * c.theta[damping_] * s * s * rate * Abs(rate);
+          break;
+        case Shape::kViscous:
+          if (balance) c.force += coefficient * c.theta[damping_] * d::kRate * rate;
+          break;
+        case Shape::kViscousDirection:
+          if (balance)
+            c.force += coefficient * c.theta[damping_] * d::kRate * rate * (2.0 / std::numbers::pi) *
+                       Atan(S(rate * (1.0 / d::kDirection)));
+          break;
+        case Shape::kDampingPressure:
+          if (balance)
+            c.force += coefficient * c.theta[damping_] * d::kRate * rate * v.states[pressure_] * (1.0 / d::kLoopPressure);
+          break;
+        case Shape::kFrictionDirection:
+        case Shape::kFrictionStroke:
+          if (balance) {
+            const S amplitude = c.theta[friction_base_] + c.theta[friction_pressure_] * v.states[pressure_];
+            const S a = Atan(S(c.theta[sharpness_] * rate));
+            if (u.shape == Shape::kFrictionDirection)
+              c.force += coefficient * amplitude * (2.0 / std::numbers::pi) * a * a;
+            else
+              c.force += coefficient * amplitude * a * s;
+          }
+          break;
+        case Shape::kStiffnessSquared:
+          if (balance) c.force += coefficient * c.theta[area_] * d::kPressure * s * s;
+          break;
+        case Shape::kStiffnessCubed:
+          if (balance) c.force += coefficient * c.theta[area_] * d::kPressure * s * s * s;
+          break;
+        case Shape::kForceDrift:
+          if (balance) c.force += coefficient * c.theta[area_] * d::kPressure * c.theta[time_];
+          break;
+        case Shape::kVolumeSquared:
+          if (!balance) c.gas_volume += coefficient * s * s;
+          break;
+        case Shape::kVolumeCubed:
+          if (!balance) c.gas_volume += coefficient * s * s * s;
+          break;
+        case Shape::kGasPressure:
+          if (!balance) c.gas_amount += coefficient * v.states[pressure_] * (1.0 / d::kLoopPressure);
+          break;
+        case Shape::kGasDrift:
+          if (!balance) c.gas_amount += coefficient * c.theta[time_];
+          break;
+      }
+    }
+  }
+  STRUT_TERM_EVALUATE
+
+ private:
+  struct Used {
+    discrepancy::Shape shape;
+    int position;
+  };
+  std::vector<Used> used_;
+  bool drift_ = false;
+  int damping_ = -1, friction_base_ = -1, friction_pressure_ = -1, sharpness_ = -1, area_ = -1, time_ = -1,
+      pressure_ = -1;
+};
+
+// ---------------------------------------------------------------------------------------------
 // Generic forced oscillators (docs/silverbox.md): m y'' + d y' + d3 y'^3 + k y + k2 y^2 + k3 y^3 + u0 = u,
 // measured output y + y0. The displacement slot is the output y, the drive slot the input u; both
 // in the units of the record ([y], [u]: volts for the Silverbox circuit). Indices from theta50 on.
@@ -968,6 +1153,9 @@ const std::vector<TermEntry>& Catalogue() {
       {"pressure-heat-transfer", &Make<PressureHeatTransfer>, "",
        "wall heat conductance growing as (p / p_charge)^(2/3), weight theta35", "loop-pressure",
        "a thermal loop that grows with the pressure more than one wall conductance allows: natural convection"},
+      // No locus: discovery adds its functions one by one when no catalogue term explains what is left.
+      {"discrepancy", &Make<Discrepancy>, "", "empirical discrepancy: a sparse sum of library functions, theta70..theta85",
+       "", ""},
       // Generic oscillators (docs/silverbox.md); no locus yet: discovery does not propose them.
       {"linear-oscillator", &Make<LinearOscillator>, "", "forced oscillator theta50 y'' + theta51 y' + theta52 y = u", "", ""},
       {"quadratic-stiffness", &Make<QuadraticStiffness>, "", "quadratic stiffness theta53 y^2", "", ""},
@@ -977,6 +1165,15 @@ const std::vector<TermEntry>& Catalogue() {
       {"output-offset", &Make<OutputOffset>, "", "output sensor offset theta56", "", ""},
   };
   return entries;
+}
+
+const std::vector<DiscrepancyFunction>& DiscrepancyLibrary() {
+  static const std::vector<DiscrepancyFunction> library = [] {
+    std::vector<DiscrepancyFunction> out;
+    for (const discrepancy::Function& f : discrepancy::Library()) out.push_back(f.public_part);
+    return out;
+  }();
+  return library;
 }
 
 const std::vector<std::string>& BaseTerms(std::string_view base) {

@@ -5,6 +5,7 @@
 
 #include <functional>
 #include <map>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -41,6 +42,15 @@ struct DiscoverOptions {
   //! Threads: candidate refits and cross-validation folds side by side, and each fit's experiments
   //! too (EstimatorOptions::threads). The answers are the same for any count.
   int threads = 2;
+  //! When no catalogue term explains what is left above the noise floor, the empirical discrepancy
+  //! (DiscrepancyLibrary) takes its place: its functions are added one at a time by the same rules
+  //! (BIC, noise ratio, held-out prediction), at most `max_discrepancy_functions`; per round the
+  //! `discrepancy_refits` largest size scores are refitted. Never named as a catalogue term.
+  bool discrepancy = true;
+  int max_discrepancy_functions = 6;
+  int discrepancy_refits = 4;
+  //! Catalogue terms discovery does not propose (the leave-one-out study conceals them this way).
+  std::vector<std::string> leave_out;
   bool IsValid(std::string* error) const;
 };
 
@@ -67,13 +77,38 @@ struct CandidateFit {
 };
 
 struct DiscoveryStep {
-  std::string term;
+  std::string term;        //!< a catalogue term, or "discrepancy:NAME" (empirical)
+  bool empirical = false;  //!< a function of the empirical discrepancy, not a catalogue term
   std::string evidence;
   double delta_bic = 0.0;
   std::map<std::string, double> noise_before, noise_after;
   std::vector<std::pair<std::string, double>> parameters;  //!< the term's fitted sizes: key, value
   std::vector<CandidateFit> candidates;                     //!< every candidate of this round
   double cv_before = NAN, cv_after = NAN;                   //!< held-out noise ratio, current model and with the term
+};
+
+//! One function of the empirical discrepancy that discovery selected, with its fitted coefficient.
+struct DiscrepancyTerm {
+  int index = 0;          //!< theta<index>
+  std::string name;       //!< the library's name, e.g. "damping-direction"
+  std::string shape;      //!< the function in symbols and words
+  std::string resembles;  //!< the catalogue term whose signature it shares ("" none)
+  double value = 0.0, sd = NAN;
+};
+
+//! What no catalogue term explained, as an empirical sum of library functions: marked empirical,
+//! never a catalogue name. `dependence` says in words what the missing force (or gas) depends on.
+struct EmpiricalDiscrepancy {
+  std::vector<DiscrepancyTerm> functions;  //!< in the order discovery added them
+  std::vector<std::string> dependence;     //!< e.g. "damping in extension 2.4 times compression at 0.20 m/s"
+  std::vector<std::string> resembles;      //!< catalogue terms whose signatures the functions share
+  //! The missing force against the stroke rate at the middle static position, per direction, and
+  //! against the stroke at the median peak rate, per direction: what the report plots.
+  struct Curve {
+    std::string label;  //!< e.g. "against rate, compression"
+    std::vector<double> x, force;
+  };
+  std::vector<Curve> curves;
 };
 
 struct DiscoveryResult {
@@ -85,6 +120,8 @@ struct DiscoveryResult {
   FitSummary final_fit;
   std::vector<DiscoveryStep> steps;
   std::vector<Finding> unexplained;  //!< what the final model leaves above the noise, if anything
+  //! Set when discovery had to model what is left empirically (DiscoverOptions::discrepancy).
+  std::optional<EmpiricalDiscrepancy> discrepancy;
   std::string conclusion;            //!< one paragraph for people
 };
 
@@ -107,6 +144,11 @@ double CrossValidatedNoiseRatio(const FitData& data, const Model& model, const F
 //! 0: the probability, with every sign equally likely, of a sum of the positive differences' ranks
 //! (mid-ranks for ties of |d|; zeros left out) at most the observed one. 1 without nonzero differences.
 double SignedRankPValue(const std::vector<double>& differences);
+
+//! The empirical discrepancy of a fit whose model has the discrepancy term: the functions whose
+//! coefficients it estimated (the others are 0), what the missing force depends on in words, and
+//! its curves. Empty functions when the fit has no discrepancy.
+EmpiricalDiscrepancy DescribeDiscrepancy(const FitSummary& fit);
 
 //! Runs discovery from the baseline `fit.composition` (any composition; its fit is the full default
 //! fit of SessionFitOptions) on prepared experiments.

@@ -54,4 +54,12 @@ struct CandidateStart {
 CandidateStart CandidateStartingValues(const std::string& term, const FitSummary& baseline,
                                        std::vector<std::string>* log = nullptr);
 
+//! The starting value and size score of the empirical discrepancy's coefficient theta<index>
+//! (DiscrepancyLibrary) when it is added to the fit `baseline` as the stroke-input model `model`
+//! (a composition with the discrepancy term): one Gauss-Newton step from the baseline with the
+//! coefficient at 0, as for the catalogue's sizes. Empty where `model` lacks the coefficient or the
+//! data cannot say.
+CandidateStart DiscrepancyStartingValue(const Model& model, int index, const FitSummary& baseline,
+                                        std::vector<std::string>* log = nullptr);
+
 }  // namespace strut::ident

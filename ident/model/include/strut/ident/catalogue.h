@@ -24,6 +24,19 @@ struct TermEntry {
 //! Every term a composition may name, in evaluation order.
 const std::vector<TermEntry>& Catalogue();
 
+//! One function of the empirical discrepancy's library (the `discrepancy` term, docs/discovery.md):
+//! its coefficient theta<index> is dimensionless, 0 absent.
+struct DiscrepancyFunction {
+  int index = 0;          //!< paper-style index of its coefficient (70..85)
+  std::string name;       //!< e.g. "damping-direction"
+  std::string shape;      //!< the function, in symbols and words
+  std::string resembles;  //!< the catalogue term whose signature it shares ("" none)
+  double typical = 0.0;   //!< size of a meaningful coefficient (the prior's sd under --model ...+discrepancy)
+};
+
+//! The discrepancy's whole library, in evaluation order (a model holds those its terms allow).
+const std::vector<DiscrepancyFunction>& DiscrepancyLibrary();
+
 //! The terms of a base model ("1dof", "2dof", "linear-oscillator"); empty for an unknown base.
 const std::vector<std::string>& BaseTerms(std::string_view base);
 

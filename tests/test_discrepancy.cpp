@@ -1,0 +1,139 @@
+// The empirical discrepancy on simulated sessions whose truth is known: with a catalogue term left
+// out of the catalogue (as physics no catalogue holds), discovery names no wrong term, models what
+// is left with the discrepancy's functions, reaches the noise floor, and says what the missing force
+// depends on in numbers that match the concealed physics (docs/discovery.md).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <regex>
+
+#include "session_fixtures.h"
+#include "strut/ident/discover.h"
+#include "strut/report/discover_report.h"
+
+namespace strut::ident {
+namespace {
+
+constexpr int kGrid = 400;
+
+// The first "NUMBER times" after `phrase` in the sentences, NaN when none says it.
+double TimesAfter(const std::vector<std::string>& sentences, const std::string& phrase) {
+  const std::regex pattern(phrase + R"( ([0-9.]+) times)");
+  for (const std::string& s : sentences) {
+    std::smatch m;
+    if (std::regex_search(s, m, pattern)) return std::stod(m[1].str());
+  }
+  return NAN;
+}
+
+std::string Lines(const std::vector<std::string>& lines) {
+  std::string out;
+  for (const auto& l : lines) out += l + "\n";
+  return out;
+}
+
+bool Has(const EmpiricalDiscrepancy& d, const std::string& function) {
+  return std::any_of(d.functions.begin(), d.functions.end(), [&](const DiscrepancyTerm& f) { return f.name == function; });
+}
+
+struct LeftOut {
+  DiscoveryResult result;
+  ParameterSet truth;
+};
+
+LeftOut DiscoverWithout(const std::string& term, const std::string& changes, unsigned seed) {
+  const FitData data = test::SimulatedFitData("2dof+" + term, changes, seed, kGrid);
+  DiscoverOptions options;
+  options.leave_out = {term};
+  LeftOut out{Discover(data, test::FitOptionsOnGrid("2dof", kGrid), options),
+              Model::Build("2dof+" + term, Causality::kStrokeInput).defaults()};
+  out.truth.apply_assignments(changes);
+  return out;
+}
+
+// Every physical parameter the final fit estimated and the truth has, except `conflated` (whose
+// meaning the discrepancy shares), within 3 sd of its truth.
+void ExpectPhysicalParametersCover(const FitSummary& fit, const ParameterSet& truth, const std::vector<std::string>& conflated) {
+  for (int i = 0; i < fit.parameters.size(); ++i) {
+    const ParameterSpec& spec = fit.parameters.spec(i);
+    const auto t = truth.find(spec.key());
+    if (!fit.estimates[i].estimated || !t || spec.index >= 70 ||
+        std::find(conflated.begin(), conflated.end(), spec.key()) != conflated.end())
+      continue;
+    EXPECT_LT(std::abs(fit.parameters.value(i) - truth.value(*t)), 3.0 * fit.estimates[i].sd)
+        << spec.key() << " " << spec.name << ": " << fit.parameters.value(i) << " +- " << fit.estimates[i].sd
+        << " against the truth " << truth.value(*t);
+  }
+}
+
+TEST(Discrepancy, RecoilDampingLeftOutIsModelledEmpiricallyAsMoreDampingInExtension) {
+  // c_ext = 2.5 c_comp, a recoil valve no catalogue term is allowed to name.
+  const LeftOut run = DiscoverWithout("recoil-damping", "theta32=1.5", 21);
+  const DiscoveryResult& r = run.result;
+  EXPECT_TRUE(r.missing.empty()) << "a wrong catalogue term was named: " << r.conclusion;
+  ASSERT_TRUE(r.discrepancy.has_value()) << r.conclusion;
+  const EmpiricalDiscrepancy& d = *r.discrepancy;
+  EXPECT_TRUE(Has(d, "damping-direction")) << r.conclusion;
+  EXPECT_EQ(r.final_fit.Verdict(), FitVerdict::kAtNoiseFloor) << r.conclusion;
+  const double ratio = TimesAfter(d.dependence, "damping in extension");
+  EXPECT_NEAR(ratio, 2.5, 0.25) << Lines(d.dependence);
+  EXPECT_NE(std::find(d.resembles.begin(), d.resembles.end(), "recoil-damping"), d.resembles.end());
+  // The orifice damping theta3 is now the mean of the two directions' damping: the discrepancy
+  // cannot say which direction is the valve's. The rest is the unit's physics again.
+  ExpectPhysicalParametersCover(r.final_fit, run.truth, {"theta3"});
+  // Marked empirical, never a catalogue name: in the steps, the conclusion and the JSON.
+  for (const DiscoveryStep& s : r.steps) EXPECT_TRUE(s.empirical) << s.term;
+  EXPECT_NE(r.conclusion.find("empirical"), std::string::npos) << r.conclusion;
+  const nlohmann::json j = report::DiscoveryJson(r);
+  EXPECT_TRUE(j["discrepancy"]["empirical"].get<bool>());
+  EXPECT_TRUE(j["missing"].empty());
+  ASSERT_EQ(j["discrepancy"]["curves"].size(), 3u);
+  // The rate curve: the missing force is even in the rate (more in extension at the same speed).
+  const auto& curve = j["discrepancy"]["curves"][0];
+  const std::vector<double> x = curve["x"], f = curve["force"];
+  ASSERT_EQ(x.size(), 41u);
+  EXPECT_GT(std::abs(f.front()), 0.0);
+  EXPECT_NEAR(f.front(), f.back(), 0.01 * std::abs(f.front()));
+}
+
+TEST(Discrepancy, MeteringPinLeftOutIsDescribedAsDampingGrowingWithTheStroke) {
+  // c(q) = theta3 (1 + 8 q): the orifice damping grows with the stroke.
+  const double gradient = 8.0;
+  const LeftOut run = DiscoverWithout("metering-pin", "theta33=8", 22);
+  const DiscoveryResult& r = run.result;
+  EXPECT_TRUE(r.missing.empty()) << "a wrong catalogue term was named: " << r.conclusion;
+  ASSERT_TRUE(r.discrepancy.has_value()) << r.conclusion;
+  const EmpiricalDiscrepancy& d = *r.discrepancy;
+  EXPECT_EQ(r.final_fit.Verdict(), FitVerdict::kAtNoiseFloor) << r.conclusion;
+  // The truth's growth over the stroke the matrix covers, read from the sentence's own range.
+  std::smatch m;
+  std::string sentence;
+  for (const std::string& s : d.dependence)
+    if (s.find("damping grows") != std::string::npos) sentence = s;
+  ASSERT_TRUE(std::regex_search(sentence, m, std::regex(R"(grows ([0-9.]+) times from ([0-9]+) mm to ([0-9]+) mm)")))
+      << Lines(d.dependence);
+  const double lo = std::stod(m[2].str()) * 1e-3, hi = std::stod(m[3].str()) * 1e-3;
+  const double truth_growth = (1.0 + gradient * hi) / (1.0 + gradient * lo);
+  EXPECT_NEAR(std::stod(m[1].str()), truth_growth, 0.1 * truth_growth) << sentence;
+  EXPECT_NE(std::find(d.resembles.begin(), d.resembles.end(), "metering-pin"), d.resembles.end());
+  ExpectPhysicalParametersCover(r.final_fit, run.truth, {});
+}
+
+TEST(Discrepancy, IdentifyWithTheWholeLibraryFitsItDirectly) {
+  // `identify --model 2dof+discrepancy`: every function estimated beside the physics, each with its
+  // N(0, typical) prior; on a recoil unit it reaches the noise floor.
+  const FitData data = test::SimulatedFitData("2dof+recoil-damping", "theta32=1.5", 23, kGrid);
+  const SessionFit fit = FitPrepared(data, Model::Build("2dof+discrepancy", Causality::kStrokeInput),
+                                     test::FitOptionsOnGrid("2dof+discrepancy", kGrid));
+  EXPECT_TRUE(fit.summary.converged) << fit.summary.VerdictText();
+  EXPECT_EQ(fit.summary.Verdict(), FitVerdict::kAtNoiseFloor) << fit.summary.VerdictText();
+  int estimated = 0;
+  for (int i = 0; i < fit.summary.parameters.size(); ++i)
+    if (fit.summary.parameters.spec(i).index >= 70 && fit.summary.estimates[i].estimated) ++estimated;
+  EXPECT_GE(estimated, 10);
+  const EmpiricalDiscrepancy d = DescribeDiscrepancy(fit.summary);
+  EXPECT_NEAR(TimesAfter(d.dependence, "damping in extension"), 2.5, 0.4) << Lines(d.dependence);
+}
+
+}  // namespace
+}  // namespace strut::ident

@@ -76,6 +76,10 @@ void RegisterBenchConfusion(CLI::App& bench) {
   sub->add_flag("--servo", command->options.servo, "Drive the damper through the servo actuator (default: an ideal actuator).");
   sub->add_flag("--shipped-calibration", command->options.shipped_calibration,
                 "Keep the shipped transducers' zero and gain errors (default: perfect calibration).");
+  sub->add_flag("--leave-out", command->options.leave_out,
+                "Leave-one-out: leave each unit's effect out of the catalogue discovery may name, so that only the "
+                "empirical discrepancy can take it up; the table adds the units at the noise floor, those that used "
+                "the discrepancy, and those it described as the effect (docs/discovery.md).");
   sub->add_option("--sizes", command->sizes,
                   "How the effects' sizes are drawn: 'drawn' (the simulated rig's realistic spreads) or 'study' (from "
                   "barely detectable to plain, docs/discovery.md), which also prints the detection size.")

@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cmath>
 #include <nlohmann/json.hpp>
+#include <map>
 #include <random>
 #include <stdexcept>
 
@@ -50,10 +51,20 @@ ConfusionUnit DiscoverUnit(const ConfusionOptions& options, const ident::Session
   run.seed = seed;
   session = rig.RunMatrix(rig::StandardMatrixPlan(), run);
   const auto start = std::chrono::steady_clock::now();
+  ident::DiscoverOptions discover;
+  if (options.leave_out && effect != "none") discover.leave_out = {effect};
   const ident::DiscoveryResult r =
-      ident::Discover(ident::PrepareFitData(session, fmt::format("unit {}", seed), model, fit.estimator.n), fit, {});
+      ident::Discover(ident::PrepareFitData(session, fmt::format("unit {}", seed), model, fit.estimator.n), fit, discover);
   unit.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   unit.found = r.missing;
+  unit.at_floor = r.final_fit.Verdict() == ident::FitVerdict::kAtNoiseFloor;
+  if (r.discrepancy) {
+    for (const ident::DiscrepancyTerm& f : r.discrepancy->functions) unit.empirical.push_back(f.name);
+    unit.dependence = r.discrepancy->dependence;
+  }
+  const std::vector<std::string>& signature = SignatureFunctions(effect);
+  unit.described = !unit.empirical.empty() &&
+                   std::find(signature.begin(), signature.end(), unit.empirical.front()) != signature.end();
   unit.right_first = effect != "none" && !r.missing.empty() && r.missing.front() == effect;
   if (study) {
     const ident::ParameterSet p = truth.Parameters(rig.model());
@@ -66,6 +77,24 @@ ConfusionUnit DiscoverUnit(const ConfusionOptions& options, const ident::Session
 }
 
 }  // namespace
+
+const std::vector<std::string>& SignatureFunctions(const std::string& term) {
+  static const std::map<std::string, std::vector<std::string>> table = {
+      {"recoil-damping", {"damping-direction", "damping-stroke-direction", "viscous-direction"}},
+      {"metering-pin", {"damping-stroke", "damping-stroke-squared", "damping-stroke-direction"}},
+      {"viscous-damping", {"viscous"}},
+      {"friction-asymmetry", {"friction-direction"}},
+      {"pressure-heat-transfer", {"damping-pressure"}},
+      {"charge-loss", {"gas-drift", "force-drift"}},
+      {"gas-solubility", {"gas-pressure"}},
+      {"dead-volume", {"volume-stroke-squared", "volume-stroke-cubed", "stiffness-squared", "stiffness-cubed", "gas-pressure"}},
+      {"oil-compressibility", {"volume-stroke-squared", "volume-stroke-cubed", "stiffness-squared", "stiffness-cubed", "gas-pressure"}},
+      {"real-gas", {"volume-stroke-squared", "volume-stroke-cubed", "stiffness-squared", "stiffness-cubed", "gas-pressure"}},
+  };
+  static const std::vector<std::string> none;
+  const auto it = table.find(term);
+  return it == table.end() ? none : it->second;
+}
 
 const std::vector<StudyRange>& StudyRanges() {
   static const std::vector<StudyRange> ranges = {
@@ -145,6 +174,9 @@ ConfusionRow SummariseConfusion(const ConfusionOptions& options, const std::stri
       by_left.emplace_back(unit.signal->left_rms, unit.right_first);
     }
     if (unit.size) by_size.emplace_back(*unit.size, unit.right_first);
+    row.at_floor += unit.at_floor;
+    row.empirical += !unit.empirical.empty();
+    row.described += unit.described;
   }
   row.detection_signal = DetectionSize(by_signal);
   row.detection_left = DetectionSize(by_left);
@@ -181,6 +213,10 @@ nlohmann::json ConfusionUnitJson(const ConfusionUnit& unit) {
                      {"left_rms", s->left_rms}, {"left_experiment", s->left_experiment},
                      {"left_channel", s->left_channel}};
   if (unit.size) row["size"] = *unit.size;
+  row["empirical"] = unit.empirical;
+  row["dependence"] = unit.dependence;
+  row["at_floor"] = unit.at_floor;
+  row["described"] = unit.described;
   if (const auto& f = unit.first_round)
     row["first_round"] = {{"delta_bic", f->delta_bic}, {"cv_ratio", f->cv_ratio}, {"verdict", f->verdict}};
   return row;
@@ -199,6 +235,11 @@ ConfusionUnit ConfusionUnitFromJson(const nlohmann::json& j) {
                                     s->at("left_rms").get<double>(), s->at("left_experiment").get<std::string>(),
                                     s->at("left_channel").get<std::string>()};
   if (const auto s = j.find("size"); s != j.end()) unit.size = s->get<double>();
+  // Shards written before the discrepancy lack these: read as nothing empirical, not at the floor.
+  unit.empirical = j.value("empirical", std::vector<std::string>{});
+  unit.dependence = j.value("dependence", std::vector<std::string>{});
+  unit.at_floor = j.value("at_floor", false);
+  unit.described = j.value("described", false);
   if (const auto f = j.find("first_round"); f != j.end())
     unit.first_round = ConfusionUnit::FirstRound{f->at("delta_bic").get<double>(), f->at("cv_ratio").get<double>(),
                                                  f->at("verdict").get<std::string>()};
@@ -209,7 +250,8 @@ nlohmann::json ConfusionRowJson(const ConfusionRow& row) {
   nlohmann::json j{{"effect", row.effect},      {"units", row.units},
                    {"right_first", row.right},  {"extra", row.extra},
                    {"nothing_found", row.none}, {"median_seconds", row.median_seconds},
-                   {"added", row.added}};
+                   {"added", row.added},        {"at_floor", row.at_floor},
+                   {"empirical", row.empirical}, {"described", row.described}};
   if (std::isfinite(row.detection_signal)) j["detection_signal"] = row.detection_signal;
   if (std::isfinite(row.detection_left)) j["detection_left"] = row.detection_left;
   if (std::isfinite(row.detection_size)) j["detection_size"] = row.detection_size;
@@ -217,19 +259,21 @@ nlohmann::json ConfusionRowJson(const ConfusionRow& row) {
 }
 
 std::string ConfusionHeading(const ConfusionOptions& options) {
-  return fmt::format("discovery from {} on drawn units ({} per row, seeds {}..), {} actuator, {} calibration:\n",
+  return fmt::format("discovery from {} on drawn units ({} per row, seeds {}..), {} actuator, {} calibration{}:\n",
                      options.base, options.units, options.first_seed, options.servo ? "servo" : "ideal",
-                     options.shipped_calibration ? "shipped" : "perfect") +
-         fmt::format("  {:<20} {:>6} {:>12} {:>12} {:>10} {:>10}  {}\n", "truth holds", "units", "right first",
-                     "extra terms", "none found", "median s", "what was added");
+                     options.shipped_calibration ? "shipped" : "perfect",
+                     options.leave_out ? ", each effect left out of the catalogue (leave-one-out)" : "") +
+         fmt::format("  {:<20} {:>6} {:>12} {:>12} {:>10} {:>10} {:>9} {:>9} {:>9}  {}\n", "truth holds", "units",
+                     "right first", "extra terms", "none found", "median s", "at floor", "empirical", "described",
+                     "what was added");
 }
 
 std::string ConfusionRowLine(const ConfusionRow& row) {
   std::string what;
   for (const auto& [names, count] : row.added) what += fmt::format("{}{} x{}", what.empty() ? "" : ", ", names, count);
-  return fmt::format("  {:<20} {:>6} {:>12} {:>12} {:>10} {:>10.2f}  {}\n", row.effect, row.units,
+  return fmt::format("  {:<20} {:>6} {:>12} {:>12} {:>10} {:>10.2f} {:>9} {:>9} {:>9}  {}\n", row.effect, row.units,
                      row.effect == "none" ? std::string("-") : std::to_string(row.right), row.extra, row.none,
-                     row.median_seconds, what);
+                     row.median_seconds, row.at_floor, row.empirical, row.described, what);
 }
 
 std::string ConfusionDetection(const std::vector<ConfusionRow>& rows) {

@@ -51,7 +51,15 @@ struct ConfusionOptions {
   bool servo = false;                //!< drive through the servo actuator (else an ideal one)
   bool shipped_calibration = false;  //!< keep the shipped transducers' zero and gain errors
   bool study_sizes = false;          //!< sizes from StudyRanges (else the simulated rig's spreads)
+  //! Leave-one-out: each unit's effect is also left out of the catalogue discovery may name
+  //! (DiscoverOptions::leave_out), so that only the empirical discrepancy can take it up.
+  bool leave_out = false;
 };
+
+//! The empirical discrepancy's functions whose shape is the signature of a catalogue term (the
+//! leave-one-out study's automatic check of the description; empty: no function of the library has
+//! that shape, e.g. the Stribeck spike at the reversals or a contact at full extension).
+const std::vector<std::string>& SignatureFunctions(const std::string& term);
 
 //! One unit's discovery.
 struct ConfusionUnit {
@@ -67,6 +75,11 @@ struct ConfusionUnit {
     std::string verdict;
   };
   std::optional<FirstRound> first_round;  //!< the effect's candidate in discovery's first round
+  std::vector<std::string> empirical;     //!< the discrepancy's functions discovery chose, in order
+  std::vector<std::string> dependence;    //!< and what it said the missing force depends on
+  bool at_floor = false;                  //!< the final fit at the noise floor
+  //! Leave-one-out: the first chosen function is one of SignatureFunctions(effect).
+  bool described = false;
 };
 
 //! One effect's row of the table.
@@ -75,6 +88,7 @@ struct ConfusionRow {
   const StudyRange* study = nullptr;  //!< the size range (study sizes)
   int units = 0;
   int right = 0, extra = 0, none = 0;  //!< right first term; other or more terms; nothing found
+  int at_floor = 0, empirical = 0, described = 0;  //!< final fit at the floor; discrepancy used; described as the effect
   double median_seconds = 0.0;
   std::map<std::string, int> added;  //!< "a+b" (or "(nothing)"): units
   //! Detection in the signal, in what the baseline leaves of it and in the size parameter; NaN:

@@ -14,6 +14,7 @@
 
 #include "strut/monitor/feed.h"
 #include "strut/monitor/server.h"
+#include "test_support.h"
 
 namespace strut::monitor {
 namespace {
@@ -26,17 +27,10 @@ struct StreamRead {
 // GET /events and read until the server closes the connection or `timeout` passes.
 StreamRead ReadEventStream(int port, std::chrono::seconds timeout) {
   StreamRead r;
-  const int s = socket(AF_INET, SOCK_STREAM, 0);
+  const int s = test::ConnectToLoopback(port);
+  if (s < 0) return r;
   timeval tv{static_cast<time_t>(timeout.count()), 0};
   setsockopt(s, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
-  sockaddr_in a{};
-  a.sin_family = AF_INET;
-  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  a.sin_port = htons(static_cast<std::uint16_t>(port));
-  if (connect(s, reinterpret_cast<sockaddr*>(&a), sizeof a) != 0) {
-    close(s);
-    return r;
-  }
   const std::string request = "GET /events HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n\r\n";
   if (send(s, request.data(), request.size(), 0) == static_cast<ssize_t>(request.size())) {
     char buffer[4096];
@@ -82,6 +76,7 @@ TEST(MonitorServer, APageThatStopsReadingDoesNotHoldTheRunsEndBeyondTheDrainLimi
   MonitorFeed feed({"stroke"}, 200.0, 1.0);
   MonitorServer server(feed, MonitorSetup{}, MonitorOptions{"127.0.0.1", 0, false});
   // A client that connects, asks for the stream and never reads a byte.
+  // Its receive buffer made small before it connects (the window is set then).
   const int s = socket(AF_INET, SOCK_STREAM, 0);
   int small = 1024;
   setsockopt(s, SOL_SOCKET, SO_RCVBUF, &small, sizeof small);

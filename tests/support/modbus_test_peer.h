@@ -19,6 +19,8 @@
 #include <thread>
 #include <vector>
 
+#include "test_support.h"
+
 namespace strut::test {
 
 class ScriptedModbusPeer {
@@ -134,15 +136,8 @@ class ScriptedModbusPeer {
 //! Connects to 127.0.0.1:port, sends `bytes`, waits `linger`, closes. Returns false if it could not connect.
 inline bool SendRawAndClose(int port, const std::vector<std::uint8_t>& bytes,
                             std::chrono::milliseconds linger = std::chrono::milliseconds(50)) {
-  const int fd = socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
-  sockaddr_in address{};
-  address.sin_family = AF_INET;
-  address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  address.sin_port = htons(static_cast<std::uint16_t>(port));
-  if (connect(fd, reinterpret_cast<sockaddr*>(&address), sizeof address) != 0) {
-    close(fd);
-    return false;
-  }
+  const int fd = ConnectToLoopback(port);
+  if (fd < 0) return false;
   send(fd, bytes.data(), bytes.size(), MSG_NOSIGNAL);
   std::this_thread::sleep_for(linger);
   close(fd);

@@ -87,16 +87,24 @@ int FreeLoopbackPort(int type) {
   return ntohs(a.sin_port);
 }
 
-bool AcceptsOnLoopback(int port) {
+int ConnectToLoopback(int port) {
   const int s = socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
-  if (s < 0) return false;
+  if (s < 0) return -1;
   sockaddr_in a{};
   a.sin_family = AF_INET;
   a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
   a.sin_port = htons(static_cast<std::uint16_t>(port));
-  const bool ok = connect(s, reinterpret_cast<sockaddr*>(&a), sizeof a) == 0;
-  close(s);
-  return ok;
+  if (connect(s, reinterpret_cast<sockaddr*>(&a), sizeof a) != 0) {
+    close(s);
+    return -1;
+  }
+  return s;
+}
+
+bool AcceptsOnLoopback(int port) {
+  const int s = ConnectToLoopback(port);
+  if (s >= 0) close(s);
+  return s >= 0;
 }
 
 FileSizeLimit::FileSizeLimit(unsigned long bytes) {

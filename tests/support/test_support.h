@@ -59,6 +59,9 @@ std::size_t Count(const std::string& haystack, const std::string& needle);
 //! Modbus TCP server, SOCK_DGRAM for a CAN-over-UDP receiver.
 int FreeLoopbackPort(int type);
 
+//! A TCP connection to 127.0.0.1:port, its descriptor (the caller closes it); -1 when refused.
+int ConnectToLoopback(int port);
+
 //! Whether a TCP connection to the loopback port is accepted now (a server is listening there).
 bool AcceptsOnLoopback(int port);
 

@@ -944,9 +944,13 @@ DiscoveryStep DiscoveryRun::Step(const Round& round, int best, const FitSummary&
       }
   }
   const FitSummary& chosen = round.fits[best];
-  for (int i = 0; i < chosen.parameters.size(); ++i)
-    if (!current.parameters.find(chosen.parameters.spec(i).key()) && chosen.estimates[i].estimated)
+  // What the step estimates that the current fit did not (a discrepancy function's coefficient is
+  // in the current model already, at 0 and fixed, from the second function on).
+  for (int i = 0; i < chosen.parameters.size(); ++i) {
+    const auto p = current.parameters.find(chosen.parameters.spec(i).key());
+    if (chosen.estimates[i].estimated && !(p && current.estimates[*p].estimated))
       step.parameters.emplace_back(chosen.parameters.spec(i).key(), chosen.parameters.value(i));
+  }
   return step;
 }
 

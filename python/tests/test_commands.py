@@ -76,3 +76,14 @@ def test_predict_drop_from_a_fit_object_equals_the_cli_from_its_json(lab, tmp_pa
     with pytest.raises(ValueError) as raised:
         strut.predict_drop(fit=fit, mass=0)
     assert "--mass" in str(raised.value)
+
+
+def test_discover_finds_what_the_cli_finds(lab, tmp_path):
+    cli_json = tmp_path / "discover.json"
+    run_strut("discover", lab / "unit12.h5", "--model", "1dof", "--json", cli_json)
+    cli = json.loads(cli_json.read_text())
+    found = strut.discover(lab / "unit12.h5", model="1dof")
+    assert found.json == cli
+    assert found.missing == cli["missing"] and found.missing  # 1 dof leaves the heat exchange out
+    assert found.final_fit.model == found.final_model
+    assert found.baseline.verdict == "above-noise-floor" and found.final_fit.verdict == "at-noise-floor"

@@ -8,6 +8,7 @@ packages=(
   libmodbus-dev libgtest-dev libgmock-dev libsundials-dev liblapack-dev clang-14 libclang-rt-14-dev
   nlohmann-json3-dev libtomlplusplus-dev libmatio-dev libsqlite3-dev libcpp-httplib-dev
   python3-h5py python3-numpy
+  python3-dev pybind11-dev python3-pybind11 python3-pandas python3-pytest
   chromium
   python3-pymodbus python3-serial-asyncio
   libpq-dev postgresql slurm-wlm munge

@@ -4,6 +4,7 @@
 #include <iostream>
 
 #include "commands.h"
+#include "discover_command.h"
 #include "model_options.h"
 #include "option_checks.h"
 #include "output_files.h"
@@ -12,40 +13,40 @@
 #include "strut/report/discover_report.h"
 
 namespace strut::tools {
-namespace {
 
-struct DiscoverCommand {
-  std::vector<std::string> sessions;
-  ModelOptions model;
-  std::string json_path, report_path;
-  int n = 0;  // 0: by causality (ident::DefaultGridPoints)
-  int threads = 2;
+ident::DiscoveryResult DiscoverCommand::Discover() const {
+  CheckOutputPath("--json", json_path, sessions);
+  CheckOutputPath("--report", report_path, sessions);
+  const ident::SessionFitOptions fit = model.FitOptions(n);
+  const ident::FitData data = ident::ReadFitData(sessions, model.BuildModel(), n, fit.exclude);
+  for (const auto& line : data.excluded) spdlog::info("{}", line);
+  ident::DiscoverOptions options;
+  options.threads = threads;
+  ident::DiscoveryResult result = ident::Discover(data, fit, options);
+  if (!json_path.empty()) WriteJsonOutput(json_path, report::DiscoveryJson(result));
+  if (!report_path.empty()) report::WriteDiscoveryReport(result, report_path);
+  return result;
+}
 
-  void Run() const {
-    CheckOutputPath("--json", json_path, sessions);
-    CheckOutputPath("--report", report_path, sessions);
-    const ident::SessionFitOptions fit = model.FitOptions(n);
-    const ident::FitData data = ident::ReadFitData(sessions, model.BuildModel(), n, fit.exclude);
-    for (const auto& line : data.excluded) spdlog::info("{}", line);
-    ident::DiscoverOptions options;
-    options.threads = threads;
-    const ident::DiscoveryResult result = ident::Discover(data, fit, options);
-    // The conclusion and the steps are the data (stdout); the library logs only its progress (stderr).
-    std::cout << result.conclusion << "\n";
-    for (const auto& s : result.steps)
-      std::cout << fmt::format("  + {:<20} ΔBIC {:+.1f}  {}\n", s.term, s.delta_bic, s.evidence);
-    if (!json_path.empty()) WriteJsonOutput(json_path, report::DiscoveryJson(result));
-    if (!report_path.empty()) report::WriteDiscoveryReport(result, report_path);
-  }
-};
-
-}  // namespace
+void DiscoverCommand::Run() const {
+  const ident::DiscoveryResult result = Discover();
+  // The conclusion and the steps are the data (stdout); the library logs only its progress (stderr).
+  std::cout << result.conclusion << "\n";
+  for (const auto& s : result.steps)
+    std::cout << fmt::format("  + {:<20} ΔBIC {:+.1f}  {}\n", s.term, s.delta_bic, s.evidence);
+}
 
 void RegisterDiscoverCommand(CLI::App& app) {
   auto [sub, command] = AddCommand<DiscoverCommand>(
       app, "discover",
       "Find the physics a model leaves out: fit the baseline with every parameter the data can determine, locate "
       "the mismatch, add the catalogue term that explains it (BIC and cross-validation), and show the fit improve.");
+  AddDiscoverOptions(*sub, *command);
+}
+
+void AddDiscoverOptions(CLI::App& app, DiscoverCommand& discover) {
+  CLI::App* sub = &app;
+  DiscoverCommand* command = &discover;
   sub->add_option("sessions", command->sessions, "Session files (HDF5) to fit together.")->required()->check(CLI::ExistingFile);
   command->model.Add(*sub);
   command->model.AddSessionFit(*sub);

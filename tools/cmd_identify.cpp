@@ -7,6 +7,7 @@
 #include <iostream>
 
 #include "commands.h"
+#include "identify_command.h"
 #include "model_options.h"
 #include "option_checks.h"
 #include "output_files.h"
@@ -24,78 +25,73 @@ std::string DropLabels(const std::vector<ident::TransientExperimentData>& drops)
   return labels;
 }
 
-struct IdentifyCommand {
-  std::vector<std::string> sessions;
-  ModelOptions model;
-  std::string estimate;
-  std::string json_path, report_path;
-  int n = 0;                    // 0: by causality (ident::DefaultGridPoints)
-  std::string scheme = "auto";  // auto: by causality (ident::DefaultScheme)
-  std::string estimate_input = "auto";
-  int input_harmonics = 20;
-  bool no_progress = false;
-
-  void Run() const {
-    // Before any work: no output may replace an input or a session.
-    CheckOutputPath("--json", json_path, sessions);
-    CheckOutputPath("--report", report_path, sessions);
-    if (!json_path.empty() && json_path == report_path)
-      throw std::invalid_argument("--json and --report name the same file " + json_path);
-    ident::SessionFitOptions options = model.FitOptions(n);
-    options.estimate = estimate;
-    if (scheme != "auto") options.estimator.scheme = ident::ParseScheme(scheme);
-    options.estimator.n = ident::FitGridPoints(n, options.estimator.scheme, options.causality);
-    if (estimate_input != "auto") options.estimator.estimate_input = estimate_input == "on";
-    options.estimator.input_harmonics = input_harmonics;
-    // Drop experiments are fitted beside the periodic ones, predicted by sim's transient integrator.
-    options.estimator.transient_predictor = sim::DropPredictorFactory();
-    const ident::Model m = model.BuildModel();
-    ident::FitData data = ident::ReadFitData(sessions, m, options.estimator.n, options.exclude);
-    for (const auto& issue : data.issues)
-      spdlog::warn("{}: experiment '{}', channel '{}': {}: {}", sessions.size() == 1 ? sessions[0] : "session",
-                   issue.experiment, issue.channel, issue.kind, issue.detail);
-    for (const auto& line : data.excluded) spdlog::info("{}", line);
-
-    const bool tty = !no_progress && isatty(fileno(stderr));
-    const auto progress = [&](const ident::FitProgress& p) {
-      if (!tty) return;
-      if (p.experiment > 0)
-        std::fprintf(stderr, "\r  iteration %2d  experiment %2d of %2d   ", p.iteration, p.experiment, p.experiments);
-      else
-        std::fprintf(stderr, "\r  iteration %2d  loglik %.8g            \n", p.iteration, p.objective);
-    };
-    const ident::SessionFit fit = ident::FitPrepared(std::move(data), m, options, progress);
-    if (tty) std::fprintf(stderr, "\r%60s\r", "");
-    spdlog::info("{} ({} input), {} periodic experiments{}; starting values as used:", m.composition(),
-                 ident::ToString(m.causality()), fit.data.experiments.size(),
-                 DropLabels(fit.data.transients));
-    for (const auto& line : fit.plan.Describe()) spdlog::info("  {}", line);
-    std::cout << fit.summary.FullReport();
-    if (!json_path.empty()) {
-      nlohmann::json j = report::FitToJson(fit.summary);
-      j["sessions"] = sessions;
-      j["excluded"] = options.exclude;
-      WriteJsonOutput(json_path, j);
-    }
-    if (!report_path.empty()) {
-      report::WriteFitReport(fit.summary, report_path, "strut identify: " + m.composition());
-      spdlog::info("wrote {}", report_path);
-    }
-    switch (fit.summary.Verdict()) {
-      case ident::FitVerdict::kAtNoiseFloor:
-        spdlog::info("{}", fit.summary.VerdictText());
-        return;
-      case ident::FitVerdict::kAboveNoiseFloor:
-        spdlog::warn("{}", fit.summary.VerdictText());
-        throw ExitCode(kExitAboveNoiseFloor);
-      case ident::FitVerdict::kNotConverged:
-        spdlog::error("{}", fit.summary.VerdictText());
-        throw ExitCode(kExitNotConverged);
-    }
-  }
-};
-
 }  // namespace
+
+ident::SessionFit IdentifyCommand::Fit() const {
+  // Before any work: no output may replace an input or a session.
+  CheckOutputPath("--json", json_path, sessions);
+  CheckOutputPath("--report", report_path, sessions);
+  if (!json_path.empty() && json_path == report_path)
+    throw std::invalid_argument("--json and --report name the same file " + json_path);
+  ident::SessionFitOptions options = model.FitOptions(n);
+  options.estimate = estimate;
+  if (scheme != "auto") options.estimator.scheme = ident::ParseScheme(scheme);
+  options.estimator.n = ident::FitGridPoints(n, options.estimator.scheme, options.causality);
+  if (estimate_input != "auto") options.estimator.estimate_input = estimate_input == "on";
+  options.estimator.input_harmonics = input_harmonics;
+  // Drop experiments are fitted beside the periodic ones, predicted by sim's transient integrator.
+  options.estimator.transient_predictor = sim::DropPredictorFactory();
+  const ident::Model m = model.BuildModel();
+  ident::FitData data = ident::ReadFitData(sessions, m, options.estimator.n, options.exclude);
+  for (const auto& issue : data.issues)
+    spdlog::warn("{}: experiment '{}', channel '{}': {}: {}", sessions.size() == 1 ? sessions[0] : "session",
+                 issue.experiment, issue.channel, issue.kind, issue.detail);
+  for (const auto& line : data.excluded) spdlog::info("{}", line);
+
+  const bool tty = !no_progress && isatty(fileno(stderr));
+  const auto progress = [&](const ident::FitProgress& p) {
+    if (!tty) return;
+    if (p.experiment > 0)
+      std::fprintf(stderr, "\r  iteration %2d  experiment %2d of %2d   ", p.iteration, p.experiment, p.experiments);
+    else
+      std::fprintf(stderr, "\r  iteration %2d  loglik %.8g            \n", p.iteration, p.objective);
+  };
+  const ident::SessionFit fit = ident::FitPrepared(std::move(data), m, options, progress);
+  if (tty) std::fprintf(stderr, "\r%60s\r", "");
+  spdlog::info("{} ({} input), {} periodic experiments{}; starting values as used:", m.composition(),
+               ident::ToString(m.causality()), fit.data.experiments.size(),
+               DropLabels(fit.data.transients));
+  for (const auto& line : fit.plan.Describe()) spdlog::info("  {}", line);
+  if (!json_path.empty()) WriteJsonOutput(json_path, Json(fit));
+  if (!report_path.empty()) {
+    report::WriteFitReport(fit.summary, report_path, "strut identify: " + m.composition());
+    spdlog::info("wrote {}", report_path);
+  }
+  return fit;
+}
+
+nlohmann::json IdentifyCommand::Json(const ident::SessionFit& fit) const {
+  nlohmann::json j = report::FitToJson(fit.summary);
+  j["sessions"] = sessions;
+  j["excluded"] = model.exclude;
+  return j;
+}
+
+void IdentifyCommand::Run() const {
+  const ident::SessionFit fit = Fit();
+  std::cout << fit.summary.FullReport();
+  switch (fit.summary.Verdict()) {
+    case ident::FitVerdict::kAtNoiseFloor:
+      spdlog::info("{}", fit.summary.VerdictText());
+      return;
+    case ident::FitVerdict::kAboveNoiseFloor:
+      spdlog::warn("{}", fit.summary.VerdictText());
+      throw ExitCode(kExitAboveNoiseFloor);
+    case ident::FitVerdict::kNotConverged:
+      spdlog::error("{}", fit.summary.VerdictText());
+      throw ExitCode(kExitNotConverged);
+  }
+}
 
 void RegisterIdentifyCommand(CLI::App& app) {
   auto [sub, command] = AddCommand<IdentifyCommand>(
@@ -103,6 +99,12 @@ void RegisterIdentifyCommand(CLI::App& app) {
       "Estimate the damper model's parameters from recorded sessions (periodic equilibria and drop tests, all "
       "experiments at once). "
       "Exit code 0: converged at the noise floor; 3: converged but above the noise floor; 2: not converged; 1: error.");
+  AddIdentifyOptions(*sub, *command);
+}
+
+void AddIdentifyOptions(CLI::App& app, IdentifyCommand& identify) {
+  CLI::App* sub = &app;
+  IdentifyCommand* command = &identify;
   sub->add_option("sessions", command->sessions, "Session files (HDF5) to fit together.")->required()->check(CLI::ExistingFile);
   command->model.Add(*sub);
   sub->add_option("--estimate", command->estimate,

@@ -22,60 +22,6 @@
 namespace strut::tools {
 namespace {
 
-struct QcCommand {
-  std::string session, reference, json_path, report_path, db_path, time;
-
-  //! Every error ends with exit code 2 (UNDECIDED): 1 would read as FAIL.
-  void Run() const {
-    try {
-      Decide();
-    } catch (const ExitCode&) {
-      throw;
-    } catch (const std::exception& e) {
-      spdlog::error("{}", e.what());
-      spdlog::error("UNDECIDED: QC could not run");
-      throw ExitCode(qc::ExitCodeOf(qc::Verdict::kUndecided));
-    }
-  }
-
-  void Decide() const {
-    if (session.empty()) throw std::invalid_argument("qc: give a session (strut qc SESSION.h5 --reference REF)");
-    if (reference.empty()) throw std::invalid_argument("qc: --reference REF is required (a golden unit's identify JSON or a nominal file)");
-    // Before any work: outputs writable, never an input; the history opens (or is created) now.
-    const std::vector<std::string> inputs{session, reference};
-    CheckOutputPath("--json", json_path, inputs);
-    CheckOutputPath("--report", report_path, inputs);
-    if (!qc::IsPostgresUrl(db_path)) CheckOutputPath("--db", db_path, inputs);
-    if (!json_path.empty() && json_path == report_path)
-      throw std::invalid_argument("--json and --report name the same file " + json_path);
-    if (!time.empty() && db_path.empty()) throw std::invalid_argument("--time is the decision's time in the history: give --db too");
-    if (!time.empty() && !qc::IsUtcTime(time))
-      throw std::invalid_argument("--time '" + time + "': give a UTC time YYYY-MM-DDTHH:MM:SSZ");
-    const qc::Reference ref = qc::ReadReference(reference);
-    std::optional<qc::History> history;
-    if (!db_path.empty()) history.emplace(db_path);
-
-    ident::SessionFit fit;
-    const qc::Decision d = qc::RunQc(session, ref, &fit);
-    std::cout << qc::Table(d);
-    if (!json_path.empty()) WriteJsonOutput(json_path, report::QcToJson(d));
-    if (!report_path.empty()) {
-      report::WriteQcReport(d, d.fit_verdict.empty() ? nullptr : &fit, report_path);
-      spdlog::info("wrote {}", report_path);
-    }
-    if (history) {
-      const qc::Recorded r = history->Record(d, time);
-      spdlog::info("recorded decision {} for serial {} in {}", r.id, d.serial, history->where());
-    }
-    switch (d.verdict) {
-      case qc::Verdict::kPass: spdlog::info("PASS"); break;
-      case qc::Verdict::kFail: spdlog::warn("FAIL: {}", d.reasons.empty() ? "" : d.reasons.front()); break;
-      case qc::Verdict::kUndecided: spdlog::error("UNDECIDED: {}", d.reasons.empty() ? "" : d.reasons.front()); break;
-    }
-    if (d.verdict != qc::Verdict::kPass) throw ExitCode(qc::ExitCodeOf(d.verdict));
-  }
-};
-
 struct PlanCommand {
   std::string output, reference_output;
   void Run() const {
@@ -150,23 +96,62 @@ struct HistoryCommand {
 
 }  // namespace
 
+QcOutcome QcCommand::Decide() const {
+  if (session.empty()) throw std::invalid_argument("qc: give a session (strut qc SESSION.h5 --reference REF)");
+  if (reference.empty()) throw std::invalid_argument("qc: --reference REF is required (a golden unit's identify JSON or a nominal file)");
+  // Before any work: outputs writable, never an input; the history opens (or is created) now.
+  const std::vector<std::string> inputs{session, reference};
+  CheckOutputPath("--json", json_path, inputs);
+  CheckOutputPath("--report", report_path, inputs);
+  if (!qc::IsPostgresUrl(db_path)) CheckOutputPath("--db", db_path, inputs);
+  if (!json_path.empty() && json_path == report_path)
+    throw std::invalid_argument("--json and --report name the same file " + json_path);
+  if (!time.empty() && db_path.empty()) throw std::invalid_argument("--time is the decision's time in the history: give --db too");
+  if (!time.empty() && !qc::IsUtcTime(time))
+    throw std::invalid_argument("--time '" + time + "': give a UTC time YYYY-MM-DDTHH:MM:SSZ");
+  const qc::Reference ref = qc::ReadReference(reference);
+  std::optional<qc::History> history;
+  if (!db_path.empty()) history.emplace(db_path);
+
+  QcOutcome outcome;
+  outcome.decision = qc::RunQc(session, ref, &outcome.fit);
+  const qc::Decision& d = outcome.decision;
+  if (!json_path.empty()) WriteJsonOutput(json_path, report::QcToJson(d));
+  if (!report_path.empty()) {
+    report::WriteQcReport(d, d.fit_verdict.empty() ? nullptr : &outcome.fit, report_path);
+    spdlog::info("wrote {}", report_path);
+  }
+  if (history) {
+    const qc::Recorded r = history->Record(d, time);
+    spdlog::info("recorded decision {} for serial {} in {}", r.id, d.serial, history->where());
+  }
+  return outcome;
+}
+
+void QcCommand::Run() const {
+  qc::Decision d;
+  try {
+    d = Decide().decision;
+  } catch (const std::exception& e) {
+    spdlog::error("{}", e.what());
+    spdlog::error("UNDECIDED: QC could not run");
+    throw ExitCode(qc::ExitCodeOf(qc::Verdict::kUndecided));
+  }
+  std::cout << qc::Table(d);
+  switch (d.verdict) {
+    case qc::Verdict::kPass: spdlog::info("PASS"); break;
+    case qc::Verdict::kFail: spdlog::warn("FAIL: {}", d.reasons.empty() ? "" : d.reasons.front()); break;
+    case qc::Verdict::kUndecided: spdlog::error("UNDECIDED: {}", d.reasons.empty() ? "" : d.reasons.front()); break;
+  }
+  if (d.verdict != qc::Verdict::kPass) throw ExitCode(qc::ExitCodeOf(d.verdict));
+}
+
 void RegisterQcCommand(CLI::App& app) {
   auto [qc, command] = AddCommand<QcCommand>(
       app, "qc",
       "Quality control of a production damper from a QC session: PASS, FAIL or UNDECIDED against a reference "
       "(docs/qc.md). Exit code 0 pass, 1 fail, 2 undecided (bad data, fit not converged or not at the noise floor).");
-  qc->add_option("session", command->session, "The QC session (HDF5), from the matrix `strut qc plan` writes.")
-      ->check(CLI::ExistingFile);
-  qc->add_option("--reference", command->reference,
-                 "A golden unit's identify JSON (default bands, docs/qc.md) or a reference file of nominal values with "
-                 "bands (TOML or JSON).")
-      ->check(CLI::ExistingFile);
-  qc->add_option("--json", command->json_path, "Write the decision as JSON.");
-  qc->add_option("--report", command->report_path, "Write a self-contained HTML report.");
-  qc->add_option("--db", command->db_path, "Record the decision in this QC history: an SQLite file (created when missing) or a PostgreSQL "
-                 "URL postgresql://USER@HOST:PORT/DB (the password from PGPASSWORD, ~/.pgpass or a service file, "
-                 "never in the URL; docs/qc.md).");
-  qc->add_option("--time", command->time, "With --db: the decision's time (UTC ISO 8601) instead of now.");
+  AddQcOptions(*qc, *command);
   // Replaces AddCommand's callback: with `qc plan` or `qc history` only that subcommand runs.
   qc->callback([command = command, qc = qc] {
     if (qc->get_subcommands().empty()) command->Run();
@@ -186,6 +171,23 @@ void RegisterQcCommand(CLI::App& app) {
   h->add_option("--serial", history->serial, "Only this serial.");
   h->add_option("--since", history->since, "Only decisions at or after this date (YYYY-MM-DD) or UTC time.");
   h->add_flag("--json", history->json, "Print JSON (decisions, trends, counts) instead of tables.");
+}
+
+void AddQcOptions(CLI::App& app, QcCommand& command_) {
+  CLI::App* qc = &app;
+  QcCommand* command = &command_;
+  qc->add_option("session", command->session, "The QC session (HDF5), from the matrix `strut qc plan` writes.")
+      ->check(CLI::ExistingFile);
+  qc->add_option("--reference", command->reference,
+                 "A golden unit's identify JSON (default bands, docs/qc.md) or a reference file of nominal values with "
+                 "bands (TOML or JSON).")
+      ->check(CLI::ExistingFile);
+  qc->add_option("--json", command->json_path, "Write the decision as JSON.");
+  qc->add_option("--report", command->report_path, "Write a self-contained HTML report.");
+  qc->add_option("--db", command->db_path, "Record the decision in this QC history: an SQLite file (created when missing) or a PostgreSQL "
+                 "URL postgresql://USER@HOST:PORT/DB (the password from PGPASSWORD, ~/.pgpass or a service file, "
+                 "never in the URL; docs/qc.md).");
+  qc->add_option("--time", command->time, "With --db: the decision's time (UTC ISO 8601) instead of now.");
 }
 
 }  // namespace strut::tools

@@ -61,8 +61,9 @@ TEST(TopOutFit, FindsTheZeroOfDrawnSearchesWithinTheSdItStates) {
   for (unsigned seed = 1; seed <= 10; ++seed) {
     const Search s = DrawSearch(zero, 2e7, seed);
     ASSERT_TRUE(std::isfinite(s.contact)) << seed;
-    // The detector sees the contact once the force is 1 kN short: 50 um past the zero at 2e7 N/m.
-    EXPECT_NEAR(s.contact, zero - 1000.0 / 2e7, 2e-5) << seed;
+    // The detector sees the contact once the force is 1 kN short: 50 um past the zero at 2e7 N/m
+    // (its stroke is one noisy reading: 30 um rms).
+    EXPECT_NEAR(s.contact, zero - 1000.0 / 2e7, 1.2e-4) << seed;
     const TopOutFit fit = FitTopOut(s.time, s.stroke, s.force, s.contact, 0.0, TopOutOptions{.gain_sd = 0.0});
     const double z = (fit.zero - zero) / fit.fit_sd;
     EXPECT_LT(std::abs(z), 4.0) << seed << ": " << fit.zero << " sd " << fit.fit_sd;
@@ -186,9 +187,17 @@ RunnerOptions Fast(double speed) {
 
 const MatrixEntry kJ{"j", "middle", 2.0, 0.133, 0.010};
 
+// The shipped truth has the model's own smoothed snubber at full extension (end-stop, theta23 = 0,
+// smoothed over 0.1 mm), whose early onset moves the apparent contact about 16 um (docs/rig-run.md);
+// these tests are about the reference's bookkeeping, so their unit has the metal stop alone.
+sim::Truth WithoutSnubber(sim::Truth truth) {
+  std::erase(truth.effects, std::string("end-stop"));
+  return truth;
+}
+
 TEST(TopOutReference, ARigWhoseStopNeverShowsGoesOnWithoutAZeroSayingSo) {
   test::TempDir dir;
-  sim::Truth truth = sim::DefaultTruth();
+  sim::Truth truth = WithoutSnubber(sim::DefaultTruth());
   truth.top_out.stiffness = 0.0;  // no stop at full extension
   Served rig(truth, 100.0);
   RunnerOptions o = Fast(100.0);
@@ -214,7 +223,7 @@ TEST(TopOutReference, ARigWhoseStopNeverShowsGoesOnWithoutAZeroSayingSo) {
 
 TEST(TopOutReference, APausedRunKeepsItsZeroAndTheResumeNeitherRepeatsNorLosesIt) {
   test::TempDir dir;
-  const sim::Truth truth = sim::DefaultTruth();
+  const sim::Truth truth = WithoutSnubber(sim::DefaultTruth());
   const std::string path = dir.file("s.h5");
   double zero = 0.0;
   {

@@ -43,7 +43,7 @@ TEST(MonitorCli, ChromiumDrawsARunLiveShowsATripAndItsPauseButtonPausesTheRun) {
   const std::string session = dir.file("s.h5");
   test::CommandResult run;
   std::thread runner([&] {
-    run = RunStrut(fmt::format("rig run --rig sim --speed 25 --matrix {} --limits {} --no-progress --monitor 127.0.0.1:{} "
+    run = RunStrut(fmt::format("rig run --rig sim --speed 25 --no-top-out --matrix {} --limits {} --no-progress --monitor 127.0.0.1:{} "
                                "--monitor-control -o {}",
                                dir.file("m.toml"), dir.file("l.toml"), port, session));
   });

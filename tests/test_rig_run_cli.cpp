@@ -45,9 +45,15 @@ struct RemoteRig {
         std::move(channels));
   }
   std::string Args() const {
-    // --drift-window 0: the plant has no thermal drift and the test runs in real time.
-    return fmt::format("--rig modbus-tcp://127.0.0.1:{} --daq udp:127.0.0.1:{} --daq-rate {} --drift-window 0", server.port(), udp_port,
-                       plant.options().sample_rate);
+    // --drift-window 0: the plant has no thermal drift and the test runs in real time; --no-top-out:
+    // nor a top-out stop, and a search in real time would take minutes (RigRunCli.ATopOutReference...).
+    return fmt::format("--rig modbus-tcp://127.0.0.1:{} --daq udp:127.0.0.1:{} --daq-rate {} --drift-window 0 --no-top-out",
+                       server.port(), udp_port, plant.options().sample_rate);
+  }
+  //! The same without --no-top-out: the run starts with the top-out reference.
+  std::string ArgsWithTopOut() const {
+    return fmt::format("--rig modbus-tcp://127.0.0.1:{} --daq udp:127.0.0.1:{} --daq-rate {} --drift-window 0",
+                       server.port(), udp_port, plant.options().sample_rate);
   }
   Plant plant;
   daq::ModbusControllerServer server;
@@ -77,7 +83,7 @@ amplitude = 0.03
   EXPECT_EQ(r.exit_code, 1) << r.output;
   EXPECT_NE(r.output.find("is refused before the rig moves (limits: " + dir.file("l.toml") + ")"), std::string::npos)
       << r.output;
-  EXPECT_NE(r.output.find("experiment 'deep': stroke 0.22 .. 0.28 m leaves the stroke limit -0.005 .. 0.26 m"),
+  EXPECT_NE(r.output.find("experiment 'deep': stroke 0.22 .. 0.28 m leaves the stroke limit -0.008 .. 0.26 m"),
             std::string::npos)
       << r.output;
   // 2 pi 5 Hz 0.03 m = 0.9425 m/s.
@@ -89,6 +95,28 @@ amplitude = 0.03
   EXPECT_TRUE(rig.plant.commands().empty());
   EXPECT_FALSE(fs::exists(dir.file("s.h5")));
   EXPECT_FALSE(fs::exists(daq::JournalPath(dir.file("s.h5"))));
+  // The top-out reference is part of the check: limits that forbid its search are refused, before
+  // anything moves, naming the search and the limit (and the way out).
+  WriteFile(dir.file("shallow.toml"), "[stroke]\nlower = -0.004\n");
+  const auto shallow = test::RunStrut(fmt::format("rig run {} --limits {} --serial S1 -o {}", rig.ArgsWithTopOut(),
+                                                  dir.file("shallow.toml"), dir.file("s.h5")));
+  EXPECT_EQ(shallow.exit_code, 1) << shallow.output;
+  EXPECT_NE(shallow.output.find("the matrix standard is refused before the rig moves (limits: " + dir.file("shallow.toml") +
+                                "):\n  top-out reference: the search -0.007 .. 0.007 m leaves the stroke limit -0.004 .. "
+                                "0.27 m (give --top-out-to inside it, or --no-top-out)"),
+            std::string::npos)
+      << shallow.output;
+  WriteFile(dir.file("tension.toml"), "[force]\nlower = -15000.0\n");
+  const auto pulling = test::RunStrut(fmt::format("rig run {} --top-out-force 20000 --limits {} --serial S1 -o {}",
+                                                  rig.ArgsWithTopOut(), dir.file("tension.toml"), dir.file("s.h5")));
+  EXPECT_EQ(pulling.exit_code, 1) << pulling.output;
+  EXPECT_NE(pulling.output.find("top-out reference: its force limit of 2e+04 N below the trend reaches the force limit "
+                                "-1.5e+04 N"),
+            std::string::npos)
+      << pulling.output;
+  EXPECT_TRUE(rig.plant.applied().empty());
+  EXPECT_TRUE(rig.plant.commands().empty());
+  EXPECT_FALSE(fs::exists(dir.file("s.h5")));
   // Bad limits files are named with their line; a new session needs a serial.
   WriteFile(dir.file("bad.toml"), "[stroke]\nupper = 0.26\nsideways = 1\n");
   const auto bad = test::RunStrut(fmt::format("rig run {} --limits {} --serial S1 -o {}", rig.Args(), dir.file("bad.toml"),

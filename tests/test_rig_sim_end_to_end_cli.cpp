@@ -58,6 +58,15 @@ void ExpectMatrixIdentifiesItsTruth(const std::string& session, const TempDir& d
   const auto recorded_truth = sim::ReadRecordedTruth(s);
   ASSERT_TRUE(recorded_truth.has_value());
 
+  // The run began with the top-out reference: the stroke zero it recorded is the drawn theta12
+  // (calibrated transducers: the LVDT reads theta12 at full extension) within its sd.
+  const daq::RecordedZeros zeros = daq::ReadRecordedZeros(s);
+  ASSERT_TRUE(zeros.stroke) << "no stroke zero recorded";
+  const double theta12 = recorded_truth->parameters.value(*recorded_truth->parameters.find("theta12"));
+  EXPECT_LT(std::abs(zeros.stroke->value - theta12), 2.0 * zeros.stroke->sd)
+      << zeros.stroke->value << " sd " << zeros.stroke->sd << " truth " << theta12;
+  EXPECT_LT(zeros.stroke->sd, 2e-5);
+
   const test::CommandResult fit = RunStrut(fmt::format("identify {} --json {}", session, dir.file("fit.json")));
   ASSERT_EQ(fit.exit_code, 0) << fit.output;
   const nlohmann::json j = nlohmann::json::parse(test::ReadFile(dir.file("fit.json")));
@@ -80,6 +89,17 @@ void ExpectMatrixIdentifiesItsTruth(const std::string& session, const TempDir& d
     ++checked;
   }
   EXPECT_GE(checked, 12);
+  // identify took the zero as theta12's prior: an interval a hundred times narrower than the
+  // 2 mm prior, covering the truth (|z| < 4 above).
+  bool theta12_estimated = false;
+  for (const auto& p : j.at("parameters")) {
+    if (p.at("index") != "theta12" || !p.at("estimated").get<bool>()) continue;
+    theta12_estimated = true;
+    EXPECT_LT(p.at("sd").get<double>(), 2e-5) << p;
+    std::cout << fmt::format("{}: theta12 {:.5f} mm, sd {:.5f} mm, truth {:.5f} mm\n", session,
+                             p.at("value").get<double>() * 1e3, p.at("sd").get<double>() * 1e3, theta12 * 1e3);
+  }
+  EXPECT_TRUE(theta12_estimated);
   std::string ratios;
   for (const auto& c : j.at("channels"))
     ratios += fmt::format(" {} {:.3f}", c.at("name").get<std::string>(), c.at("noise_ratio").get<double>());

@@ -432,7 +432,7 @@ TEST(CheckMatrix, RefusesStrokeRangeVelocityFlowAndRateNamingTheExperiment) {
   c.actuator.max_flow = 2e-3;  // 0.2 m/s at this area
   const auto refusals = CheckMatrix(m, c, 200.0);
   ASSERT_EQ(refusals.size(), 4u) << fmt::format("{}", fmt::join(refusals, "\n"));
-  EXPECT_EQ(refusals[0], "experiment 'deep': stroke 0.24 .. 0.28 m leaves the stroke limit -0.005 .. 0.27 m");
+  EXPECT_EQ(refusals[0], "experiment 'deep': stroke 0.24 .. 0.28 m leaves the stroke limit -0.008 .. 0.27 m");
   // 2 pi 10 Hz 0.02 m = 1.2566 m/s; flow 0.012566 m^3/s.
   EXPECT_EQ(refusals[1], "experiment 'fast': peak velocity 2 pi f A = 1.257 m/s exceeds the velocity limit 1 m/s");
   EXPECT_NE(refusals[2].find("experiment 'fast': actuator flow 0.01257 m^3/s"), std::string::npos);

@@ -22,6 +22,8 @@ nlohmann::json UnitJson(const study::UnitFit& unit) {
                      {"worst_noise_ratio", unit.worst_noise_ratio}};
   for (const auto& [key, z] : unit.z) row["z"][key] = z;
   for (const auto& [key, v] : unit.estimate) row["estimate"][key] = v;
+  for (const auto& [key, v] : unit.sd) row["sd"][key] = v;
+  if (unit.stroke_zero_sd > 0) row["stroke_zero"] = {{"value", unit.stroke_zero}, {"sd", unit.stroke_zero_sd}};
   if (unit.restarted) row["restart_apart_sd"] = unit.restart_apart_sd;
   return row;
 }
@@ -135,6 +137,9 @@ void RegisterBenchUnits(CLI::App& bench) {
   sub->add_flag("--fit-truth", command->options.fit_truth,
                 "Fit each unit with its truth's composition (the base and every effect it has), the coverage of "
                 "intervals of a model that holds the physics.");
+  sub->add_flag("--top-out", command->options.top_out,
+                "Before each fit, the top-out reference on the unit's served rig (as `strut rig run` starts), its "
+                "stroke zero recorded in the unit's session as theta12's prior; prints the intervals' median sds.");
   sub->add_option("--json", command->json_path, "Also write the figures as JSON to this file.");
   sub->add_option("--compare", command->compare_path,
                   "Compare this run with an earlier one's --json file: per parameter the largest relative difference "

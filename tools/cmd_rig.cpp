@@ -212,9 +212,8 @@ void RegisterRigCommand(CLI::App& app) {
   sim->add_option("--duration", serve->duration, "Stop after this many wall-clock seconds (0: run until a signal).")
       ->check(NonNegative("s"))
       ->capture_default_str();
-  sim->add_option("--initial-stroke", serve->controller.initial_stroke, "The stroke where the piston rests before the first arm, in m (LVDT reading).")
-      ->check(Between(-1.0, 1.0, "m"))
-      ->capture_default_str();
+  sim->add_option("--initial-stroke", serve->controller.initial_stroke, "The stroke where the piston rests before the first arm, in m (LVDT reading); default on its top-out stop, where an unloaded strut rests.")
+      ->check(Between(-1.0, 1.0, "m"));
   sim->add_option("--following-error", serve->controller.following_error_limit, "The following-error interlock: command minus stroke beyond this many m latches a fault (0: off).")
       ->check(NonNegative("m"))
       ->capture_default_str();

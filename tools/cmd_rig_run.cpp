@@ -106,6 +106,8 @@ struct RigRunCommand {
   std::string monitor_endpoint;  // --monitor [HOST:PORT]
   CLI::Option* monitor_option = nullptr;
   bool monitor_control = false;
+  bool no_top_out = false;
+  rig::TopOutOptions top_out;
 
   //! The truth of a simulated rig: run here (--rig sim), or served by `strut rig serve-sim` with
   //! the same options, which the runner cannot ask; either way the session records it. Takes the
@@ -159,6 +161,11 @@ struct RigRunCommand {
     spdlog::info("the samples arrived at most {:.3f} s behind their own clock (lag limit {:.1f} s)", report.largest_lag,
                  report.lag_limit);
     std::cout << fmt::format("{}: run {}\n", output, rig::ToString(report.outcome));
+    if (report.top_out)
+      std::cout << fmt::format("  top-out    stroke zero {:.4f} mm, sd {:.4f} mm (recorded in /calibration)\n",
+                               report.top_out->zero * 1e3, report.top_out->sd * 1e3);
+    else if (!report.top_out_failure.empty())
+      std::cout << fmt::format("  top-out    not found: {} (recorded without a stroke zero)\n", report.top_out_failure);
     for (const auto& l : report.complete) std::cout << fmt::format("  {:<10} complete\n", l);
     for (const auto& l : report.not_steady) std::cout << fmt::format("  {:<10} not steady (recorded)\n", l);
     for (const auto& l : report.aborted) std::cout << fmt::format("  {:<10} aborted\n", l);
@@ -198,6 +205,7 @@ struct RigRunCommand {
     options.reset_heartbeat_fault = resume;
     options.stream_speed = stream_speed;
     options.steady.drift_window = drift_window;
+    options.top_out = rig::TopOutToRun(start, !no_top_out, top_out);
     std::string error;
     if (!options.IsValid(&error)) throw std::invalid_argument(error);
 
@@ -218,7 +226,7 @@ struct RigRunCommand {
       return;
     }
     rig::RefuseUnsafeMatrix(items, safety, rate, predictor, matrix_path.empty() ? "standard" : matrix_path,
-                            limits_path.empty() ? "defaults" : limits_path);
+                            limits_path.empty() ? "defaults" : limits_path, options.top_out);
 
     // The devices: the simulated rig in this process, or a rig on the network.
     const daq::NetworkRigFactory network;
@@ -337,6 +345,27 @@ void RegisterRigRunCommand(CLI::App& rig) {
                   "Seconds over which the mean pressure must have stopped drifting (2e-4 of it) before an "
                   "experiment counts as steady; 0 switches that test off (docs/rig-run.md).")
       ->check(Between(0.0, 500.0, "s"))
+      ->capture_default_str();
+  run->add_flag("--no-top-out", c->no_top_out,
+                "No top-out reference before the matrix: the session records no stroke zero and identify keeps its "
+                "2 mm prior on theta12 (a resumed run never repeats the reference).");
+  run->add_option("--top-out-rate", c->top_out.rate,
+                  "Rate of the top-out reference's search toward full extension, m/s (the move goes on for the "
+                  "runner's reaction time after the contact shows).")
+      ->check(Between(1e-6, 0.01, "m/s"))
+      ->capture_default_str();
+  run->add_option("--top-out-force", c->top_out.force_drop,
+                  "The top-out reference's force limit: the contact shows when the force falls this many N below its "
+                  "trend, and the search turns back.")
+      ->check(Between(10.0, 2.0e4, "N"))
+      ->capture_default_str();
+  run->add_option("--top-out-from", c->top_out.from,
+                  "Stroke reading where the top-out search starts, m (above every stroke zero the transducer may have).")
+      ->check(Between(-0.1, 0.1, "m"))
+      ->capture_default_str();
+  run->add_option("--top-out-to", c->top_out.to,
+                  "Stroke reading where the top-out search ends without a contact, m (inside the stroke limits).")
+      ->check(Between(-0.1, 0.1, "m"))
       ->capture_default_str();
   run->add_option("--timeout", c->timeout_ms, "Modbus response timeout, ms.")->check(Between(1, 60000))->capture_default_str();
   run->add_option("-o,--output", c->output, "Session file (HDF5) to record.")->required();

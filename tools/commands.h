@@ -18,6 +18,7 @@ void RegisterDiscoverCommand(CLI::App& app);
 void RegisterBenchDiscover(CLI::App& bench);
 //! Adds `units` (identification of drawn units) under the `bench` subcommand.
 void RegisterBenchUnits(CLI::App& bench);
+void RegisterBenchStrokeZero(CLI::App& bench);
 //! Adds `confusion` (discovery on drawn units) under the `bench` subcommand.
 void RegisterBenchConfusion(CLI::App& bench);
 //! Adds `acquisition` (the CAN acquisition over UDP on loopback) under the `bench` subcommand.

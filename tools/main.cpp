@@ -48,6 +48,7 @@ int main(int argc, char** argv) {
   strut::tools::RegisterBenchCommand(app);
   strut::tools::RegisterBenchDiscover(*app.get_subcommand("bench"));
   strut::tools::RegisterBenchUnits(*app.get_subcommand("bench"));
+  strut::tools::RegisterBenchStrokeZero(*app.get_subcommand("bench"));
   strut::tools::RegisterBenchConfusion(*app.get_subcommand("bench"));
   strut::tools::RegisterBenchQc(*app.get_subcommand("bench"));
   strut::tools::RegisterBenchDrop(*app.get_subcommand("bench"));

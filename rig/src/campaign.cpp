@@ -61,13 +61,20 @@ std::vector<RunItem> ExperimentsToRun(const RunStart& start, const std::vector<M
 
 void RefuseUnsafeMatrix(const std::vector<RunItem>& items, const SafetyConfig& safety, double sample_rate,
                         const ResponsePredictor& predictor, const std::string& matrix_name,
-                        const std::string& limits_name) {
+                        const std::string& limits_name, const std::optional<TopOutOptions>& top_out) {
   std::vector<MatrixEntry> entries;
   for (const RunItem& i : items) entries.push_back(i.entry);
-  const std::vector<std::string> refusals = CheckMatrix(entries, safety, sample_rate, predictor);
+  std::vector<std::string> refusals;
+  if (top_out) refusals = CheckTopOut(*top_out, safety);
+  for (std::string& r : CheckMatrix(entries, safety, sample_rate, predictor)) refusals.push_back(std::move(r));
   if (refusals.empty()) return;
   throw std::invalid_argument(fmt::format("the matrix {} is refused before the rig moves (limits: {}):\n  {}",
                                           matrix_name, limits_name, fmt::join(refusals, "\n  ")));
+}
+
+std::optional<TopOutOptions> TopOutToRun(const RunStart& start, bool requested, const TopOutOptions& options) {
+  if (!requested || start.resume) return std::nullopt;
+  return options;
 }
 
 daq::RecordingMetadata RunMetadata(const std::string& serial, const std::string& rig, const std::string& operator_name,

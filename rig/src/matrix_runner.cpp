@@ -45,6 +45,7 @@ bool RunnerOptions::IsValid(std::string* error) const {
     return fail(fmt::format("stream_speed {} must be positive", stream_speed));
   std::string steady_error;
   if (!steady.IsValid(&steady_error)) return fail(steady_error);
+  if (top_out && !top_out->IsValid(&steady_error)) return fail(steady_error);
   return true;
 }
 
@@ -52,6 +53,8 @@ std::string_view ToString(RunPhase phase) {
   switch (phase) {
     case RunPhase::kStarting:
       return "starting";
+    case RunPhase::kReference:
+      return "top-out reference";
     case RunPhase::kMoving:
       return "moving to static";
     case RunPhase::kRampIn:
@@ -156,6 +159,17 @@ struct MatrixRunner::Impl {
     bool finished = false;
   };
   std::optional<Current> current;
+
+  // The top-out reference's search in progress: its samples on the recorded clock.
+  struct Reference {
+    explicit Reference(const TopOutOptions& o) : options(o), detector(o) {}
+    TopOutOptions options;
+    TopOutDetector detector;
+    bool collecting = false;
+    std::optional<std::int64_t> origin;  // the first sample's stream time
+    std::vector<double> time, stroke, force;
+  };
+  std::optional<Reference> reference;
 
   // ---- events and trips
 
@@ -272,6 +286,7 @@ struct MatrixRunner::Impl {
     for (const daq::AcquisitionEvent& e : block.events) Event(daq::ToString(e.kind), e.text, e.monotonic_ns);
     // The block is recorded first and checked after, so that a trip keeps the samples that caused it.
     RecordBlock(block);
+    CollectReference(block);
     for (const Trip& t : safety.CheckBlock(block)) Handle(t);
   }
 
@@ -307,6 +322,20 @@ struct MatrixRunner::Impl {
       pos += k;
       for (const CycleSummary& cycle : done) OnCycle(cycle);
     }
+  }
+
+  void CollectReference(const daq::AcquiredBlock& block) {
+    if (!reference || !reference->collecting || block.empty()) return;
+    Reference& r = *reference;
+    if (!r.origin) r.origin = block.time_ns.front();
+    for (std::size_t i = 0; i < block.size(); ++i) {
+      const double y = block.values[stroke_k][i], f = block.values[force_k][i];
+      r.time.push_back(static_cast<double>(block.time_ns[i] - *r.origin) * 1e-9 * options.stream_speed);
+      r.stroke.push_back(y);
+      r.force.push_back(f);
+      r.detector.Add(y, f);
+    }
+    progress.steady_measure = r.detector.measure();
   }
 
   void OnCycle(const CycleSummary& cycle) {
@@ -458,6 +487,105 @@ struct MatrixRunner::Impl {
            std::abs(status.stroke - position) <= options.position_tolerance;
   }
 
+  //! A hold at `position` (m) reached at `rate` (m/s): the moves of the top-out reference.
+  daq::SetPoint HoldAt(double position, double rate) const {
+    daq::SetPoint s;
+    s.mode = daq::ControlMode::kStroke;
+    s.static_position = position;
+    s.amplitude = 0.0;
+    s.frequency = 0.0;
+    s.ramp_cycles = options.ramp_cycles;
+    s.static_rate = rate;
+    s.limits = safety.config().controller;
+    return s;
+  }
+
+  //! The top-out reference (top_out.h): to the search's start, the slow search toward full
+  //! extension until the contact shows in the force (or the search's end), back to the start, and
+  //! the zero fitted to the search's samples. Every wait has its limit (the distance at its rate
+  //! plus the settle margin, as the moves of an experiment); the safety detectors watch throughout.
+  void TopOut(const TopOutOptions& o, std::size_t total) {
+    progress = Progress{};
+    progress.experiment = "top-out";
+    progress.total = total;
+    SetPhase(RunPhase::kReference);
+    spdlog::info("top-out reference: from {:.2f} mm toward full extension at {:.3g} mm/s, down to {:.2f} mm, until "
+                 "the force falls {:.0f} N below its trend",
+                 o.from * 1e3, o.rate * 1e3, o.to * 1e3, o.force_drop);
+    const double distance = have_status ? std::abs(status.stroke - o.from) : 0.0;
+    Call("set-point (top-out reference start)", [&] { controller.WriteSetPoint(HoldAt(o.from, options.static_rate)); });
+    if (status.state == daq::ControllerState::kDisarmed) Call("arm", [&] { controller.Arm(); });
+    Step();
+    WaitUntil([&] { return AtStatic(o.from); }, distance / options.static_rate,
+              fmt::format("the move to the top-out reference's start {:.4g} m", o.from));
+
+    reference.emplace(o);
+    reference->collecting = true;
+    Call("set-point (top-out search)", [&] { controller.WriteSetPoint(HoldAt(o.to, o.rate)); });
+    Step();
+    WaitUntil([&] { return reference->detector.found() || AtStatic(o.to); }, (o.from - o.to) / o.rate,
+              fmt::format("the top-out search from {:.4g} m to {:.4g} m", o.from, o.to));
+    // Every sample collected so far was taken before the move turns back.
+    reference->collecting = false;
+    const bool found = reference->detector.found();
+    const double deepest = have_status ? status.stroke : o.to;
+    Call("set-point (back from top-out)", [&] { controller.WriteSetPoint(HoldAt(o.from, options.static_rate)); });
+    Step();
+    WaitUntil([&] { return AtStatic(o.from); }, std::abs(deepest - o.from) / options.static_rate,
+              fmt::format("the move back from top-out to {:.4g} m", o.from));
+
+    const Reference& r = *reference;
+    daq::MetadataGroup g{"top_out", {}, {}};
+    g.attributes["from"] = o.from;
+    g.attributes["to"] = o.to;
+    g.attributes["rate"] = o.rate;
+    g.attributes["force_limit"] = o.force_drop;
+    g.attributes["samples"] = static_cast<long long>(r.time.size());
+    if (found) {
+      g.attributes["contact_stroke"] = r.detector.stroke_at_contact();
+      try {
+        const double resolution = std::abs(acquisition.description().channels[stroke_k].calibration.gain);
+        const TopOutFit fit = FitTopOut(r.time, r.stroke, r.force, r.detector.stroke_at_contact(), resolution, o);
+        report->top_out = fit;
+        g.attributes["stroke_zero"] = fit.zero;
+        g.attributes["stroke_zero_sd"] = fit.sd;
+        g.attributes["fit_sd"] = fit.fit_sd;
+        g.attributes["contact_stiffness"] = fit.stiffness;
+        g.attributes["stroke_rate"] = fit.stroke_rate;
+        g.attributes["residual_rms"] = fit.residual_rms;
+        g.attributes["fitted_samples"] = static_cast<long long>(fit.samples);
+        g.attributes["samples_in_contact"] = static_cast<long long>(fit.in_contact);
+      } catch (const std::invalid_argument& e) {
+        report->top_out_failure = fmt::format("the contact showed at {:.3f} mm but no zero could be fitted: {}",
+                                              r.detector.stroke_at_contact() * 1e3, e.what());
+      }
+    } else {
+      report->top_out_failure =
+          fmt::format("no top-out contact between {:.2f} and {:.2f} mm: the force never fell {:.0f} N below its trend",
+                      o.from * 1e3, o.to * 1e3, o.force_drop);
+    }
+    g.attributes["verdict"] = std::string(report->top_out ? "found" : "not found");
+    recorder.AddMetadata({"rig_run", {}, {std::move(g)}});
+    if (report->top_out) {
+      const TopOutFit& fit = *report->top_out;
+      // The /calibration group as the session format writes it (daq::RecordZeros), merged into the
+      // recording so that a load-cell zero recorded beside it stays.
+      daq::Session zeros;
+      daq::RecordZeros({.stroke = daq::MeasuredZero{fit.zero, fit.sd}}, zeros);
+      recorder.AddMetadata(zeros.metadata.back());
+      Event("top-out", fmt::format("top-out reference: stroke zero {:.4f} mm, sd {:.4f} mm (contact {:.3g} N/m, {} "
+                                   "samples, {} in contact)",
+                                   fit.zero * 1e3, fit.sd * 1e3, fit.stiffness, fit.samples, fit.in_contact));
+      spdlog::info("top-out reference: the stroke reads {:.4f} mm (sd {:.4f} mm) at full extension", fit.zero * 1e3,
+                   fit.sd * 1e3);
+    } else {
+      Event("top-out", "top-out reference: " + report->top_out_failure +
+                           "; the run goes on without a stroke zero (identify keeps its 2 mm prior on theta12)");
+      spdlog::warn("top-out reference: {}; the run goes on without a stroke zero", report->top_out_failure);
+    }
+    reference.reset();
+  }
+
   void RunExperiment(const RunItem& item, std::size_t index, std::size_t total) {
     const MatrixEntry& e = item.entry;
     current.emplace();
@@ -516,6 +644,7 @@ struct MatrixRunner::Impl {
     Event(trip.detector == "operator-stop" ? "stop" : "trip",
           fmt::format("{}: {} (action {})", trip.detector, trip.text, ToString(trip.action)), trip.monotonic_ns);
     if (current) current->summarising = false;  // nothing more is recorded while safing
+    if (reference) reference->collecting = false;
     if (current && current->open) {
       try {
         StoreCycles(*current);
@@ -626,6 +755,7 @@ RunReport MatrixRunner::Run(const std::vector<RunItem>& items) {
       m.controller.SetWatchdog(safety.heartbeat.enabled ? safety.heartbeat.watchdog : std::chrono::milliseconds(0));
     });
     m.safety.Reset(Now());
+    if (m.options.top_out) m.TopOut(*m.options.top_out, items.size());
     for (; next < items.size(); ++next) {
       if (pause_.load()) {
         report.outcome = RunOutcome::kPaused;
@@ -686,6 +816,7 @@ RunReport MatrixRunner::Run(const std::vector<RunItem>& items) {
   m.progress.phase = RunPhase::kDone;
   m.ReportProgress(true);
   m.current.reset();
+  m.reference.reset();
   m.report = nullptr;
   return report;
 }

@@ -139,9 +139,9 @@ bool SimulatedControllerOptions::IsValid(std::string* error) const {
     if (error) *error = m;
     return false;
   };
-  if (!std::isfinite(initial_stroke) || std::abs(initial_stroke) > daq::SetPoint::kMaxAbsStroke)
+  if (initial_stroke && (!std::isfinite(*initial_stroke) || std::abs(*initial_stroke) > daq::SetPoint::kMaxAbsStroke))
     return fail(fmt::format("initial_stroke must be finite and within +-{} m, got {}", daq::SetPoint::kMaxAbsStroke,
-                            initial_stroke));
+                            *initial_stroke));
   if (!std::isfinite(following_error_limit) || following_error_limit < 0)
     return fail(fmt::format("following_error_limit must be 0 (off) or positive, got {} m", following_error_limit));
   if (!std::isfinite(chunk_seconds) || chunk_seconds <= 0 || chunk_seconds > 1.0)
@@ -208,6 +208,11 @@ struct SimulatedController::Plant {
           return o;
         }()),
         lvdt(truth.sensors.stroke),
+        top_out(truth.top_out),
+        stroke_offset([&] {
+          const int k = model.defaults().position_of_index(12);
+          return k >= 0 ? theta[k] : 0.0;
+        }()),
         state{0, {start_stroke, 0.0}, {}, Acquisition(truth, "stream"), std::mt19937_64(seed), {}, {}} {
     state.force.step = 1.0 / (rate * static_cast<double>(oversample));
     if (truth.has_effect("charge-loss"))
@@ -220,6 +225,8 @@ struct SimulatedController::Plant {
   ServoActuator actuator;
   TransientSimulator simulator;
   LvdtInverse lvdt;
+  TopOutContact top_out;
+  double stroke_offset;  //!< theta12: the model's measured stroke less the true stroke
   PlantState state;
 };
 
@@ -247,13 +254,22 @@ SimulatedController::SimulatedController(Truth truth, SimulatedControllerOptions
   chunk_ = static_cast<double>(chunk_samples_) / rate_;
   const long oversample = std::max<long>(1, static_cast<long>(std::ceil(kLoadRate / rate_ - 1e-9)));
   const ident::Model model = truth_.BuildModel(ident::Causality::kStrokeInput);
-  plant_ = std::make_unique<Plant>(truth_, model, truth_.Parameters(model).values(), options_.seed,
-                                   options_.initial_stroke, rate_, oversample);
+  // The piston rests on its top-out stop unless told otherwise, and never pressed into it. The
+  // reading grows with the true stroke (the LVDT's gain is positive), so "beyond" is "below".
+  const double top_out = truth_.TopOutReading();
+  double rest = options_.initial_stroke.value_or(top_out);
+  if (truth_.top_out.stiffness > 0 && rest < top_out) {
+    spdlog::warn("{}: the piston cannot rest at {:.4f} m, beyond its top-out stop at {:.4f} m: it rests on the stop",
+                 truth_.source, rest, top_out);
+    rest = top_out;
+  }
+  plant_ = std::make_unique<Plant>(truth_, model, truth_.Parameters(model).values(), options_.seed, rest, rate_,
+                                   oversample);
   // The piston rests locked at the initial stroke; the first chunk starts the damper there.
   program_ = CommandProgram::Locked(0.0);
-  snapshot_.stroke = options_.initial_stroke;
-  snapshot_.command = options_.initial_stroke;
-  stroke_reading_ = options_.initial_stroke;
+  snapshot_.stroke = rest;
+  snapshot_.command = rest;
+  stroke_reading_ = rest;
 }
 
 SimulatedController::~SimulatedController() = default;
@@ -337,6 +353,17 @@ SimulatedController::DamperChannels SimulatedController::IntegrateDamper(Plant& 
     d.stroke.segment(p.from, count + 1) = r.channel("stroke");
     d.force.segment(p.from, count + 1) = r.channel("force");
     d.pressure.segment(p.from, count + 1) = r.channel("pressure");
+    // The top-out stop beside the damper's own force (it acts on the axle, not on the gas):
+    // k d (1 - alpha q') toward compression for the penetration d = -q > 0, never pulling.
+    if (plant.top_out.stiffness > 0) {
+      for (long j = 0; j <= count; ++j) {
+        const InputSample u = input(times[j]);
+        const double penetration = plant.stroke_offset - u.value;
+        if (penetration <= 0) continue;
+        const double factor = std::max(0.0, 1.0 - plant.top_out.dissipation * u.rate);
+        d.force[p.from + j] -= plant.top_out.stiffness * penetration * factor;
+      }
+    }
   }
   return d;
 }

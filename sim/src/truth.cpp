@@ -43,9 +43,12 @@ class Reader {
         ReadAcquisition(Table(node, name), truth.acquisition);
       } else if (name == "faults") {
         ReadFaults(node, truth.faults);
+      } else if (name == "top_out") {
+        ReadKeys(Table(node, name), "[top_out] ",
+                 {{"stiffness", &truth.top_out.stiffness}, {"dissipation", &truth.top_out.dissipation}});
       } else {
         throw TruthError(fmt::format("{}: unknown table [{}] (known: damper, effects, parameters, actuator, sensors, "
-                                     "acquisition, faults)",
+                                     "acquisition, faults, top_out)",
                                      Where(node), name));
       }
     }
@@ -344,8 +347,29 @@ ident::ParameterSet Truth::RecordedParameters(const ident::Model& model) const {
   return p;
 }
 
+bool TopOutContact::IsValid(std::string* error) const {
+  if (!(stiffness >= 0.0) || !std::isfinite(stiffness)) {
+    if (error) *error = fmt::format("stiffness {} N/m must be zero (no stop) or positive", stiffness);
+    return false;
+  }
+  if (!(dissipation >= 0.0) || !std::isfinite(dissipation)) {
+    if (error) *error = fmt::format("dissipation {} s/m must not be negative", dissipation);
+    return false;
+  }
+  return true;
+}
+
+double Truth::TopOutReading() const {
+  const ident::Model model = BuildModel(ident::Causality::kStrokeInput);
+  const ident::ParameterSet p = Parameters(model);
+  const int offset = p.position_of_index(12);
+  const double theta12 = offset >= 0 ? p.value(offset) : 0.0;
+  return (1.0 + sensors.stroke.gain_error) * theta12 + sensors.stroke.offset;
+}
+
 void Truth::Validate() const {
   std::string error;
+  if (!top_out.IsValid(&error)) throw TruthError(fmt::format("{}: [top_out] {}", source, error));
   if (has_effect("gas-solubility") && !has_effect("heat-exchange"))
     throw TruthError(fmt::format("{}: [effects] gas-solubility needs heat-exchange", source));
   if (!actuator.IsValid(&error)) throw TruthError(fmt::format("{}: [actuator] {}", source, error));

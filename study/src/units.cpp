@@ -6,17 +6,20 @@
 #include <chrono>
 #include <cmath>
 #include <nlohmann/json.hpp>
+#include <filesystem>
 #include <random>
+
+#include <unistd.h>
 
 #include "strut/ident/session_fit.h"
 #include "strut/sim/draw.h"
 #include "strut/sim/simulated_rig.h"
 #include "strut/study/cpu_time.h"
+#include "strut/study/stroke_zero.h"
 
 namespace strut::study {
-namespace {
 
-sim::Truth UnitTruth(const UnitsOptions& options, unsigned long seed) {
+sim::Truth DrawnUnitTruth(const UnitsOptions& options, unsigned long seed) {
   // The method's own figures: the actuator and the transducers' calibration of the shipped rig
   // are outside the damper model (docs/identification.md, "Units nobody has characterised");
   // servo and shipped_calibration put them back.
@@ -58,6 +61,8 @@ sim::Truth UnitTruth(const UnitsOptions& options, unsigned long seed) {
   return truth;
 }
 
+namespace {
+
 //! From a start up to `start_off` off in every estimated parameter, the same optimum within a
 //! tenth of an sd. A parameter with a prior (the stroke zero) keeps its value: the prior's mean
 //! is part of the problem, not of the start.
@@ -91,7 +96,7 @@ UnitFit FitUnit(const UnitsOptions& options, const ident::SessionFitOptions& bas
                 const ident::EstimatorOptions& uncalibrated, const ident::Model& base_model, int u) {
   UnitFit unit;
   unit.seed = options.first_seed + u;
-  const sim::Truth truth = UnitTruth(options, unit.seed);
+  const sim::Truth truth = DrawnUnitTruth(options, unit.seed);
   const sim::SimulatedRig rig(truth);
   unit.truth_composition = rig.model().composition();
   ident::SessionFitOptions fit_options = base_options;
@@ -100,7 +105,19 @@ UnitFit FitUnit(const UnitsOptions& options, const ident::SessionFitOptions& bas
       options.fit_truth ? ident::Model::Build(unit.truth_composition, fit_options.causality) : base_model;
   sim::RigRunOptions run;
   run.seed = unit.seed;
-  const daq::Session session = rig.RunMatrix(rig::StandardMatrixPlan(), run);
+  daq::Session session = rig.RunMatrix(rig::StandardMatrixPlan(), run);
+  if (options.top_out) {
+    const std::string scratch = (std::filesystem::temp_directory_path() /
+                                 fmt::format("strut-units-top-out-{}-{}.h5", ::getpid(), unit.seed))
+                                    .string();
+    const rig::RunReport reference = RunTopOutReference(truth, rig::TopOutOptions{}, 100.0, scratch);
+    std::filesystem::remove(scratch);
+    if (reference.top_out) {
+      unit.stroke_zero = reference.top_out->zero;
+      unit.stroke_zero_sd = reference.top_out->sd;
+      daq::RecordZeros({.stroke = daq::MeasuredZero{unit.stroke_zero, unit.stroke_zero_sd}}, session);
+    }
+  }
   const ident::ParameterSet truth_values = truth.RecordedParameters(rig.model());
   const auto start = std::chrono::steady_clock::now();
   const double cpu = ThreadSeconds();
@@ -131,6 +148,7 @@ UnitFit FitUnit(const UnitsOptions& options, const ident::SessionFitOptions& bas
   for (int i : s.estimated_positions) {
     const std::string key = s.parameters.spec(i).key();
     unit.estimate.emplace_back(key, s.parameters.value(i));
+    unit.sd.emplace_back(key, s.estimates[i].sd);
     if (const auto t = truth_values.find(key))
       unit.z.emplace_back(key, (s.parameters.value(i) - truth_values.value(*t)) / s.estimates[i].sd);
   }
@@ -218,6 +236,9 @@ nlohmann::json UnitFitJson(const UnitFit& u) {
           {"worst_noise_ratio", u.worst_noise_ratio},
           {"z", Pairs(u.z)},
           {"estimate", Pairs(u.estimate)},
+          {"sd", Pairs(u.sd)},
+          {"stroke_zero", u.stroke_zero},
+          {"stroke_zero_sd", u.stroke_zero_sd},
           {"restarted", u.restarted},
           {"same_optimum", u.same_optimum},
           {"restart_apart_sd", u.restart_apart_sd},
@@ -237,6 +258,9 @@ UnitFit UnitFitFromJson(const nlohmann::json& j) {
   u.worst_noise_ratio = j.at("worst_noise_ratio").get<double>();
   u.z = PairsFrom(j.at("z"));
   u.estimate = PairsFrom(j.at("estimate"));
+  if (j.contains("sd")) u.sd = PairsFrom(j.at("sd"));
+  u.stroke_zero = j.value("stroke_zero", 0.0);
+  u.stroke_zero_sd = j.value("stroke_zero_sd", 0.0);
   u.restarted = j.at("restarted").get<bool>();
   u.same_optimum = j.at("same_optimum").get<bool>();
   u.restart_apart_sd = j.at("restart_apart_sd").get<double>();

@@ -3,7 +3,10 @@
 #include <fmt/ranges.h>
 
 #include <cmath>
+#include <map>
+#include <vector>
 
+#include "strut/study/statistics.h"
 #include "strut/study/units.h"
 
 namespace strut::study {
@@ -61,6 +64,21 @@ std::string UnitsSummary(const UnitsOptions& o, const UnitsStudy& s) {
       ident::kNoiseFloorFalseAlarm, s.at_floor, o.units, s.worst_ratio_median, s.worst_ratio_max, 100 * o.start_off,
       s.same_optimum, s.restarts, s.seconds_median, 1e3 * s.cpu_median, 1e3 * s.estimator_cpu_median,
       1e3 * s.uncalibrated_cpu_median, s.cost_ratio_median);
+  if (o.top_out) {
+    // What the reference's zero does to the intervals: their median sd per parameter.
+    std::map<std::string, std::vector<double>> sds;
+    std::vector<double> zero_sds;
+    long recorded = 0;
+    for (const UnitFit& u : s.units) {
+      for (const auto& [key, sd] : u.sd) sds[key].push_back(sd);
+      if (u.stroke_zero_sd > 0) ++recorded, zero_sds.push_back(u.stroke_zero_sd);
+    }
+    text += fmt::format("top-out reference: a stroke zero recorded for {}/{} units, its sd median {:.2f} um; median "
+                        "interval sd:",
+                        recorded, s.units.size(), zero_sds.empty() ? 0.0 : 1e6 * Median(zero_sds));
+    for (const auto& [key, v] : sds) text += fmt::format(" {} {:.3g}", key, Median(v));
+    text += "\n";
+  }
   return text;
 }
 

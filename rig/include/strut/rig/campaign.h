@@ -14,6 +14,7 @@
 #include "strut/rig/matrix_runner.h"
 #include "strut/rig/safety.h"
 #include "strut/rig/test_matrix.h"
+#include "strut/rig/top_out.h"
 
 namespace strut::rig {
 
@@ -53,12 +54,17 @@ double RunSampleRate(std::optional<double> requested, const MatrixPlan& plan);
 std::vector<RunItem> ExperimentsToRun(const RunStart& start, const std::vector<MatrixEntry>& matrix,
                                       const daq::Session* so_far);
 
-//! CheckMatrix of `items`, every violation in one std::invalid_argument naming the matrix and
-//! the limits (`matrix_name`, `limits_name`: a file, "standard", "defaults") before the rig
-//! moves.
+//! CheckMatrix of `items`, and CheckTopOut of the reference the run starts with (if any), every
+//! violation in one std::invalid_argument naming the matrix and the limits (`matrix_name`,
+//! `limits_name`: a file, "standard", "defaults") before the rig moves.
 void RefuseUnsafeMatrix(const std::vector<RunItem>& items, const SafetyConfig& safety, double sample_rate,
                         const ResponsePredictor& predictor, const std::string& matrix_name,
-                        const std::string& limits_name);
+                        const std::string& limits_name, const std::optional<TopOutOptions>& top_out = std::nullopt);
+
+//! The top-out reference a run starts with: `options` for a new session when `requested`; none
+//! for a resume, whose session holds the first run's reference already (its zero, or the event
+//! that says why there is none): a resume neither repeats nor loses it.
+std::optional<TopOutOptions> TopOutToRun(const RunStart& start, bool requested, const TopOutOptions& options);
 
 //! What a new session of a run records: the damper, the rig, the operator, the matrix (its
 //! file's text or "standard") and the limits in force.

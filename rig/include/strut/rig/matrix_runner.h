@@ -24,6 +24,7 @@
 #include "strut/rig/safety.h"
 #include "strut/rig/steady_state.h"
 #include "strut/rig/test_matrix.h"
+#include "strut/rig/top_out.h"
 
 namespace strut::rig {
 
@@ -55,10 +56,14 @@ struct RunnerOptions {
   //! with the samples' times put on the recorded clock (daq::ToRecordedTime); its own waits and
   //! the safety detectors stay on the wall clock. 1 for a real rig.
   double stream_speed = 1.0;
+  //! The top-out reference before the first experiment (top_out.h, docs/rig-run.md): finds the
+  //! stroke zero and records it in the session's /calibration. None: no reference (a resumed run,
+  //! `--no-top-out`, the tests' plants).
+  std::optional<TopOutOptions> top_out;
   bool IsValid(std::string* error) const;
 };
 
-enum class RunPhase { kStarting, kMoving, kRampIn, kSettling, kRecording, kRampOut, kSafing, kDone };
+enum class RunPhase { kStarting, kReference, kMoving, kRampIn, kSettling, kRecording, kRampOut, kSafing, kDone };
 std::string_view ToString(RunPhase phase);
 
 //! What the progress display shows; sent at every phase change and at most every 100 ms.
@@ -106,6 +111,10 @@ struct RunReport {
   //! measure; a simulated rig's shows how close the machine came to not holding --speed).
   double largest_lag = 0.0;
   double lag_limit = 0.0;  //!< s, the lag detector's limit in force
+  //! The top-out reference, when the run had one: the zero it found (recorded in /calibration)...
+  std::optional<TopOutFit> top_out;
+  //! ... or why it found none ("" when it found one or there was none); the run went on without.
+  std::string top_out_failure;
 };
 
 //! Runs experiments on the rig. One thread calls Run; RequestPause/RequestStop may be called from
@@ -118,7 +127,9 @@ class MatrixRunner {
                SafetyConfig safety, RunnerOptions options);
   ~MatrixRunner();
 
-  //! Runs the items in order. Starts and stops the acquisition; sets the controller's watchdog;
+  //! Runs the top-out reference when the options ask for it (an event and, when found, the zero in
+  //! /calibration and its figures in /rig_run/top_out; when not found the run goes on without,
+  //! saying so), then the items in order. Starts and stops the acquisition; sets the controller's watchdog;
   //! leaves the controller disarmed (hydraulics off, watchdog off) however the run ends. Every
   //! trip, pause, loss and abort is recorded as an event with its cause. Recorder errors (disk
   //! full) end the run aborted as well.

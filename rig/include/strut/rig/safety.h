@@ -53,7 +53,9 @@ struct ChannelLimit {
 //! Every detector's levels and actions, and the actuator's capacity for the matrix check.
 //! Defaults: docs/rig-run.md; a TOML file (ReadSafetyConfig) overrides any of them per run.
 struct SafetyConfig {
-  ChannelLimit stroke{true, -0.005, 0.270, 3, SafetyAction::kInterlock};     //!< m
+  //! m. The lower end leaves the top-out reference room below a stroke zero 5 mm short of nominal
+  //! (its search ends at -7 mm, top_out.h).
+  ChannelLimit stroke{true, -0.008, 0.270, 3, SafetyAction::kInterlock};
   ChannelLimit force{true, -30.0e3, 55.0e3, 3, SafetyAction::kInterlock};    //!< N
   ChannelLimit pressure{true, -0.1e6, 18.0e6, 3, SafetyAction::kInterlock};  //!< Pa as acquired (gauge)
   struct Following {

@@ -56,8 +56,10 @@ struct CommandProgram {
 
 struct SimulatedControllerOptions {
   //! LVDT reading where the piston rests, locked, before the first arm (m). The damper starts
-  //! there in static equilibrium with the gas at ambient temperature.
-  double initial_stroke = 0.0;
+  //! there in static equilibrium with the gas at ambient temperature. None: on its top-out stop,
+  //! where an unloaded strut rests (Truth::TopOutReading); a reading beyond the stop is taken as
+  //! the stop too (the piston cannot rest pressed into it).
+  std::optional<double> initial_stroke;
   //! Following-error detector: |command - stroke| beyond this latches fault_bits::kFollowingError
   //! and switches the hydraulics off (m); 0 switches it off. 5 mm is about ten times the servo's
   //! tracking error over the standard matrix.

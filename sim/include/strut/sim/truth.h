@@ -47,6 +47,19 @@ struct AcquisitionOptions {
   bool IsValid(std::string* error) const;
 };
 
+//! The metal top-out stop every simulated unit has at full extension (true stroke q = 0), outside
+//! the identification model: the plant adds its force k max(0, -q) (1 + dissipation max(0, -q'))
+//! toward compression to the damper's, so it is exactly nothing while q >= 0 (the matrix stays 1 mm
+//! inside, draw.h). What a top-out reference (rig/top_out.h) finds; the served rig's plant has it
+//! (SimulatedController), the whole-experiment SimulatedRig needs none. Truth file: [top_out].
+struct TopOutContact {
+  //! N/m. 2e7: a metal stop (5e7, damper-physics.md §2.9) behind a thin pad; 0: no stop (a rig
+  //! whose top-out never shows, for tests).
+  double stiffness = 2.0e7;
+  double dissipation = 2.0;  //!< s/m, Hunt-Crossley damping over the stiffness
+  bool IsValid(std::string* error) const;
+};
+
 //! The size of one extra effect of a drawn unit: the value of its sizing parameter.
 struct EffectSize {
   std::string effect;     //!< e.g. "viscous-damping"
@@ -77,6 +90,7 @@ struct Truth {
   SensorSet sensors;
   AcquisitionOptions acquisition;
   std::vector<FaultSpec> faults;
+  TopOutContact top_out;
   //! Set when the unit was drawn (DrawUnit) rather than read from a file.
   std::optional<DrawRecord> drawn;
 
@@ -95,6 +109,9 @@ struct Truth {
   //! What a fit of this unit's recorded channels should find: Parameters, and the load-cell zero
   //! theta39 at the force sensor's offset (the plant itself feels no zero; the sensor adds it).
   ident::ParameterSet RecordedParameters(const ident::Model& model) const;
+  //! The stroke reading at full extension (q = 0): the LVDT's reading of theta12 through its own
+  //! gain and zero errors, what a top-out reference must find. Throws TruthError as Parameters.
+  double TopOutReading() const;
   //! Throws TruthError naming `source` when a setting is invalid.
   void Validate() const;
 };

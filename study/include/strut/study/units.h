@@ -15,6 +15,7 @@
 
 #include "strut/ident/estimator.h"
 #include "strut/ident/session_fit.h"
+#include "strut/sim/truth.h"
 #include "strut/study/statistics.h"
 
 namespace strut::study {
@@ -35,6 +36,9 @@ struct UnitsOptions {
   int effects_per_unit = 0;
   //! Fit each unit with its truth's composition (the base and all its effects) rather than the base.
   bool fit_truth = false;
+  //! Before the fit, the top-out reference on the unit's served rig (stroke_zero.h), its stroke
+  //! zero recorded in the unit's session: theta12's prior, as `strut rig run` gives it.
+  bool top_out = false;
 };
 
 //! One unit's fit.
@@ -47,6 +51,8 @@ struct UnitFit {
   double seconds = 0.0;            //!< wall time of the entry point (prepare, plan, fit)
   std::vector<std::pair<std::string, double>> z;  //!< (estimate - truth) / sd per estimated key the truth has
   std::vector<std::pair<std::string, double>> estimate;  //!< per estimated key
+  std::vector<std::pair<std::string, double>> sd;        //!< per estimated key
+  double stroke_zero = 0.0, stroke_zero_sd = 0.0;  //!< the top-out reference's (sd 0: none recorded)
   bool restarted = false;  //!< the fit converged, so it was repeated from far off
   bool same_optimum = false;
   double restart_apart_sd = 0.0;  //!< largest |difference| of the two optima in sd
@@ -69,6 +75,9 @@ struct UnitsStudy {
   //! the same fit without the calibration in its intervals; unit by unit the ratio of the two.
   double cpu_median = 0.0, estimator_cpu_median = 0.0, uncalibrated_cpu_median = 0.0, cost_ratio_median = 0.0;
 };
+
+//! The truth of the unit of `seed` (drawn around the shipped truth with the options' rig).
+sim::Truth DrawnUnitTruth(const UnitsOptions& options, unsigned long seed);
 
 //! Unit `u` (seed first_seed + u): what RunUnitsStudy runs for it, so that a study split into
 //! ranges of units (strut batch) gives the same units.

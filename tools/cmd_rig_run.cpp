@@ -19,6 +19,7 @@
 #include <string>
 
 #include "commands.h"
+#include "rig_run_request.h"
 #include "option_checks.h"
 #include "output_files.h"
 #include "stop_signals.h"
@@ -253,7 +254,7 @@ struct RigRunCommand {
     runner.on_progress = ProgressDisplay(tty);
     std::optional<monitor::MonitorFeed> feed;
     std::optional<monitor::MonitorServer> page;
-    if (monitor_option->count() > 0) {
+    if (monitor_option && monitor_option->count() > 0) {
       const monitor::MonitorOptions where = MonitorOptionsOf(monitor_endpoint, monitor_control);
       const daq::StreamDescription& stream = devices.acquisition->description();
       std::vector<std::string> names;
@@ -291,6 +292,20 @@ struct RigRunCommand {
 };
 
 }  // namespace
+
+void RunMatrixOnRig(const RigRunRequest& request) {
+  RigRunCommand c;
+  c.rig_spec = request.rig_spec;
+  c.daq_spec = request.daq_spec;
+  c.matrix_path = request.matrix_path;
+  c.limits_path = request.limits_path;
+  c.output = request.output;
+  c.force = request.force;
+  c.no_progress = request.no_progress;
+  c.speed = request.speed;
+  if (request.truth) c.truth_options = *request.truth;
+  c.Run();
+}
 
 void RegisterRigRunCommand(CLI::App& rig) {
   auto [run, c] = AddCommand<RigRunCommand>(

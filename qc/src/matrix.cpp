@@ -15,21 +15,11 @@ std::vector<rig::MatrixEntry> QcExperiments() {
 }
 
 std::string QcMatrixFileText(const std::string& comment) {
-  std::string s;
-  std::size_t start = 0;
-  while (start <= comment.size() && !comment.empty()) {
-    const auto end = comment.find('\n', start);
-    s += "# " + comment.substr(start, end == std::string::npos ? std::string::npos : end - start) + "\n";
-    if (end == std::string::npos) break;
-    start = end + 1;
-  }
-  s += fmt::format("sample_rate = {}\n", kQcSampleRate);
-  s += fmt::format("periods = {}\n", kQcPeriods);
-  for (const auto& e : QcExperiments())
-    s += fmt::format("\n[[experiment]]\nlabel = \"{}\"\ngroup = \"{}\"\nfrequency = {}\nstatic_position = {}\n"
-                     "amplitude = {}\n",
-                     e.label, e.group, e.frequency, e.static_position, e.amplitude);
-  return s;
+  rig::MatrixPlan plan;
+  plan.experiments = QcExperiments();
+  plan.sample_rate = kQcSampleRate;
+  plan.periods = kQcPeriods;
+  return rig::MatrixFileText(plan, comment);
 }
 
 }  // namespace strut::qc

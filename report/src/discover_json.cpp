@@ -19,6 +19,38 @@ nlohmann::json FindingJson(const ident::Finding& f) {
   return {{"locus", f.locus}, {"channel", f.channel}, {"score", f.score}, {"detail", f.detail}};
 }
 
+nlohmann::json NumberOrNull(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
+
+nlohmann::json DecisiveTestJson(const ident::DecisiveTest& t) {
+  return {{"models", {t.model_a, t.model_b}},
+          {"static_position", t.static_position},
+          {"amplitude", t.amplitude},
+          {"frequency", t.frequency},
+          {"periods", t.periods},
+          {"sample_rate", t.sample_rate},
+          {"minutes", t.minutes},
+          {"separation", t.separation},
+          {"separation_per_minute", t.separation_per_minute},
+          {"rms_difference", RatiosJson(t.rms_difference)},
+          {"channel", t.channel},
+          {"candidates", t.candidates},
+          {"description", t.Describe()}};
+}
+
+nlohmann::json AmbiguityJson(const ident::Ambiguity& a) {
+  nlohmann::json j{{"kept", a.kept}, {"step", a.step}, {"rivals", nlohmann::json::array()}};
+  for (const auto& r : a.rivals)
+    j["rivals"].push_back({{"term", r.term},
+                           {"model", r.model},
+                           {"delta_bic", NumberOrNull(r.delta_bic)},
+                           {"noise_ratio", RatiosJson(r.noise_ratio)},
+                           {"at_noise_floor", r.at_noise_floor},
+                           {"correlation", NumberOrNull(r.correlation)},
+                           {"why", r.why}});
+  j["test"] = a.test ? DecisiveTestJson(*a.test) : nlohmann::json(nullptr);
+  return j;
+}
+
 }  // namespace
 
 nlohmann::json DiscoveryJson(const ident::DiscoveryResult& r) {
@@ -53,6 +85,7 @@ nlohmann::json DiscoveryJson(const ident::DiscoveryResult& r) {
                                     {"evidence", c.evidence},
                                     {"noise_ratio", RatiosJson(c.noise_ratio)},
                                     {"cv_noise_ratio", std::isfinite(c.cv_ratio) ? nlohmann::json(c.cv_ratio) : nlohmann::json(nullptr)},
+                                    {"qualified", c.qualified},
                                     {"verdict", c.verdict},
                                     {"error", c.error}});
     j["steps"].push_back(step);
@@ -74,6 +107,21 @@ nlohmann::json DiscoveryJson(const ident::DiscoveryResult& r) {
     j["discrepancy"] = e;
   } else {
     j["discrepancy"] = nullptr;
+  }
+  j["ambiguities"] = nlohmann::json::array();
+  for (const auto& a : r.ambiguities) j["ambiguities"].push_back(AmbiguityJson(a));
+  if (r.decision) {
+    const ident::Decision& d = *r.decision;
+    nlohmann::json decision{{"models", nlohmann::json::array()}, {"winner", d.winner >= 0 ? nlohmann::json(d.models[d.winner]) : nlohmann::json(nullptr)},
+                            {"delta_bic", NumberOrNull(d.delta_bic)}, {"margin", d.margin}, {"conclusion", d.conclusion}};
+    for (std::size_t k = 0; k < d.models.size(); ++k)
+      decision["models"].push_back({{"model", d.models[k]},
+                                    {"converged", d.fits[k].converged},
+                                    {"bic", NumberOrNull(d.fits[k].bic)},
+                                    {"noise_ratio", RatiosJson(ident::PooledNoiseRatio(d.fits[k]))}});
+    j["decision"] = decision;
+  } else {
+    j["decision"] = nullptr;
   }
   j["conclusion"] = r.conclusion;
   j["final_fit"] = report::FitToJson(r.final_fit);

@@ -118,6 +118,29 @@ void WriteDiscoveryReport(const DiscoveryResult& r, const std::string& path) {
                                  "and in extension at the matrix's median peak rate.");
   }
 
+  if (!r.ambiguities.empty()) {
+    report.AddHeading("Explanations the data cannot tell apart");
+    report.AddParagraph("A rival explains the data alike when the final model with the rival in the kept term's place "
+                        "has a BIC within the margin of the final model's, or when the two terms fitted together have "
+                        "sizes so correlated that the data move one into the other. Discovery kept one of them; the "
+                        "data do not decide, the test below does (docs/discovery.md).");
+    for (const auto& a : r.ambiguities) {
+      rows.clear();
+      rows.push_back({a.kept + " (kept)", r.final_model, "0", Ratios(PooledNoiseRatio(r.final_fit)), "—", "—"});
+      for (const auto& rival : a.rivals)
+        rows.push_back({rival.term, rival.model, Number(rival.delta_bic, "{:+.1f}"), Ratios(rival.noise_ratio),
+                        Number(rival.correlation, "{:+.3f}"), rival.why});
+      report.AddTable({"term", "model", "ΔBIC against the final model", "noise ratio", "sizes' correlation together",
+                       "why alike"},
+                      rows, "Step " + std::to_string(a.step + 1) + ": " + a.kept + " and its rivals.");
+      if (a.test) report.AddParagraph("The test that decides: " + a.test->Describe() + ".");
+    }
+    if (r.decision) {
+      report.AddHeading("The decision");
+      report.AddCallout(r.decision->conclusion, r.decision->winner >= 0 ? Tone::kGood : Tone::kWarning);
+    }
+  }
+
   report.AddHeading("Where the baseline did not fit");
   rows.clear();
   for (const auto& f : r.mismatch) rows.push_back({f.locus, f.channel, fmt::format("{:.1f}", f.score), f.detail});

@@ -16,6 +16,25 @@ MatrixPlan StandardMatrixPlan() {
   return plan;
 }
 
+std::string MatrixFileText(const MatrixPlan& plan, const std::string& comment) {
+  std::string s;
+  for (std::size_t start = 0; !comment.empty() && start <= comment.size();) {
+    const auto end = comment.find('\n', start);
+    s += "# " + comment.substr(start, end == std::string::npos ? std::string::npos : end - start) + "\n";
+    if (end == std::string::npos) break;
+    start = end + 1;
+  }
+  if (plan.sample_rate) s += fmt::format("sample_rate = {}\n", *plan.sample_rate);
+  if (plan.periods) s += fmt::format("periods = {}\n", *plan.periods);
+  for (const MatrixEntry& e : plan.experiments) {
+    s += fmt::format("\n[[experiment]]\nlabel = \"{}\"\n", e.label);
+    if (!e.group.empty()) s += fmt::format("group = \"{}\"\n", e.group);
+    s += fmt::format("frequency = {}\nstatic_position = {}\namplitude = {}\n", e.frequency, e.static_position,
+                     e.amplitude);
+  }
+  return s;
+}
+
 MatrixPlan ParseMatrix(std::string_view text, const std::string& source_name) {
   const daq::TomlReader<MatrixFileError> toml(source_name);
   const toml::table root = toml.Parse(text);

@@ -446,4 +446,23 @@ std::vector<std::string> CheckMatrix(const std::vector<MatrixEntry>& matrix, con
   return refusals;
 }
 
+ident::TestSpace DecisiveTestSpace(const std::vector<ident::ExperimentData>& recorded, const SafetyConfig& c) {
+  ident::TestSpace space = ident::TestSpaceOf(recorded);
+  const double lowest = std::max({c.stroke.enabled ? c.stroke.lower : -1e300, c.controller.stroke_min, 0.0});
+  const double highest = std::min({c.stroke.enabled ? c.stroke.upper : 1e300, c.controller.stroke_max, ident::kDamperStroke});
+  const double band = highest - lowest;
+  space.stroke_min = lowest + kDecisiveTestMargin * band;
+  space.stroke_max = highest - kDecisiveTestMargin * band;
+  space.max_rate = std::min(c.actuator.max_velocity, c.actuator.max_flow / c.actuator.piston_area) * (1 - kDecisiveTestMargin);
+  const double f_high = std::min(c.force.enabled ? c.force.upper : 1e300, c.controller.force_max);
+  space.max_force = f_high * (1 - kDecisiveTestMargin);
+  if (c.pressure.enabled)
+    space.max_pressure = c.pressure.upper - kDecisiveTestMargin * (c.pressure.upper - c.pressure.lower) + daq::kGaugeReferencePa;
+  const double smallest = *std::min_element(space.amplitudes.begin(), space.amplitudes.end());
+  space.static_positions.clear();
+  for (int k = 0; k < 9; ++k)
+    space.static_positions.push_back(space.stroke_min + smallest + (space.stroke_max - space.stroke_min - 2 * smallest) * k / 8.0);
+  return space;
+}
+
 }  // namespace strut::rig

@@ -74,6 +74,9 @@ bool DiscoverOptions::IsValid(std::string* error) const {
   if (!(screen_margin >= 0)) return fail("screen_margin must not be negative");
   if (max_discrepancy_functions < 0 || discrepancy_refits < 1)
     return fail("max_discrepancy_functions must not be negative and discrepancy_refits at least 1");
+  if (!(ambiguity_bic_margin >= 0) || !(ambiguity_correlation > 0 && ambiguity_correlation <= 1))
+    return fail("ambiguity_bic_margin must not be negative and ambiguity_correlation must be in (0, 1]");
+  if (test_space && !test_space->IsValid(error)) return false;
   for (const std::string& term : leave_out)
     if (std::none_of(Catalogue().begin(), Catalogue().end(), [&](const TermEntry& e) { return e.name == term; }))
       return fail(fmt::format("leave_out: '{}' is not a catalogue term", term));
@@ -633,6 +636,8 @@ const TermEntry& CatalogueEntry(const std::string& term) {
   return *std::find_if(catalogue.begin(), catalogue.end(), [&](const TermEntry& e) { return e.name == term; });
 }
 
+constexpr const char* kNotBetterHeldOut = "does not predict left-out experiments better";
+
 // One round's candidates: each term that composes with the current model, its refit and its verdict.
 struct Round {
   std::vector<std::pair<std::string, std::string>> candidates;  // term, composition
@@ -643,6 +648,14 @@ struct Round {
   std::vector<CandidateFit> results;
   std::vector<FitSummary> fits;
   std::vector<HeldOut> held_out;  // per candidate, its held-out ratios where it was cross-validated
+};
+
+// A kept catalogue term's rivals: the round's other candidates that passed the BIC and noise-ratio
+// rules and were not refused by the held-out test, with their fits (the current model plus the rival).
+struct KeptWithRivals {
+  int step = 0;
+  std::string kept;
+  std::vector<std::pair<std::string, FitSummary>> rivals;
 };
 
 // One discovery, stage by stage: the baseline, then per round the candidates, their refits, the
@@ -679,6 +692,9 @@ class DiscoveryRun {
   void Conclude(DiscoveryResult& result, bool exhausted, const std::map<std::string, double>& ratio) const;
   bool Advance(int number, bool empirical, FitSummary& current, std::map<std::string, double>& ratio,
                DiscoveryResult& result);
+  RivalExplanation CompareRival(const KeptWithRivals& kept, const std::string& rival, const FitSummary& rival_fit,
+                                const DiscoveryResult& result) const;
+  void FindAmbiguities(DiscoveryResult& result) const;
 
   const FitData& data_;
   const DiscoverOptions& options_;
@@ -688,6 +704,7 @@ class DiscoveryRun {
   SessionFitOptions session_options_;
   std::optional<HeldOut> current_cv_;          // held-out noise ratios of the current model, once a candidate needs them
   std::map<std::string, int> last_iterations_;  // per term, its refit's in the round before
+  std::vector<KeptWithRivals> kept_with_rivals_;
   double candidate_seconds_ = 0.0, cv_seconds_ = 0.0;
 };
 
@@ -893,6 +910,7 @@ int DiscoveryRun::Select(Round& round, const FitSummary& current, const Model& m
                !FallsBeyondNoise(current, round.fits[c])) {
       r.verdict = "noise ratio barely falls";
     } else {
+      r.qualified = true;
       order.push_back(c);
     }
   }
@@ -914,7 +932,7 @@ int DiscoveryRun::Select(Round& round, const FitSummary& current, const Model& m
     spdlog::info("  {:<20} cross-validated noise ratio {:.3f} against {:.3f}", results[c].term, results[c].cv_ratio,
                  current_cv_->median);
     if (PredictsHeldOutBetter(cv[0], *current_cv_, options_)) return static_cast<int>(c);
-    results[c].verdict = "does not predict left-out experiments better";
+    results[c].verdict = kNotBetterHeldOut;
   }
   return -1;
 }
@@ -984,12 +1002,134 @@ bool DiscoveryRun::Advance(int number, bool empirical, FitSummary& current, std:
   round.results[best].verdict = "kept";
   DiscoveryStep step = Step(round, best, current, findings, ratio);
   Say(fmt::format("added {}: ΔBIC {:+.1f}; {}", step.term, step.delta_bic, step.evidence));
-  if (!empirical) result.missing.push_back(step.term);
+  if (!empirical) {
+    result.missing.push_back(step.term);
+    KeptWithRivals kept{static_cast<int>(result.steps.size()), step.term, {}};
+    for (std::size_t c = 0; c < round.results.size(); ++c)
+      if (static_cast<int>(c) != best && round.results[c].qualified &&
+          round.results[c].verdict != kNotBetterHeldOut)
+        kept.rivals.emplace_back(round.results[c].term, std::move(round.fits[c]));
+    if (!kept.rivals.empty()) kept_with_rivals_.push_back(std::move(kept));
+  }
   result.steps.push_back(std::move(step));
   current = round.fits[best];
   current_cv_ = round.held_out[best];
   ratio = PooledNoiseRatio(current);
   return true;
+}
+
+// The keys of the parameters `with` has and `without` has not that size a term (ParameterSpec::sizes_term).
+std::vector<std::string> SizeKeys(const Model& with, const Model& without) {
+  std::vector<std::string> keys;
+  for (int i = 0; i < with.defaults().size(); ++i) {
+    const ParameterSpec& spec = with.defaults().spec(i);
+    if (spec.sizes_term && !without.defaults().find(spec.key())) keys.push_back(spec.key());
+  }
+  return keys;
+}
+
+// The largest |correlation| of a fit's estimates between a parameter of `a` and one of `b` (NaN: none estimated).
+double LargestCorrelation(const FitSummary& fit, const std::vector<std::string>& a, const std::vector<std::string>& b) {
+  const auto column = [&](const std::string& key) -> int {
+    const auto p = fit.parameters.find(key);
+    if (!p) return -1;
+    const auto it = std::find(fit.estimated_positions.begin(), fit.estimated_positions.end(), *p);
+    return it == fit.estimated_positions.end() ? -1 : static_cast<int>(it - fit.estimated_positions.begin());
+  };
+  double largest = NAN;
+  for (const std::string& ka : a)
+    for (const std::string& kb : b) {
+      const int i = column(ka), j = column(kb);
+      if (i < 0 || j < 0 || i >= fit.correlation.rows() || j >= fit.correlation.cols()) continue;
+      const double r = fit.correlation(i, j);
+      if (std::isfinite(r) && !(std::abs(r) <= std::abs(largest))) largest = r;
+    }
+  return largest;
+}
+
+// The rival in the kept term's place (the final model's terms in order, the kept one swapped) and
+// the two fitted together.
+RivalExplanation DiscoveryRun::CompareRival(const KeptWithRivals& kept, const std::string& rival,
+                                            const FitSummary& rival_fit, const DiscoveryResult& result) const {
+  RivalExplanation out;
+  out.term = rival;
+  std::string swapped = base_;
+  for (const std::string& term : result.missing) swapped += "+" + (term == kept.kept ? rival : term);
+  const Model final_model = Model::Build(result.final_model, causality_);
+  const bool later_steps = kept.step + 1 < static_cast<int>(result.steps.size());
+  if (final_model.has_term("discrepancy")) swapped += "+discrepancy";
+  const Model swap_model = Model::Build(swapped, causality_);
+  out.model = swap_model.composition();
+  // The rival's round fit is the swapped model when nothing was added after the kept term; else the
+  // swapped model is fitted as identify fits a composition (FitPrepared: the data's start, then the
+  // terms one at a time). An empirical discrepancy after it is discovery's own selection, which
+  // FitPrepared would not repeat: that swap is left unfitted.
+  if (!later_steps) {
+    out.fit = rival_fit;
+  } else if (!final_model.has_term("discrepancy")) {
+    SessionFitOptions own = session_options_;
+    own.composition = swapped;
+    own.estimator.threads = 1;
+    out.fit = FitPrepared(data_, swap_model, own).summary;
+  }
+  if (out.fit.converged && out.fit.IsSolutionUsable()) {
+    out.delta_bic = out.fit.bic - result.final_fit.bic;
+    out.noise_ratio = PooledNoiseRatio(out.fit);
+    out.at_noise_floor = AtNoiseFloor(out.fit);
+  }
+  // Both terms at once, from the final fit with the rival started where the mismatch puts it.
+  const Model joint = Model::Build(result.final_model + "+" + rival, causality_);
+  TermStart start = StartWithTerm(joint, rival, result.final_fit);
+  EstimatorOptions estimator = session_options_.estimator;
+  estimator.threads = 1;
+  const FitSummary both = Estimator(joint, estimator).Fit(data_.experiments, start.start, start.choices, data_.issues);
+  if (both.converged && both.IsSolutionUsable())
+    out.correlation = LargestCorrelation(both, SizeKeys(joint, swap_model), SizeKeys(joint, final_model));
+  if (std::isfinite(out.delta_bic) && out.delta_bic < options_.ambiguity_bic_margin)
+    out.why = fmt::format("its model's BIC is {:+.1f} from the final model's, within the margin of {:g}", out.delta_bic,
+                          options_.ambiguity_bic_margin);
+  else if (std::abs(out.correlation) > options_.ambiguity_correlation)
+    out.why = fmt::format("fitted together, the sizes of {} and {} are correlated {:+.3f} (beyond {:g})", kept.kept, rival,
+                          out.correlation, options_.ambiguity_correlation);
+  spdlog::info("  rival of {}: {} ΔBIC {:+.1f} against the final model, sizes correlated {:+.3f} fitted together: {}",
+               kept.kept, rival, out.delta_bic, out.correlation, out.why.empty() ? "not alike" : out.why);
+  return out;
+}
+
+void DiscoveryRun::FindAmbiguities(DiscoveryResult& result) const {
+  if (!options_.ambiguity || kept_with_rivals_.empty()) return;
+  const Stopwatch watch;
+  std::vector<std::pair<const KeptWithRivals*, const std::pair<std::string, FitSummary>*>> work;
+  for (const KeptWithRivals& kept : kept_with_rivals_)
+    for (const auto& rival : kept.rivals)
+      if (!Model::Build(result.final_model, causality_).has_term(rival.first)) work.emplace_back(&kept, &rival);
+  Say(fmt::format("comparing {} rival explanations with the final model", work.size()));
+  std::vector<std::optional<RivalExplanation>> compared(work.size());
+  ParallelFor(static_cast<int>(work.size()), options_.threads, [&](int k) {
+    try {
+      compared[k] = CompareRival(*work[k].first, work[k].second->first, work[k].second->second, result);
+    } catch (const EstimationError& e) {  // a rival model without a fit is no rival
+      spdlog::debug("rival {}: {}", work[k].second->first, e.what());
+    } catch (const PeriodicSolverError& e) {
+      spdlog::debug("rival {}: {}", work[k].second->first, e.what());
+    } catch (const ModelError& e) {  // the two terms do not compose
+      spdlog::debug("rival {}: {}", work[k].second->first, e.what());
+    }
+  });
+  const TestSpace space = options_.test_space ? *options_.test_space : TestSpaceOf(data_.experiments);
+  for (const KeptWithRivals& kept : kept_with_rivals_) {
+    Ambiguity ambiguity{kept.kept, kept.step, {}, std::nullopt};
+    for (std::size_t k = 0; k < work.size(); ++k)
+      if (work[k].first == &kept && compared[k] && !compared[k]->why.empty()) ambiguity.rivals.push_back(*compared[k]);
+    if (ambiguity.rivals.empty()) continue;
+    std::sort(ambiguity.rivals.begin(), ambiguity.rivals.end(), [](const RivalExplanation& a, const RivalExplanation& b) {
+      return (std::isfinite(a.delta_bic) ? a.delta_bic : INFINITY) < (std::isfinite(b.delta_bic) ? b.delta_bic : INFINITY);
+    });
+    const RivalExplanation& first = ambiguity.rivals.front();
+    if (first.fit.converged && space.IsValid(nullptr)) ambiguity.test = ProposeDecisiveTest(result.final_fit, first.fit, space);
+    result.ambiguities.push_back(std::move(ambiguity));
+  }
+  spdlog::debug("timing: rivals and decisive tests {:.2f} s", watch.Seconds());
 }
 
 void DiscoveryRun::Conclude(DiscoveryResult& result, bool exhausted, const std::map<std::string, double>& ratio) const {
@@ -1021,15 +1161,25 @@ void DiscoveryRun::Conclude(DiscoveryResult& result, bool exhausted, const std::
                             added.empty() ? "the catalogue" : "it", names, dependence,
                             resembles.empty() ? "" : " Its shape resembles the signature of " + resembles + ".");
   }
+  std::string alike;
+  for (const Ambiguity& a : result.ambiguities) {
+    std::string rivals;
+    for (const RivalExplanation& r : a.rivals)
+      rivals += fmt::format("{}{} ({})", rivals.empty() ? "" : "; ", r.term, r.why);
+    alike += fmt::format(" The data cannot tell {} from {}: {}.{}", a.kept,
+                         a.rivals.size() == 1 ? a.rivals.front().term : "its rivals", rivals,
+                         a.test ? " The test that decides: " + a.test->Describe() + "." : "");
+  }
   result.conclusion = fmt::format(
-      "{} left residuals above the noise floor (noise ratios{}). {}{} Final model {} (noise ratios{}{}).{}", base_, ratios,
+      "{} left residuals above the noise floor (noise ratios{}). {}{} Final model {} (noise ratios{}{}).{}{}", base_, ratios,
       added.empty() ? "No catalogue term explains them." : "Missing: " + added + ".", empirical, result.final_model,
       after, at_floor ? ", at the noise floor" : ", still above the noise floor",
       result.unexplained.empty()
           ? ""
           : (exhausted ? " What is left matches no catalogue term: "
                        : fmt::format(" Stopped after {} terms; the strongest feature left: ", options_.max_terms)) +
-                result.unexplained.front().detail + ".");
+                result.unexplained.front().detail + ".",
+      alike);
 }
 
 DiscoveryResult DiscoveryRun::Run() {
@@ -1062,6 +1212,7 @@ DiscoveryResult DiscoveryRun::Run() {
 
   result.final_model = current.model;
   result.final_fit = current;
+  FindAmbiguities(result);
   Conclude(result, exhausted, ratio);
   spdlog::debug("timing: discover {:.2f} s: baseline {:.2f} s, candidates {:.2f} s, cross-validation {:.2f} s",
                 total_watch.Seconds(), baseline_seconds, candidate_seconds_, cv_seconds_);

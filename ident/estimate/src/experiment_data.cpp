@@ -269,6 +269,7 @@ std::vector<ExperimentData> Prepare(const daq::Session& session, const std::stri
     d.amplitude = e.amplitude;
     d.static_position = e.static_position;
     d.periods = e.periods;
+    d.sample_rate = e.sample_rate;
     d.session_time = session_times[index];
     // Whole samples per period: average the recorded samples themselves, phase by phase.
     const std::optional<long> whole_samples = daq::WholeSamplesPerPeriod(e.sample_rate, e.frequency, 4);

@@ -15,6 +15,7 @@
 
 #include "strut/daq/acquisition.h"
 #include "strut/daq/controller.h"
+#include "strut/ident/decisive_test.h"
 #include "strut/rig/steady_state.h"
 #include "strut/rig/test_matrix.h"
 
@@ -212,5 +213,12 @@ ResponsePredictor FitPredictor(const ident::FitRecord& fit, int points = 256);
 //! experiment, the value and the limit ("" when none); empty when the matrix may run.
 std::vector<std::string> CheckMatrix(const std::vector<MatrixEntry>& matrix, const SafetyConfig& config,
                                      double sample_rate, const ResponsePredictor& predictor = {});
+
+//! The tests a decisive test may be chosen from on a rig with these limits: the recorded
+//! experiments' frequencies, sample rate and noise (ident::TestSpaceOf), a stroke range, peak force
+//! and pressure inside the limits by kDecisiveTestMargin of their band (and inside the damper's
+//! stroke), a peak rate within the actuator's velocity and flow, 9 static positions across the range.
+ident::TestSpace DecisiveTestSpace(const std::vector<ident::ExperimentData>& recorded, const SafetyConfig& config);
+inline constexpr double kDecisiveTestMargin = 0.1;
 
 }  // namespace strut::rig

@@ -50,5 +50,8 @@ MatrixPlan ReadMatrixFile(const std::string& path);
 std::string ReadMatrixText(const std::string& path);
 //! A matrix file's text; `source_name` names it in errors and becomes the plan's source.
 MatrixPlan ParseMatrix(std::string_view text, const std::string& source_name);
+//! The matrix file (TOML) of a plan, each line of `comment` as a leading comment; ParseMatrix reads
+//! it back to the same plan (numbers written to round-trip).
+std::string MatrixFileText(const MatrixPlan& plan, const std::string& comment);
 
 }  // namespace strut::rig

@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "strut/ident/decisive_test.h"
 #include "strut/ident/estimator.h"
 #include "strut/ident/session_fit.h"
 
@@ -51,6 +52,18 @@ struct DiscoverOptions {
   int discrepancy_refits = 4;
   //! Catalogue terms discovery does not propose (the leave-one-out study conceals them this way).
   std::vector<std::string> leave_out;
+  //! Honest ambiguity (docs/discovery.md "Explanations that fit alike"): a rival of a kept term (a
+  //! candidate of its round that passed the BIC and noise-ratio rules and was not refused by the
+  //! held-out test) explains the data alike when the final model with the rival in the kept term's
+  //! place has a BIC less than `ambiguity_bic_margin` above the final model's (10: short of "very
+  //! strong" evidence on Kass and Raftery's scale, the margin a term must clear to be kept), or when
+  //! the two terms fitted together have sizes correlated beyond `ambiguity_correlation` (the data
+  //! move one into the other). Each ambiguity gets the test that decides (ProposeDecisiveTest) from
+  //! `test_space` (default: TestSpaceOf the recorded experiments).
+  bool ambiguity = true;
+  double ambiguity_bic_margin = 10.0;
+  double ambiguity_correlation = 0.95;
+  std::optional<TestSpace> test_space;
   bool IsValid(std::string* error) const;
 };
 
@@ -74,6 +87,8 @@ struct CandidateFit {
   std::string verdict;     //!< kept, or why not ("BIC", "noise ratio", "cross-validation", "no solution")
   bool screened = false;   //!< not refitted: its size score says it cannot pay for its parameters
   double size_score = NAN; //!< CandidateStart::size_score
+  //! Passed the BIC and noise-ratio rules (the held-out test then decides between those).
+  bool qualified = false;
 };
 
 struct DiscoveryStep {
@@ -111,6 +126,29 @@ struct EmpiricalDiscrepancy {
   std::vector<Curve> curves;
 };
 
+//! A model that explains the data about as well as the one discovery chose: the final model with a
+//! rival term in the place of a kept one.
+struct RivalExplanation {
+  std::string term;   //!< the rival catalogue term
+  std::string model;  //!< the final model with `term` in the kept term's place
+  double delta_bic = NAN;  //!< its BIC minus the final model's (NaN: not fitted)
+  std::map<std::string, double> noise_ratio;
+  bool at_noise_floor = false;
+  //! The largest correlation between the kept term's and the rival's sizes, the two fitted together
+  //! (NaN: that fit did not converge).
+  double correlation = NAN;
+  std::string why;   //!< why it counts as alike, in words ("" when it does not)
+  FitSummary fit;    //!< the rival model's fit (what the decisive test predicts with)
+};
+
+//! Explanations the data cannot tell apart: the kept term and its rivals, with the test that decides.
+struct Ambiguity {
+  std::string kept;  //!< the term discovery kept
+  int step = 0;      //!< its index in DiscoveryResult::steps
+  std::vector<RivalExplanation> rivals;  //!< those that explain the data alike
+  std::optional<DecisiveTest> test;      //!< between the final model and the first rival
+};
+
 struct DiscoveryResult {
   FitSummary baseline;
   std::vector<Finding> mismatch;     //!< located in the baseline residuals, strongest first
@@ -122,6 +160,11 @@ struct DiscoveryResult {
   std::vector<Finding> unexplained;  //!< what the final model leaves above the noise, if anything
   //! Set when discovery had to model what is left empirically (DiscoverOptions::discrepancy).
   std::optional<EmpiricalDiscrepancy> discrepancy;
+  //! Kept terms whose rivals explain the data alike (DiscoverOptions::ambiguity): never one chosen silently.
+  std::vector<Ambiguity> ambiguities;
+  //! Set by the caller that ran the first ambiguity's decisive test and fitted its explanations with
+  //! it (Decide; strut discover --decide).
+  std::optional<Decision> decision;
   std::string conclusion;            //!< one paragraph for people
 };
 

@@ -60,6 +60,7 @@ struct ExperimentData {
   std::string group;
   double frequency = 0.0, amplitude = 0.0, static_position = 0.0;
   long periods = 0;
+  double sample_rate = 0.0;  //!< Hz, as recorded (the noise_variance is per sample at this rate)
   //! When it was recorded, as a fraction of its session (daq::ExperimentSessionTimes): theta38 of
   //! its solves (Model::AtSessionTime).
   double session_time = 0.0;

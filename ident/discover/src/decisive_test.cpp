@@ -1,0 +1,230 @@
+#include "strut/ident/decisive_test.h"
+
+#include <algorithm>
+#include <cmath>
+#include <fmt/format.h>
+#include <numbers>
+#include <spdlog/spdlog.h>
+#include <stdexcept>
+
+#include "strut/ident/parallel.h"
+#include "strut/ident/periodic.h"
+
+namespace strut::ident {
+namespace {
+
+double Median(std::vector<double> v) {
+  if (v.empty()) return NAN;
+  std::sort(v.begin(), v.end());
+  const std::size_t m = v.size() / 2;
+  return v.size() % 2 ? v[m] : 0.5 * (v[m - 1] + v[m]);
+}
+
+std::vector<double> Spread(double lo, double hi, int count) {
+  std::vector<double> out;
+  for (int k = 0; k < count; ++k) out.push_back(count == 1 ? 0.5 * (lo + hi) : lo + (hi - lo) * k / (count - 1));
+  return out;
+}
+
+// A fitted model's periodic response to one sinusoidal stroke, at the end of its session.
+struct Response {
+  std::map<std::string, Eigen::VectorXd> outputs;
+};
+
+// Grid points per period of the prediction: enough for the orifice and friction shapes of a sine
+// (rig::FitPredictor's 256 predicts the matrix check's peaks; the difference of two models needs the
+// same resolution, not more).
+constexpr int kPredictionPoints = 256;
+
+class Predictor {
+ public:
+  explicit Predictor(const FitSummary& fit)
+      : model_(Model::Build(fit.model, Causality::kStrokeInput)),
+        theta_(model_.AtSessionTime(fit.parameters.values(), 1.0)),
+        solver_(model_, PeriodicSolverOptions{}) {}
+
+  std::optional<Response> Predict(double static_position, double amplitude, double frequency) {
+    try {
+      const PeriodicSolution s =
+          solver_.Solve(PeriodicInput::Sine(frequency, static_position, amplitude, kPredictionPoints), theta_);
+      Response r;
+      for (std::size_t c = 0; c < s.channels.size(); ++c)
+        if (s.channels[c] != model_.input_channel()) r.outputs[s.channels[c]] = s.outputs.row(c).transpose();
+      return r;
+    } catch (const PeriodicSolverError& e) {
+      spdlog::debug("decisive test: {} has no periodic state at {:.1f} mm static, {:.1f} mm, {:g} Hz: {}",
+                    model_.composition(), static_position * 1e3, amplitude * 1e3, frequency, e.what());
+      return std::nullopt;
+    }
+  }
+
+ private:
+  Model model_;
+  std::vector<double> theta_;
+  PeriodicSolver solver_;
+};
+
+}  // namespace
+
+bool TestSpace::IsValid(std::string* error) const {
+  const auto fail = [&](const std::string& m) {
+    if (error) *error = m;
+    return false;
+  };
+  if (!(stroke_max > stroke_min)) return fail("the stroke range is empty");
+  if (!(max_rate > 0) || !(max_force > 0) || !(max_pressure > 0)) return fail("the rate, force and pressure limits must be positive");
+  if (frequencies.empty() || static_positions.empty() || amplitudes.empty())
+    return fail("no frequency, static position or amplitude to choose from");
+  if (!(sample_rate > 0) || periods < 1 || max_periods < periods)
+    return fail("the sample rate must be positive, the periods at least 1 and at most max_periods");
+  if (!(separation_wanted >= 0)) return fail("separation_wanted must not be negative");
+  if (!(overhead_cycles >= 0) || !(static_rate > 0)) return fail("the overhead cycles and the static rate must be positive");
+  for (const auto& [channel, sd] : noise_sd)
+    if (!(sd > 0)) return fail(fmt::format("the noise sd of {} must be positive", channel));
+  if (noise_sd.empty()) return fail("no channel's noise sd is known (every experiment has one period)");
+  return true;
+}
+
+TestSpace TestSpaceOf(const std::vector<ExperimentData>& experiments) {
+  if (experiments.empty()) throw std::invalid_argument("decisive test: no recorded periodic experiment");
+  TestSpace space;
+  space.stroke_min = INFINITY;
+  space.stroke_max = -INFINITY;
+  std::vector<double> rates, amplitudes;
+  std::map<std::string, std::vector<double>> sds;
+  for (const ExperimentData& e : experiments) {
+    space.stroke_min = std::min(space.stroke_min, e.static_position - e.amplitude);
+    space.stroke_max = std::max(space.stroke_max, e.static_position + e.amplitude);
+    space.max_rate = std::max(space.max_rate, 2.0 * std::numbers::pi * e.frequency * e.amplitude);
+    amplitudes.push_back(e.amplitude);
+    if (std::find(space.frequencies.begin(), space.frequencies.end(), e.frequency) == space.frequencies.end())
+      space.frequencies.push_back(e.frequency);
+    if (e.sample_rate > 0) rates.push_back(e.sample_rate);
+    for (const auto& [name, channel] : e.channels) {
+      if (name == "force") space.max_force = std::max(space.max_force, channel.mean.cwiseAbs().maxCoeff());
+      if (name == "pressure") space.max_pressure = std::max(space.max_pressure, channel.mean.maxCoeff());
+      if (channel.noise_variance > 0) sds[name].push_back(std::sqrt(channel.noise_variance));
+    }
+  }
+  std::sort(space.frequencies.begin(), space.frequencies.end());
+  const auto [a_min, a_max] = std::minmax_element(amplitudes.begin(), amplitudes.end());
+  space.amplitudes = Spread(*a_min, *a_max, 5);
+  space.static_positions = Spread(space.stroke_min + *a_min, space.stroke_max - *a_min, 7);
+  space.sample_rate = Median(rates);
+  for (const auto& [name, v] : sds) space.noise_sd[name] = Median(v);
+  return space;
+}
+
+std::string DecisiveTest::Describe() const {
+  std::string differences;
+  for (const auto& [c, rms] : rms_difference)
+    differences += fmt::format("{}{} {:.2f}", differences.empty() ? "" : ", ", c, rms);
+  return fmt::format(
+      "a sine of {:.1f} mm amplitude at {:.1f} mm static position and {:g} Hz, {} periods recorded ({:.1f} min of rig "
+      "time): {} and {} predict outputs that differ by an RMS of {} noise sd (mostly {}), an expected chi-square of "
+      "{:.0f} between them ({:.0f} a minute)",
+      amplitude * 1e3, static_position * 1e3, frequency, periods, minutes, model_a, model_b, differences, channel,
+      separation, separation_per_minute);
+}
+
+std::optional<DecisiveTest> ProposeDecisiveTest(const FitSummary& a, const FitSummary& b, const TestSpace& space) {
+  std::string error;
+  if (!space.IsValid(&error)) throw std::invalid_argument("decisive test: " + error);
+  Predictor predict_a(a), predict_b(b);
+  const double middle = space.static_positions[space.static_positions.size() / 2];
+  std::optional<DecisiveTest> best;
+  int candidates = 0;
+  for (const double f : space.frequencies)
+    for (const double s : space.static_positions)
+      for (const double amp : space.amplitudes) {
+        if (s - amp < space.stroke_min - 1e-12 || s + amp > space.stroke_max + 1e-12) continue;
+        if (2.0 * std::numbers::pi * f * amp > space.max_rate * (1 + 1e-12)) continue;
+        ++candidates;
+        const std::optional<Response> ra = predict_a.Predict(s, amp, f), rb = predict_b.Predict(s, amp, f);
+        if (!ra || !rb) continue;
+        DecisiveTest t;
+        t.model_a = a.model;
+        t.model_b = b.model;
+        t.static_position = s;
+        t.amplitude = amp;
+        t.frequency = f;
+        t.periods = space.periods;
+        t.sample_rate = space.sample_rate;
+        bool within = true;
+        double top = 0.0;
+        for (const auto& [channel, ya] : ra->outputs) {
+          const auto yb = rb->outputs.find(channel);
+          const auto sd = space.noise_sd.find(channel);
+          if (yb == rb->outputs.end()) continue;
+          const double peak = std::max(ya.cwiseAbs().maxCoeff(), yb->second.cwiseAbs().maxCoeff());
+          t.peak[channel] = peak;
+          if ((channel == "force" && peak > space.max_force) || (channel == "pressure" && peak > space.max_pressure))
+            within = false;
+          if (sd == space.noise_sd.end()) continue;
+          const double mean_square = (ya - yb->second).squaredNorm() / static_cast<double>(ya.size()) / (sd->second * sd->second);
+          t.rms_difference[channel] = std::sqrt(mean_square);
+          // Every recorded sample: the periods times the samples a period.
+          const double chi2 = mean_square * static_cast<double>(space.periods) * space.sample_rate / f;
+          t.separation += chi2;
+          if (chi2 > top) top = chi2, t.channel = channel;
+        }
+        if (!within) continue;
+        t.minutes = (std::abs(s - middle) / space.static_rate + (space.overhead_cycles + space.periods) / f) / 60.0;
+        t.separation_per_minute = t.separation / t.minutes;
+        if (!best || t.separation_per_minute > best->separation_per_minute) best = t;
+      }
+  if (!best) return best;
+  best->candidates = candidates;
+  // More periods where the best test's separation at space.periods falls short of what decides;
+  // the ranking per minute does not depend on them beyond the overhead's share.
+  const double per_period = best->separation / static_cast<double>(best->periods);
+  if (per_period > 0 && best->separation < space.separation_wanted) {
+    const long periods = std::min(space.max_periods, static_cast<long>(std::ceil(space.separation_wanted / per_period)));
+    best->minutes += static_cast<double>(periods - best->periods) / best->frequency / 60.0;
+    best->separation = per_period * static_cast<double>(periods);
+    best->separation_per_minute = best->separation / best->minutes;
+    best->periods = periods;
+  }
+  return best;
+}
+
+Decision Decide(const FitData& data, const std::vector<std::string>& models, const SessionFitOptions& options,
+                double margin, int threads) {
+  if (models.size() < 2) throw std::invalid_argument("decide: at least two models to decide between");
+  Decision d;
+  d.models = models;
+  d.margin = margin;
+  d.fits.resize(models.size());
+  ParallelFor(static_cast<int>(models.size()), threads, [&](int k) {
+    SessionFitOptions own = options;
+    own.composition = models[k];
+    own.estimator.threads = 1;
+    d.fits[k] = FitPrepared(data, Model::Build(models[k], options.causality), own).summary;
+  });
+  std::vector<int> order;
+  for (int k = 0; k < static_cast<int>(models.size()); ++k)
+    if (d.fits[k].converged && d.fits[k].IsSolutionUsable()) order.push_back(k);
+  std::sort(order.begin(), order.end(), [&](int a, int b) { return d.fits[a].bic < d.fits[b].bic; });
+  std::string bics;
+  for (int k = 0; k < static_cast<int>(models.size()); ++k)
+    bics += fmt::format("{}{} {}", bics.empty() ? "" : ", ", models[k],
+                        d.fits[k].converged ? fmt::format("BIC {:.1f}", d.fits[k].bic) : "did not converge");
+  if (order.empty()) {
+    d.conclusion = fmt::format("No model converged on the data with the decisive test ({}): nothing is decided.", bics);
+    return d;
+  }
+  d.delta_bic = order.size() > 1 ? d.fits[order[1]].bic - d.fits[order[0]].bic : INFINITY;
+  if (d.delta_bic > margin) {
+    d.winner = order[0];
+    d.conclusion = fmt::format("With the decisive test the data choose {}: every other model's BIC lies {:.1f} or more "
+                               "above it, beyond the margin of {:g} ({}).",
+                               models[d.winner], d.delta_bic, margin, bics);
+  } else {
+    d.conclusion = fmt::format("Even with the decisive test the data do not decide: {} and {} lie {:.1f} apart in BIC, "
+                               "within the margin of {:g} ({}).",
+                               models[order[0]], models[order[1]], d.delta_bic, margin, bics);
+  }
+  return d;
+}
+
+}  // namespace strut::ident

@@ -2,9 +2,12 @@
 #include <gtest/gtest.h>
 
 #include <fstream>
+#include <set>
 #include <nlohmann/json.hpp>
 
 #include "session_fixtures.h"
+#include "strut/rig/safety.h"
+#include "strut/rig/test_matrix.h"
 #include "strut_cli.h"
 
 namespace strut::ident {
@@ -24,6 +27,52 @@ TEST(DiscoverCommand, WritesTheStoryAsJson) {
   EXPECT_TRUE(j["missing"].empty());
   EXPECT_EQ(j["final_model"], "2dof");
   EXPECT_NE(test::ReadFile(dir.file("d.html")).find("strutDrawFigures(["), std::string::npos);  // a report with plots
+}
+
+// A drawn unit with a dead volume (unit 2022 of the discovery study, where pressure-dependent heat
+// transfer fits alike): discovery names both with their evidence, proposes the test that separates
+// them within the rig's limits, runs it on the simulated rig, and the data with it choose the truth.
+TEST(DiscoverCommand, NamesExplanationsThatFitAlikeAndTheTestOnTheSimulatedRigDecides) {
+  test::TempDir dir;
+  const std::string unit = " --draw 2022 --effect dead-volume --ideal-actuator";
+  ASSERT_EQ(test::RunStrut("-q sim matrix" + unit + " -o " + dir.file("s.h5")).exit_code, 0);
+  const auto r = test::RunStrut("discover " + dir.file("s.h5") + " --json " + dir.file("d.json") + " --decide " +
+                                dir.file("decide.h5") + " --rig sim --speed 200" + unit);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const nlohmann::json j = nlohmann::json::parse(test::ReadFile(dir.file("d.json")));
+  ASSERT_EQ(j["ambiguities"].size(), 1u) << j["conclusion"];
+  const nlohmann::json& a = j["ambiguities"][0];
+  std::set<std::string> named{a["kept"].get<std::string>()};
+  for (const auto& rival : a["rivals"]) named.insert(rival["term"].get<std::string>());
+  EXPECT_TRUE(named.count("dead-volume") && named.count("pressure-heat-transfer")) << a.dump(1);
+  EXPECT_NE(j["conclusion"].get<std::string>().find("cannot tell"), std::string::npos) << j["conclusion"];
+  EXPECT_NE(r.output.find("  ? "), std::string::npos) << r.output;
+  // The proposed test: a matrix file the rig takes, inside the limits, and what it was predicted to show.
+  ASSERT_FALSE(a["test"].is_null());
+  EXPECT_GT(a["test"]["separation"].get<double>(), 10.0);
+  const rig::MatrixPlan plan = rig::ReadMatrixFile(dir.file("decide-matrix.toml"));
+  ASSERT_EQ(plan.experiments.size(), 1u);
+  EXPECT_DOUBLE_EQ(plan.experiments[0].frequency, a["test"]["frequency"].get<double>());
+  EXPECT_DOUBLE_EQ(plan.experiments[0].static_position, a["test"]["static_position"].get<double>());
+  EXPECT_TRUE(rig::CheckMatrix(plan.experiments, rig::SafetyConfig{}, *plan.sample_rate).empty());
+  // The decision, with the test's session recorded beside the original.
+  ASSERT_FALSE(j["decision"].is_null()) << r.output;
+  EXPECT_EQ(j["decision"]["winner"], "2dof+dead-volume") << j["decision"].dump(1);
+  EXPECT_GT(j["decision"]["delta_bic"].get<double>(), 10.0);
+  EXPECT_EQ(test::RunStrut("info " + dir.file("decide.h5")).exit_code, 0);
+  // Never over an existing session without --force.
+  const auto again = test::RunStrut("discover " + dir.file("s.h5") + " --decide " + dir.file("decide.h5") +
+                                    " --rig sim" + unit);
+  EXPECT_EQ(again.exit_code, 1);
+  EXPECT_NE(again.output.find("decide.h5"), std::string::npos) << again.output;
+}
+
+TEST(DiscoverCommand, DecideNeedsARig) {
+  test::TempDir dir;
+  test::WriteTwoDofSession(dir.file("s.h5"), "abgk");
+  const auto r = test::RunStrut("discover " + dir.file("s.h5") + " --decide " + dir.file("decide.h5"));
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.output.find("--rig sim"), std::string::npos) << r.output;
 }
 
 }  // namespace

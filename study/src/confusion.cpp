@@ -66,6 +66,12 @@ ConfusionUnit DiscoverUnit(const ConfusionOptions& options, const ident::Session
   unit.described = !unit.empirical.empty() &&
                    std::find(signature.begin(), signature.end(), unit.empirical.front()) != signature.end();
   unit.right_first = effect != "none" && !r.missing.empty() && r.missing.front() == effect;
+  unit.truth_named = unit.right_first;
+  for (const ident::Ambiguity& a : r.ambiguities)
+    for (const ident::RivalExplanation& rival : a.rivals) {
+      unit.alike.push_back(a.kept + "~" + rival.term);
+      if (a.step == 0 && a.kept == r.missing.front() && rival.term == effect) unit.truth_named = true;
+    }
   if (study) {
     const ident::ParameterSet p = truth.Parameters(rig.model());
     unit.size = p.value(p.position_of_index(study->index));
@@ -177,6 +183,8 @@ ConfusionRow SummariseConfusion(const ConfusionOptions& options, const std::stri
     row.at_floor += unit.at_floor;
     row.empirical += !unit.empirical.empty();
     row.described += unit.described;
+    row.ambiguous += !unit.alike.empty();
+    row.truth_named += unit.truth_named;
   }
   row.detection_signal = DetectionSize(by_signal);
   row.detection_left = DetectionSize(by_left);
@@ -217,6 +225,8 @@ nlohmann::json ConfusionUnitJson(const ConfusionUnit& unit) {
   row["dependence"] = unit.dependence;
   row["at_floor"] = unit.at_floor;
   row["described"] = unit.described;
+  row["alike"] = unit.alike;
+  row["truth_named"] = unit.truth_named;
   if (const auto& f = unit.first_round)
     row["first_round"] = {{"delta_bic", f->delta_bic}, {"cv_ratio", f->cv_ratio}, {"verdict", f->verdict}};
   return row;
@@ -240,6 +250,9 @@ ConfusionUnit ConfusionUnitFromJson(const nlohmann::json& j) {
   unit.dependence = j.value("dependence", std::vector<std::string>{});
   unit.at_floor = j.value("at_floor", false);
   unit.described = j.value("described", false);
+  // Shards written before the ambiguity: nothing named alike, the truth named as it was first.
+  unit.alike = j.value("alike", std::vector<std::string>{});
+  unit.truth_named = j.value("truth_named", unit.right_first);
   if (const auto f = j.find("first_round"); f != j.end())
     unit.first_round = ConfusionUnit::FirstRound{f->at("delta_bic").get<double>(), f->at("cv_ratio").get<double>(),
                                                  f->at("verdict").get<std::string>()};
@@ -251,7 +264,8 @@ nlohmann::json ConfusionRowJson(const ConfusionRow& row) {
                    {"right_first", row.right},  {"extra", row.extra},
                    {"nothing_found", row.none}, {"median_seconds", row.median_seconds},
                    {"added", row.added},        {"at_floor", row.at_floor},
-                   {"empirical", row.empirical}, {"described", row.described}};
+                   {"empirical", row.empirical}, {"described", row.described},
+                   {"ambiguous", row.ambiguous}, {"truth_named", row.truth_named}};
   if (std::isfinite(row.detection_signal)) j["detection_signal"] = row.detection_signal;
   if (std::isfinite(row.detection_left)) j["detection_left"] = row.detection_left;
   if (std::isfinite(row.detection_size)) j["detection_size"] = row.detection_size;
@@ -263,17 +277,18 @@ std::string ConfusionHeading(const ConfusionOptions& options) {
                      options.base, options.units, options.first_seed, options.servo ? "servo" : "ideal",
                      options.shipped_calibration ? "shipped" : "perfect",
                      options.leave_out ? ", each effect left out of the catalogue (leave-one-out)" : "") +
-         fmt::format("  {:<20} {:>6} {:>12} {:>12} {:>10} {:>10} {:>9} {:>9} {:>9}  {}\n", "truth holds", "units",
-                     "right first", "extra terms", "none found", "median s", "at floor", "empirical", "described",
-                     "what was added");
+         fmt::format("  {:<20} {:>6} {:>12} {:>12} {:>10} {:>10} {:>9} {:>9} {:>9} {:>9} {:>11}  {}\n", "truth holds",
+                     "units", "right first", "extra terms", "none found", "median s", "at floor", "empirical",
+                     "described", "ambiguous", "truth named", "what was added");
 }
 
 std::string ConfusionRowLine(const ConfusionRow& row) {
   std::string what;
   for (const auto& [names, count] : row.added) what += fmt::format("{}{} x{}", what.empty() ? "" : ", ", names, count);
-  return fmt::format("  {:<20} {:>6} {:>12} {:>12} {:>10} {:>10.2f} {:>9} {:>9} {:>9}  {}\n", row.effect, row.units,
-                     row.effect == "none" ? std::string("-") : std::to_string(row.right), row.extra, row.none,
-                     row.median_seconds, row.at_floor, row.empirical, row.described, what);
+  return fmt::format("  {:<20} {:>6} {:>12} {:>12} {:>10} {:>10.2f} {:>9} {:>9} {:>9} {:>9} {:>11}  {}\n", row.effect,
+                     row.units, row.effect == "none" ? std::string("-") : std::to_string(row.right), row.extra, row.none,
+                     row.median_seconds, row.at_floor, row.empirical, row.described, row.ambiguous,
+                     row.effect == "none" ? std::string("-") : std::to_string(row.truth_named), what);
 }
 
 std::string ConfusionDetection(const std::vector<ConfusionRow>& rows) {

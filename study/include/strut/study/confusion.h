@@ -80,6 +80,10 @@ struct ConfusionUnit {
   bool at_floor = false;                  //!< the final fit at the noise floor
   //! Leave-one-out: the first chosen function is one of SignatureFunctions(effect).
   bool described = false;
+  //! Explanations discovery named as fitting alike (DiscoveryResult::ambiguities): "kept~rival" each.
+  std::vector<std::string> alike;
+  //! The effect is the first term, or named among the first term's explanations that fit alike.
+  bool truth_named = false;
 };
 
 //! One effect's row of the table.
@@ -89,6 +93,7 @@ struct ConfusionRow {
   int units = 0;
   int right = 0, extra = 0, none = 0;  //!< right first term; other or more terms; nothing found
   int at_floor = 0, empirical = 0, described = 0;  //!< final fit at the floor; discrepancy used; described as the effect
+  int ambiguous = 0, truth_named = 0;  //!< units with explanations named alike; the effect first or among them
   double median_seconds = 0.0;
   std::map<std::string, int> added;  //!< "a+b" (or "(nothing)"): units
   //! Detection in the signal, in what the baseline leaves of it and in the size parameter; NaN:

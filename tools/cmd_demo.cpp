@@ -20,7 +20,10 @@
 #include "strut/daq/session.h"
 #include "strut/ident/discover.h"
 #include "strut/ident/estimator.h"
+#include "strut/report/discover_report.h"
 #include "strut/report/fit_report.h"
+#include "strut/rig/safety.h"
+#include "strut/rig/test_matrix.h"
 #include "strut/ident/session_fit.h"
 #include "strut/sim/draw.h"
 #include "strut/sim/simulated_rig.h"
@@ -35,7 +38,10 @@ using Clock = std::chrono::steady_clock;
 //! The unit the demo draws unless --unit says otherwise (docs/demo.md): a 2dof damper with
 //! oil compressibility and Stribeck friction, its parameters scattered around the shipped truth.
 constexpr std::uint64_t kDemoUnitSeed = 12;
-constexpr int kSteps = 6;
+//! The unit of the demo's last step: a 2dof damper with a dead volume on its pressure line, which
+//! pressure-dependent heat transfer explains alike on the standard matrix (docs/discovery.md).
+constexpr std::uint64_t kAlikeUnitSeed = 2022;
+constexpr int kSteps = 7;
 
 double Seconds(Clock::time_point since) { return std::chrono::duration<double>(Clock::now() - since).count(); }
 
@@ -199,8 +205,64 @@ struct DemoCommand {
         "(z = (estimate - truth) / sd):\n",
         found.final_model, found.final_model == rig.model().composition() ? "is" : "is not");
     std::cout << TruthTable(found.final_fit, truth);
-    std::cout << fmt::format("\n   Written to {0}/: session.h5, fit-1dof, fit-2dof and fit-discovered (.json, .html)\n",
+    Alike(folder);
+    std::cout << fmt::format("\n   Written to {0}/: session.h5, fit-1dof, fit-2dof and fit-discovered (.json, .html), "
+                             "alike.h5, discover-alike.json, decide-matrix.toml and decide.h5\n",
                              folder);
+  }
+
+  // 7. Two explanations that fit alike: discovery says so, proposes the test that decides, the
+  // simulated rig runs it, and the data with it choose.
+  void Alike(const std::string& folder) const {
+    Step(7, fmt::format("unit {} (2dof + dead-volume): two explanations that fit alike, and the test that decides",
+                        kAlikeUnitSeed));
+    sim::UnitDraw draw;
+    draw.effects = {{"dead-volume", std::nullopt}};
+    sim::Truth truth = sim::DrawUnit(draw, kAlikeUnitSeed);
+    truth.actuator.ideal = true;
+    const sim::SimulatedRig rig(truth);
+    sim::RigRunOptions run;
+    run.seed = seed;
+    const std::string session_path = folder + "/alike.h5";
+    daq::WriteSession(session_path, rig.RunMatrix(rig::StandardMatrixPlan(), run));
+    const auto start = Clock::now();
+    ident::SessionFitOptions fit;
+    const ident::Model model = ident::Model::Build(fit.composition, fit.causality);
+    const ident::FitData data = ident::ReadFitData({session_path}, model, fit.estimator.n);
+    ident::DiscoverOptions discover;
+    discover.threads = threads;
+    discover.test_space = rig::DecisiveTestSpace(data.experiments, rig::SafetyConfig{});
+    ident::DiscoveryResult found = ident::Discover(data, fit, discover);
+    std::cout << fmt::format("\n7. drawn unit {} ({}), discovery from 2dof ({:.1f} s):\n   {}\n", kAlikeUnitSeed,
+                             rig.truth().Composition(), Seconds(start), found.conclusion);
+    const auto ambiguity = std::find_if(found.ambiguities.begin(), found.ambiguities.end(),
+                                        [](const ident::Ambiguity& a) { return a.test.has_value(); });
+    if (ambiguity == found.ambiguities.end()) {
+      std::cout << "   nothing was ambiguous on this unit: there is no test to run.\n";
+      WriteJsonOutput(folder + "/discover-alike.json", report::DiscoveryJson(found));
+      return;
+    }
+    const ident::DecisiveTest& test = *ambiguity->test;
+    rig::MatrixPlan plan;
+    plan.sample_rate = test.sample_rate;
+    plan.periods = test.periods;
+    plan.experiments.push_back({"decide", "decide", test.frequency, test.static_position, test.amplitude});
+    WriteTextOutput(folder + "/decide-matrix.toml",
+                    rig::MatrixFileText(plan, "strut demo: the test that decides\n" + test.Describe()));
+    const std::string decide_path = folder + "/decide.h5";
+    daq::WriteSession(decide_path, rig.RunMatrix(plan, run));
+    std::vector<std::string> models{found.final_model};
+    for (const auto& r : ambiguity->rivals) models.push_back(r.model);
+    found.decision = ident::Decide(ident::ReadFitData({session_path, decide_path}, model, fit.estimator.n), models, fit,
+                                   discover.ambiguity_bic_margin, threads);
+    WriteJsonOutput(folder + "/discover-alike.json", report::DiscoveryJson(found));
+    const std::string decided = found.decision->winner >= 0 ? models[found.decision->winner] : "";
+    std::cout << fmt::format("   the test ran on the simulated rig ({:.1f} min of rig time, recorded to {}):\n   {}\n"
+                             "   the truth is {}: {}.\n",
+                             test.minutes, decide_path, found.decision->conclusion, rig.truth().Composition(),
+                             decided.empty()                               ? "the data did not decide"
+                             : decided == rig.model().composition() ? "decided right"
+                                                                           : "decided WRONG");
   }
 };
 

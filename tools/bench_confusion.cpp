@@ -76,6 +76,9 @@ void RegisterBenchConfusion(CLI::App& bench) {
   sub->add_flag("--servo", command->options.servo, "Drive the damper through the servo actuator (default: an ideal actuator).");
   sub->add_flag("--shipped-calibration", command->options.shipped_calibration,
                 "Keep the shipped transducers' zero and gain errors (default: perfect calibration).");
+  sub->add_flag("--decide", command->options.decide,
+                "Where discovery names explanations that fit alike, run the test that decides on the unit's simulated "
+                "rig and count the decisions that chose the truth (docs/discovery.md).");
   sub->add_flag("--leave-out", command->options.leave_out,
                 "Leave-one-out: leave each unit's effect out of the catalogue discovery may name, so that only the "
                 "empirical discrepancy can take it up; the table adds the units at the noise floor, those that used "

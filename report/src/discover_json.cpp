@@ -30,6 +30,7 @@ nlohmann::json DecisiveTestJson(const ident::DecisiveTest& t) {
           {"sample_rate", t.sample_rate},
           {"minutes", t.minutes},
           {"separation", t.separation},
+          {"separation_fixed", t.separation_fixed},
           {"separation_per_minute", t.separation_per_minute},
           {"rms_difference", RatiosJson(t.rms_difference)},
           {"channel", t.channel},

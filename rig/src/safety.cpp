@@ -450,9 +450,13 @@ ident::TestSpace DecisiveTestSpace(const std::vector<ident::ExperimentData>& rec
   ident::TestSpace space = ident::TestSpaceOf(recorded);
   const double lowest = std::max({c.stroke.enabled ? c.stroke.lower : -1e300, c.controller.stroke_min, 0.0});
   const double highest = std::min({c.stroke.enabled ? c.stroke.upper : 1e300, c.controller.stroke_max, ident::kDamperStroke});
-  const double band = highest - lowest;
-  space.stroke_min = lowest + kDecisiveTestMargin * band;
-  space.stroke_max = highest - kDecisiveTestMargin * band;
+  space.stroke_min = lowest + kDecisiveTestStrokeMargin;
+  space.stroke_max = highest - kDecisiveTestStrokeMargin;
+  // Slower than the matrix too: near-isothermal cycles, where thermal explanations part from gas-law ones.
+  for (const double f : kDecisiveTestSlowFrequencies)
+    if (daq::WholeSamplesPerPeriod(space.sample_rate, f, 16) &&
+        std::find(space.frequencies.begin(), space.frequencies.end(), f) == space.frequencies.end())
+      space.frequencies.insert(space.frequencies.begin(), f);
   space.max_rate = std::min(c.actuator.max_velocity, c.actuator.max_flow / c.actuator.piston_area) * (1 - kDecisiveTestMargin);
   const double f_high = std::min(c.force.enabled ? c.force.upper : 1e300, c.controller.force_max);
   space.max_force = f_high * (1 - kDecisiveTestMargin);

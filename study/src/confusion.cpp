@@ -11,6 +11,7 @@
 #include <stdexcept>
 
 #include "strut/ident/discover.h"
+#include "strut/rig/safety.h"
 #include "strut/sim/simulated_rig.h"
 #include "strut/study/statistics.h"
 
@@ -37,6 +38,33 @@ sim::Truth DrawConfusionUnit(const ConfusionOptions& options, const std::string&
   return sim::DrawUnit(around, draw, seed);
 }
 
+// The first ambiguity's decisive test on the unit's rig (a noise seed of its own), and the
+// decision with it: what `strut discover --decide` does over the drivers.
+void Decide(const ident::DiscoveryResult& r, const sim::SimulatedRig& rig, const ident::FitData& data,
+            const ident::SessionFitOptions& fit, const ident::DiscoverOptions& discover, unsigned long seed,
+            ConfusionUnit& unit) {
+  const auto ambiguity = std::find_if(r.ambiguities.begin(), r.ambiguities.end(),
+                                      [](const ident::Ambiguity& a) { return a.test.has_value(); });
+  if (ambiguity == r.ambiguities.end()) return;
+  const ident::DecisiveTest& test = *ambiguity->test;
+  rig::MatrixPlan plan;
+  plan.sample_rate = test.sample_rate;
+  plan.periods = test.periods;
+  plan.experiments.push_back({"decide", "decide", test.frequency, test.static_position, test.amplitude});
+  sim::RigRunOptions run;
+  run.seed = seed + 1000003;
+  ident::FitData with_test = data;
+  const ident::FitData added = ident::PrepareFitData(rig.RunMatrix(plan, run), fmt::format("unit {} test", seed),
+                                                     ident::Model::Build(fit.composition, fit.causality), fit.estimator.n);
+  with_test.experiments.insert(with_test.experiments.end(), added.experiments.begin(), added.experiments.end());
+  with_test.issues.insert(with_test.issues.end(), added.issues.begin(), added.issues.end());
+  std::vector<std::string> models{r.final_model};
+  for (const auto& rival : ambiguity->rivals) models.push_back(rival.model);
+  const ident::Decision d = ident::Decide(with_test, models, fit, discover.ambiguity_bic_margin, discover.threads);
+  unit.decided = d.winner >= 0 ? models[d.winner] : "";
+  unit.decided_right = d.winner >= 0 && models[d.winner] == rig.model().composition();
+}
+
 ConfusionUnit DiscoverUnit(const ConfusionOptions& options, const ident::SessionFitOptions& fit,
                            const ident::Model& model, const std::string& effect, const StudyRange* study,
                            unsigned long seed, daq::Session& session) {
@@ -53,8 +81,10 @@ ConfusionUnit DiscoverUnit(const ConfusionOptions& options, const ident::Session
   const auto start = std::chrono::steady_clock::now();
   ident::DiscoverOptions discover;
   if (options.leave_out && effect != "none") discover.leave_out = {effect};
-  const ident::DiscoveryResult r =
-      ident::Discover(ident::PrepareFitData(session, fmt::format("unit {}", seed), model, fit.estimator.n), fit, discover);
+  const ident::FitData data = ident::PrepareFitData(session, fmt::format("unit {}", seed), model, fit.estimator.n);
+  // As strut discover: the decisive test may go wherever the default limits allow.
+  discover.test_space = rig::DecisiveTestSpace(data.experiments, rig::SafetyConfig{});
+  const ident::DiscoveryResult r = ident::Discover(data, fit, discover);
   unit.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   unit.found = r.missing;
   unit.at_floor = r.final_fit.Verdict() == ident::FitVerdict::kAtNoiseFloor;
@@ -72,6 +102,7 @@ ConfusionUnit DiscoverUnit(const ConfusionOptions& options, const ident::Session
       unit.alike.push_back(a.kept + "~" + rival.term);
       if (a.step == 0 && a.kept == r.missing.front() && rival.term == effect) unit.truth_named = true;
     }
+  if (options.decide) Decide(r, rig, data, fit, discover, seed, unit);
   if (study) {
     const ident::ParameterSet p = truth.Parameters(rig.model());
     unit.size = p.value(p.position_of_index(study->index));
@@ -185,6 +216,8 @@ ConfusionRow SummariseConfusion(const ConfusionOptions& options, const std::stri
     row.described += unit.described;
     row.ambiguous += !unit.alike.empty();
     row.truth_named += unit.truth_named;
+    row.tested += unit.decided.has_value();
+    row.decided_right += unit.decided_right;
   }
   row.detection_signal = DetectionSize(by_signal);
   row.detection_left = DetectionSize(by_left);
@@ -227,6 +260,10 @@ nlohmann::json ConfusionUnitJson(const ConfusionUnit& unit) {
   row["described"] = unit.described;
   row["alike"] = unit.alike;
   row["truth_named"] = unit.truth_named;
+  if (unit.decided) {
+    row["decided"] = *unit.decided;
+    row["decided_right"] = unit.decided_right;
+  }
   if (const auto& f = unit.first_round)
     row["first_round"] = {{"delta_bic", f->delta_bic}, {"cv_ratio", f->cv_ratio}, {"verdict", f->verdict}};
   return row;
@@ -253,6 +290,10 @@ ConfusionUnit ConfusionUnitFromJson(const nlohmann::json& j) {
   // Shards written before the ambiguity: nothing named alike, the truth named as it was first.
   unit.alike = j.value("alike", std::vector<std::string>{});
   unit.truth_named = j.value("truth_named", unit.right_first);
+  if (const auto d = j.find("decided"); d != j.end()) {
+    unit.decided = d->get<std::string>();
+    unit.decided_right = j.value("decided_right", false);
+  }
   if (const auto f = j.find("first_round"); f != j.end())
     unit.first_round = ConfusionUnit::FirstRound{f->at("delta_bic").get<double>(), f->at("cv_ratio").get<double>(),
                                                  f->at("verdict").get<std::string>()};
@@ -265,7 +306,8 @@ nlohmann::json ConfusionRowJson(const ConfusionRow& row) {
                    {"nothing_found", row.none}, {"median_seconds", row.median_seconds},
                    {"added", row.added},        {"at_floor", row.at_floor},
                    {"empirical", row.empirical}, {"described", row.described},
-                   {"ambiguous", row.ambiguous}, {"truth_named", row.truth_named}};
+                   {"ambiguous", row.ambiguous}, {"truth_named", row.truth_named},
+                   {"tested", row.tested},       {"decided_right", row.decided_right}};
   if (std::isfinite(row.detection_signal)) j["detection_signal"] = row.detection_signal;
   if (std::isfinite(row.detection_left)) j["detection_left"] = row.detection_left;
   if (std::isfinite(row.detection_size)) j["detection_size"] = row.detection_size;
@@ -277,6 +319,7 @@ std::string ConfusionHeading(const ConfusionOptions& options) {
                      options.base, options.units, options.first_seed, options.servo ? "servo" : "ideal",
                      options.shipped_calibration ? "shipped" : "perfect",
                      options.leave_out ? ", each effect left out of the catalogue (leave-one-out)" : "") +
+         (options.decide ? "  (ambiguous units: the decisive test run, decided right / tested)\n" : "") +
          fmt::format("  {:<20} {:>6} {:>12} {:>12} {:>10} {:>10} {:>9} {:>9} {:>9} {:>9} {:>11}  {}\n", "truth holds",
                      "units", "right first", "extra terms", "none found", "median s", "at floor", "empirical",
                      "described", "ambiguous", "truth named", "what was added");
@@ -288,7 +331,8 @@ std::string ConfusionRowLine(const ConfusionRow& row) {
   return fmt::format("  {:<20} {:>6} {:>12} {:>12} {:>10} {:>10.2f} {:>9} {:>9} {:>9} {:>9} {:>11}  {}\n", row.effect,
                      row.units, row.effect == "none" ? std::string("-") : std::to_string(row.right), row.extra, row.none,
                      row.median_seconds, row.at_floor, row.empirical, row.described, row.ambiguous,
-                     row.effect == "none" ? std::string("-") : std::to_string(row.truth_named), what);
+                     row.effect == "none" ? std::string("-") : std::to_string(row.truth_named),
+                     what + (row.tested > 0 ? fmt::format("; decided right {}/{}", row.decided_right, row.tested) : ""));
 }
 
 std::string ConfusionDetection(const std::vector<ConfusionRow>& rows) {

@@ -26,9 +26,12 @@ std::vector<double> Spread(double lo, double hi, int count) {
   return out;
 }
 
-// A fitted model's periodic response to one sinusoidal stroke, at the end of its session.
+// A fitted model's periodic response to one sinusoidal stroke, at the end of its session, and the
+// directions its parameters' posterior moves it in: J L per channel (n x k), with J the outputs'
+// sensitivities to the estimated parameters and L L^T their posterior covariance.
 struct Response {
   std::map<std::string, Eigen::VectorXd> outputs;
+  std::map<std::string, Eigen::MatrixXd> spread;
 };
 
 // Grid points per period of the prediction: enough for the orifice and friction shapes of a sine
@@ -41,15 +44,33 @@ class Predictor {
   explicit Predictor(const FitSummary& fit)
       : model_(Model::Build(fit.model, Causality::kStrokeInput)),
         theta_(model_.AtSessionTime(fit.parameters.values(), 1.0)),
-        solver_(model_, PeriodicSolverOptions{}) {}
+        solver_(model_, PeriodicSolverOptions{}) {
+    // The posterior covariance of the estimated parameters, sd_i r_ij sd_j, as L L^T.
+    const std::vector<int>& p = fit.estimated_positions;
+    const Eigen::Index k = static_cast<Eigen::Index>(p.size());
+    if (k == 0 || fit.correlation.rows() != k || fit.correlation.cols() != k) return;
+    Eigen::VectorXd sd(k);
+    for (Eigen::Index i = 0; i < k; ++i) sd[i] = fit.estimates[p[i]].sd;
+    if (!sd.allFinite()) return;
+    const Eigen::MatrixXd covariance = sd.asDiagonal() * fit.correlation * sd.asDiagonal();
+    // A square root that survives a covariance singular to rounding: V sqrt(max(lambda, 0)).
+    const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(covariance);
+    root_ = eigen.eigenvectors() * eigen.eigenvalues().cwiseMax(0.0).cwiseSqrt().asDiagonal();
+    positions_ = p;
+  }
 
   std::optional<Response> Predict(double static_position, double amplitude, double frequency) {
     try {
       const PeriodicSolution s =
           solver_.Solve(PeriodicInput::Sine(frequency, static_position, amplitude, kPredictionPoints), theta_);
       Response r;
-      for (std::size_t c = 0; c < s.channels.size(); ++c)
-        if (s.channels[c] != model_.input_channel()) r.outputs[s.channels[c]] = s.outputs.row(c).transpose();
+      std::vector<Eigen::MatrixXd> sensitivities;
+      if (!positions_.empty()) sensitivities = solver_.OutputSensitivities(s, theta_, positions_);
+      for (std::size_t c = 0; c < s.channels.size(); ++c) {
+        if (s.channels[c] == model_.input_channel()) continue;
+        r.outputs[s.channels[c]] = s.outputs.row(c).transpose();
+        if (!sensitivities.empty()) r.spread[s.channels[c]] = sensitivities[c] * root_;
+      }
       return r;
     } catch (const PeriodicSolverError& e) {
       spdlog::debug("decisive test: {} has no periodic state at {:.1f} mm static, {:.1f} mm, {:g} Hz: {}",
@@ -62,6 +83,26 @@ class Predictor {
   Model model_;
   std::vector<double> theta_;
   PeriodicSolver solver_;
+  std::vector<int> positions_;  // the estimated parameters (empty: the fit has no posterior)
+  Eigen::MatrixXd root_;
+};
+
+// The linearised discrimination of two models by one test (Buzzi-Ferraris and Forzatti's criterion):
+// the expected chi-square between their predictions once both are refitted with the test's data,
+// T(P) = Delta^T (W(P)^-1 + V_a + V_b)^-1 Delta, where Delta is the predictions' difference, W(P) the
+// inverse noise variance of P periods averaged, and V = J Sigma J^T what each model's parameter
+// posterior lets it move. The pieces at one period: a1 = D^T W1 D, b1 = U^T W1 D, H1 = U^T W1 U with
+// U = [J_a L_a, J_b L_b]; then T(P) = P a1 - P^2 b1^T (I + P H1)^-1 b1 (Woodbury).
+struct Discrimination {
+  double a1 = 0.0;
+  Eigen::VectorXd b1;
+  Eigen::MatrixXd h1;
+  double At(long periods) const {
+    const double p = static_cast<double>(periods);
+    if (b1.size() == 0) return p * a1;
+    const Eigen::MatrixXd g = Eigen::MatrixXd::Identity(h1.rows(), h1.cols()) + p * h1;
+    return std::max(0.0, p * a1 - p * p * b1.dot(g.ldlt().solve(b1)));
+  }
 };
 
 }  // namespace
@@ -122,9 +163,9 @@ std::string DecisiveTest::Describe() const {
   return fmt::format(
       "a sine of {:.1f} mm amplitude at {:.1f} mm static position and {:g} Hz, {} periods recorded ({:.1f} min of rig "
       "time): {} and {} predict outputs that differ by an RMS of {} noise sd (mostly {}), an expected chi-square of "
-      "{:.0f} between them ({:.0f} a minute)",
+      "{:.0f} between them once both are refitted with it ({:.0f} a minute; {:.0f} at their fitted values)",
       amplitude * 1e3, static_position * 1e3, frequency, periods, minutes, model_a, model_b, differences, channel,
-      separation, separation_per_minute);
+      separation, separation_per_minute, separation_fixed);
 }
 
 std::optional<DecisiveTest> ProposeDecisiveTest(const FitSummary& a, const FitSummary& b, const TestSpace& space) {
@@ -133,6 +174,7 @@ std::optional<DecisiveTest> ProposeDecisiveTest(const FitSummary& a, const FitSu
   Predictor predict_a(a), predict_b(b);
   const double middle = space.static_positions[space.static_positions.size() / 2];
   std::optional<DecisiveTest> best;
+  Discrimination best_discrimination;
   int candidates = 0;
   for (const double f : space.frequencies)
     for (const double s : space.static_positions)
@@ -152,6 +194,13 @@ std::optional<DecisiveTest> ProposeDecisiveTest(const FitSummary& a, const FitSu
         t.sample_rate = space.sample_rate;
         bool within = true;
         double top = 0.0;
+        const Eigen::Index k_a = ra->spread.empty() ? 0 : ra->spread.begin()->second.cols();
+        const Eigen::Index k_b = rb->spread.empty() ? 0 : rb->spread.begin()->second.cols();
+        Discrimination d;
+        if (k_a + k_b > 0) {
+          d.b1 = Eigen::VectorXd::Zero(k_a + k_b);
+          d.h1 = Eigen::MatrixXd::Zero(k_a + k_b, k_a + k_b);
+        }
         for (const auto& [channel, ya] : ra->outputs) {
           const auto yb = rb->outputs.find(channel);
           const auto sd = space.noise_sd.find(channel);
@@ -161,27 +210,39 @@ std::optional<DecisiveTest> ProposeDecisiveTest(const FitSummary& a, const FitSu
           if ((channel == "force" && peak > space.max_force) || (channel == "pressure" && peak > space.max_pressure))
             within = false;
           if (sd == space.noise_sd.end()) continue;
-          const double mean_square = (ya - yb->second).squaredNorm() / static_cast<double>(ya.size()) / (sd->second * sd->second);
-          t.rms_difference[channel] = std::sqrt(mean_square);
-          // Every recorded sample: the periods times the samples a period.
-          const double chi2 = mean_square * static_cast<double>(space.periods) * space.sample_rate / f;
-          t.separation += chi2;
+          const Eigen::VectorXd delta = ya - yb->second;
+          const double n = static_cast<double>(delta.size());
+          t.rms_difference[channel] = std::sqrt(delta.squaredNorm() / n) / sd->second;
+          // One period's weight per grid point: the samples a period it stands for over their variance.
+          const double w1 = space.sample_rate / f / n / (sd->second * sd->second);
+          const double chi2 = w1 * delta.squaredNorm() * static_cast<double>(space.periods);
+          t.separation_fixed += chi2;
+          d.a1 += w1 * delta.squaredNorm();
           if (chi2 > top) top = chi2, t.channel = channel;
+          if (k_a + k_b == 0) continue;
+          Eigen::MatrixXd u(delta.size(), k_a + k_b);
+          u.leftCols(k_a) = k_a ? ra->spread.at(channel) : Eigen::MatrixXd(delta.size(), 0);
+          u.rightCols(k_b) = k_b ? rb->spread.at(channel) : Eigen::MatrixXd(delta.size(), 0);
+          d.b1 += w1 * u.transpose() * delta;
+          d.h1 += w1 * u.transpose() * u;
         }
         if (!within) continue;
+        t.separation = d.At(space.periods);
         t.minutes = (std::abs(s - middle) / space.static_rate + (space.overhead_cycles + space.periods) / f) / 60.0;
         t.separation_per_minute = t.separation / t.minutes;
-        if (!best || t.separation_per_minute > best->separation_per_minute) best = t;
+        if (!best || t.separation_per_minute > best->separation_per_minute) best = t, best_discrimination = d;
       }
   if (!best) return best;
   best->candidates = candidates;
-  // More periods where the best test's separation at space.periods falls short of what decides;
-  // the ranking per minute does not depend on them beyond the overhead's share.
-  const double per_period = best->separation / static_cast<double>(best->periods);
-  if (per_period > 0 && best->separation < space.separation_wanted) {
-    const long periods = std::min(space.max_periods, static_cast<long>(std::ceil(space.separation_wanted / per_period)));
+  // More periods where the best test's separation at space.periods falls short of what decides
+  // (with the models refitted it grows ever more slowly: the parameters' posterior bounds it).
+  long periods = best->periods;
+  while (periods < space.max_periods && best_discrimination.At(periods) < space.separation_wanted) ++periods;
+  if (periods > best->periods) {
+    const double scale = static_cast<double>(periods) / static_cast<double>(best->periods);
     best->minutes += static_cast<double>(periods - best->periods) / best->frequency / 60.0;
-    best->separation = per_period * static_cast<double>(periods);
+    best->separation_fixed *= scale;
+    best->separation = best_discrimination.At(periods);
     best->separation_per_minute = best->separation / best->minutes;
     best->periods = periods;
   }

@@ -215,10 +215,14 @@ std::vector<std::string> CheckMatrix(const std::vector<MatrixEntry>& matrix, con
                                      double sample_rate, const ResponsePredictor& predictor = {});
 
 //! The tests a decisive test may be chosen from on a rig with these limits: the recorded
-//! experiments' frequencies, sample rate and noise (ident::TestSpaceOf), a stroke range, peak force
-//! and pressure inside the limits by kDecisiveTestMargin of their band (and inside the damper's
-//! stroke), a peak rate within the actuator's velocity and flow, 9 static positions across the range.
+//! experiments' frequencies and kDecisiveTestSlowFrequencies (where a whole number of samples a
+//! period), their sample rate and noise (ident::TestSpaceOf), a stroke range kDecisiveTestStrokeMargin
+//! inside the stroke limits (and the damper's stroke), peak force and pressure inside the limits by
+//! kDecisiveTestMargin of their band, a peak rate within the actuator's velocity and flow less that
+//! margin, 9 static positions across the range.
 ident::TestSpace DecisiveTestSpace(const std::vector<ident::ExperimentData>& recorded, const SafetyConfig& config);
 inline constexpr double kDecisiveTestMargin = 0.1;
+inline constexpr double kDecisiveTestStrokeMargin = 0.002;  //!< m
+inline constexpr double kDecisiveTestSlowFrequencies[] = {0.01, 0.02};  //!< Hz
 
 }  // namespace strut::rig

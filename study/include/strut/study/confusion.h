@@ -54,6 +54,9 @@ struct ConfusionOptions {
   //! Leave-one-out: each unit's effect is also left out of the catalogue discovery may name
   //! (DiscoverOptions::leave_out), so that only the empirical discrepancy can take it up.
   bool leave_out = false;
+  //! Where discovery names explanations that fit alike, run the test that decides on the unit's
+  //! simulated rig (its own noise seed) and fit them with it (ident::Decide), as `strut discover --decide`.
+  bool decide = false;
 };
 
 //! The empirical discrepancy's functions whose shape is the signature of a catalogue term (the
@@ -84,6 +87,10 @@ struct ConfusionUnit {
   std::vector<std::string> alike;
   //! The effect is the first term, or named among the first term's explanations that fit alike.
   bool truth_named = false;
+  //! With ConfusionOptions::decide, where there was a test: the model the data chose with it ("" when
+  //! they did not), and whether that is the truth's composition.
+  std::optional<std::string> decided;
+  bool decided_right = false;
 };
 
 //! One effect's row of the table.
@@ -94,6 +101,7 @@ struct ConfusionRow {
   int right = 0, extra = 0, none = 0;  //!< right first term; other or more terms; nothing found
   int at_floor = 0, empirical = 0, described = 0;  //!< final fit at the floor; discrepancy used; described as the effect
   int ambiguous = 0, truth_named = 0;  //!< units with explanations named alike; the effect first or among them
+  int tested = 0, decided_right = 0;   //!< units whose decisive test ran; of them, decided for the truth
   double median_seconds = 0.0;
   std::map<std::string, int> added;  //!< "a+b" (or "(nothing)"): units
   //! Detection in the signal, in what the baseline leaves of it and in the size parameter; NaN:

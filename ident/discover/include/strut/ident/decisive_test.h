@@ -51,10 +51,14 @@ struct DecisiveTest {
   long periods = 0;
   double sample_rate = 0.0;
   double minutes = 0.0;     //!< rig time: the static move from the matrix's middle, the overhead cycles and the periods
-  //! The expected chi-square between the two models' predictions over the noise: sum over every
-  //! recorded sample and output channel of (difference / noise sd)^2. Under one model the other's
-  //! fit worsens by about this much.
+  //! The expected chi-square between the two models once both are refitted with the test's data (the
+  //! linearised criterion of Buzzi-Ferraris and Forzatti): the predictions' difference over the
+  //! noise of the averaged test and what each model's parameter posterior lets it move there. Under
+  //! one model the other's fit worsens by about this much. What ranks the tests (per minute).
   double separation = 0.0;
+  //! The same at the fitted values, parameters held: the sum over every recorded sample and output
+  //! channel of (difference / noise sd)^2. An upper bound of `separation`.
+  double separation_fixed = 0.0;
   double separation_per_minute = 0.0;
   std::map<std::string, double> rms_difference;  //!< per channel, the predictions' RMS difference in noise sd
   std::map<std::string, double> peak;            //!< the larger of the two predictions' peaks: force N, pressure Pa

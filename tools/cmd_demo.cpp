@@ -235,28 +235,23 @@ struct DemoCommand {
     ident::DiscoveryResult found = ident::Discover(data, fit, discover);
     std::cout << fmt::format("\n7. drawn unit {} ({}), discovery from 2dof ({:.1f} s):\n   {}\n", kAlikeUnitSeed,
                              rig.truth().Composition(), Seconds(start), found.conclusion);
-    const auto ambiguity = std::find_if(found.ambiguities.begin(), found.ambiguities.end(),
-                                        [](const ident::Ambiguity& a) { return a.test.has_value(); });
-    if (ambiguity == found.ambiguities.end()) {
+    const ident::Ambiguity* ambiguity = ident::DecidableAmbiguity(found);
+    if (!ambiguity) {
       std::cout << "   nothing was ambiguous on this unit: there is no test to run.\n";
       WriteJsonOutput(folder + "/discover-alike.json", report::DiscoveryJson(found));
       return;
     }
     const ident::DecisiveTest& test = *ambiguity->test;
-    rig::MatrixPlan plan;
-    plan.sample_rate = test.sample_rate;
-    plan.periods = test.periods;
-    plan.experiments.push_back({"decide", "decide", test.frequency, test.static_position, test.amplitude});
+    const rig::MatrixPlan plan = rig::DecisiveTestPlan(test);
     WriteTextOutput(folder + "/decide-matrix.toml",
                     rig::MatrixFileText(plan, "strut demo: the test that decides\n" + test.Describe()));
     const std::string decide_path = folder + "/decide.h5";
     daq::WriteSession(decide_path, rig.RunMatrix(plan, run));
-    std::vector<std::string> models{found.final_model};
-    for (const auto& r : ambiguity->rivals) models.push_back(r.model);
-    found.decision = ident::Decide(ident::ReadFitData({session_path, decide_path}, model, fit.estimator.n), models, fit,
-                                   discover.ambiguity_bic_margin, threads);
+    found.decision = ident::DecideAmbiguity(found, ident::ReadFitData({session_path, decide_path}, model, fit.estimator.n),
+                                            fit, discover);
     WriteJsonOutput(folder + "/discover-alike.json", report::DiscoveryJson(found));
-    const std::string decided = found.decision->winner >= 0 ? models[found.decision->winner] : "";
+    const ident::Decision& d = *found.decision;
+    const std::string decided = d.winner >= 0 ? d.models[d.winner] : "";
     std::cout << fmt::format("   the test ran on the simulated rig ({:.1f} min of rig time, recorded to {}):\n   {}\n"
                              "   the truth is {}: {}.\n",
                              test.minutes, decide_path, found.decision->conclusion, rig.truth().Composition(),

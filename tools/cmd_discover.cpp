@@ -22,17 +22,13 @@ namespace strut::tools {
 // check passes against the limits (the rig would refuse it otherwise).
 bool DiscoverCommand::WriteProposedTest(const ident::DiscoveryResult& result, const rig::SafetyConfig& limits,
                                         const std::string& path) const {
-  const auto ambiguity = std::find_if(result.ambiguities.begin(), result.ambiguities.end(),
-                                      [](const ident::Ambiguity& a) { return a.test.has_value(); });
-  if (ambiguity == result.ambiguities.end()) {
+  const ident::Ambiguity* ambiguity = ident::DecidableAmbiguity(result);
+  if (!ambiguity) {
     spdlog::warn("{} not written: no two explanations of these data fit alike, there is nothing to decide", path);
     return false;
   }
   const ident::DecisiveTest& test = *ambiguity->test;
-  rig::MatrixPlan plan;
-  plan.sample_rate = test.sample_rate;
-  plan.periods = test.periods;
-  plan.experiments.push_back({"decide", "decide", test.frequency, test.static_position, test.amplitude});
+  const rig::MatrixPlan plan = rig::DecisiveTestPlan(test);
   const std::vector<std::string> refused = rig::CheckMatrix(plan.experiments, limits, test.sample_rate);
   if (!refused.empty()) {
     std::string why;
@@ -81,12 +77,7 @@ ident::DiscoveryResult DiscoverCommand::Discover() const {
     RunMatrixOnRig({rig_spec, daq_spec, matrix, limits_path, decide_path, force, false, speed, &truth});
     std::vector<std::string> all = sessions;
     all.push_back(decide_path);
-    const ident::FitData with_test = ident::ReadFitData(all, model.BuildModel(), n, fit.exclude);
-    const auto ambiguity = std::find_if(result.ambiguities.begin(), result.ambiguities.end(),
-                                        [](const ident::Ambiguity& a) { return a.test.has_value(); });
-    std::vector<std::string> models{result.final_model};
-    for (const auto& r : ambiguity->rivals) models.push_back(r.model);
-    result.decision = ident::Decide(with_test, models, fit, options.ambiguity_bic_margin, threads);
+    result.decision = ident::DecideAmbiguity(result, ident::ReadFitData(all, model.BuildModel(), n, fit.exclude), fit, options);
     spdlog::info("{}", result.decision->conclusion);
   }
   if (!json_path.empty()) WriteJsonOutput(json_path, report::DiscoveryJson(result));

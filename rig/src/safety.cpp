@@ -446,6 +446,15 @@ std::vector<std::string> CheckMatrix(const std::vector<MatrixEntry>& matrix, con
   return refusals;
 }
 
+MatrixPlan DecisiveTestPlan(const ident::DecisiveTest& test) {
+  MatrixPlan plan;
+  plan.source = "<the decisive test>";
+  plan.sample_rate = test.sample_rate;
+  plan.periods = test.periods;
+  plan.experiments.push_back({"decide", "decide", test.frequency, test.static_position, test.amplitude});
+  return plan;
+}
+
 ident::TestSpace DecisiveTestSpace(const std::vector<ident::ExperimentData>& recorded, const SafetyConfig& c) {
   ident::TestSpace space = ident::TestSpaceOf(recorded);
   const double lowest = std::max({c.stroke.enabled ? c.stroke.lower : -1e300, c.controller.stroke_min, 0.0});

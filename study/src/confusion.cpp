@@ -43,26 +43,18 @@ sim::Truth DrawConfusionUnit(const ConfusionOptions& options, const std::string&
 void Decide(const ident::DiscoveryResult& r, const sim::SimulatedRig& rig, const ident::FitData& data,
             const ident::SessionFitOptions& fit, const ident::DiscoverOptions& discover, unsigned long seed,
             ConfusionUnit& unit) {
-  const auto ambiguity = std::find_if(r.ambiguities.begin(), r.ambiguities.end(),
-                                      [](const ident::Ambiguity& a) { return a.test.has_value(); });
-  if (ambiguity == r.ambiguities.end()) return;
-  const ident::DecisiveTest& test = *ambiguity->test;
-  rig::MatrixPlan plan;
-  plan.sample_rate = test.sample_rate;
-  plan.periods = test.periods;
-  plan.experiments.push_back({"decide", "decide", test.frequency, test.static_position, test.amplitude});
+  const ident::Ambiguity* ambiguity = ident::DecidableAmbiguity(r);
+  if (!ambiguity) return;
   sim::RigRunOptions run;
   run.seed = seed + 1000003;
   ident::FitData with_test = data;
-  const ident::FitData added = ident::PrepareFitData(rig.RunMatrix(plan, run), fmt::format("unit {} test", seed),
+  const ident::FitData added = ident::PrepareFitData(rig.RunMatrix(rig::DecisiveTestPlan(*ambiguity->test), run), fmt::format("unit {} test", seed),
                                                      ident::Model::Build(fit.composition, fit.causality), fit.estimator.n);
   with_test.experiments.insert(with_test.experiments.end(), added.experiments.begin(), added.experiments.end());
   with_test.issues.insert(with_test.issues.end(), added.issues.begin(), added.issues.end());
-  std::vector<std::string> models{r.final_model};
-  for (const auto& rival : ambiguity->rivals) models.push_back(rival.model);
-  const ident::Decision d = ident::Decide(with_test, models, fit, discover.ambiguity_bic_margin, discover.threads);
-  unit.decided = d.winner >= 0 ? models[d.winner] : "";
-  unit.decided_right = d.winner >= 0 && models[d.winner] == rig.model().composition();
+  const ident::Decision d = ident::DecideAmbiguity(r, with_test, fit, discover);
+  unit.decided = d.winner >= 0 ? d.models[d.winner] : "";
+  unit.decided_right = d.winner >= 0 && d.models[d.winner] == rig.model().composition();
 }
 
 ConfusionUnit DiscoverUnit(const ConfusionOptions& options, const ident::SessionFitOptions& fit,

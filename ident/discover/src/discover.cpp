@@ -1225,6 +1225,21 @@ DiscoveryResult DiscoveryRun::Run() {
 
 }  // namespace
 
+const Ambiguity* DecidableAmbiguity(const DiscoveryResult& result) {
+  const auto a = std::find_if(result.ambiguities.begin(), result.ambiguities.end(),
+                              [](const Ambiguity& x) { return x.test.has_value(); });
+  return a == result.ambiguities.end() ? nullptr : &*a;
+}
+
+Decision DecideAmbiguity(const DiscoveryResult& result, const FitData& with_test, const SessionFitOptions& fit,
+                         const DiscoverOptions& options) {
+  const Ambiguity* ambiguity = DecidableAmbiguity(result);
+  if (!ambiguity) throw std::invalid_argument("decide: no two explanations fit alike, there is nothing to decide");
+  std::vector<std::string> models{result.final_model};
+  for (const RivalExplanation& r : ambiguity->rivals) models.push_back(r.model);
+  return Decide(with_test, models, fit, options.ambiguity_bic_margin, options.threads);
+}
+
 DiscoveryResult Discover(const FitData& data, const SessionFitOptions& fit_options, const DiscoverOptions& options,
                          const std::function<void(const std::string&)>& progress) {
   std::string error;

@@ -222,6 +222,8 @@ std::vector<std::string> CheckMatrix(const std::vector<MatrixEntry>& matrix, con
 //! margin, 9 static positions across the range.
 ident::TestSpace DecisiveTestSpace(const std::vector<ident::ExperimentData>& recorded, const SafetyConfig& config);
 inline constexpr double kDecisiveTestMargin = 0.1;
+//! A decisive test as a one-experiment matrix (label and group "decide", its sample rate and periods).
+MatrixPlan DecisiveTestPlan(const ident::DecisiveTest& test);
 inline constexpr double kDecisiveTestStrokeMargin = 0.002;  //!< m
 inline constexpr double kDecisiveTestSlowFrequencies[] = {0.01, 0.02};  //!< Hz
 

@@ -168,6 +168,14 @@ struct DiscoveryResult {
   std::string conclusion;            //!< one paragraph for people
 };
 
+//! The first ambiguity that has a decisive test (nullptr: none).
+const Ambiguity* DecidableAmbiguity(const DiscoveryResult& result);
+//! Decide (decisive_test.h) between the explanations of DecidableAmbiguity (the final model and its
+//! rivals' models) with data that hold its test: what `strut discover --decide` concludes.
+//! Throws std::invalid_argument when nothing is decidable.
+Decision DecideAmbiguity(const DiscoveryResult& result, const FitData& with_test, const SessionFitOptions& fit,
+                         const DiscoverOptions& options);
+
 //! Per channel: the pooled noise ratio (FitChannel::noise_ratio) of a fit.
 std::map<std::string, double> PooledNoiseRatio(const FitSummary& fit);
 

@@ -137,7 +137,8 @@ class Fit(_Report):
 
 class Discovery(_Report):
     """What `strut discover` found: `missing` (terms added), `final_model`, `conclusion`, `steps`,
-    the `baseline` and `final_fit` as Fits, `json` as `--json` writes it."""
+    `ambiguities` (explanations that fit alike, each with its decisive `test`), `decision` (what
+    `decide=` found, or None), the `baseline` and `final_fit` as Fits, `json` as `--json` writes it."""
 
     def __init__(self, native):
         self._native = native
@@ -153,6 +154,14 @@ class Discovery(_Report):
     @property
     def steps(self):
         return self.json.get("steps", [])
+
+    @property
+    def ambiguities(self):
+        return self.json.get("ambiguities", [])
+
+    @property
+    def decision(self):
+        return self.json.get("decision")
 
     def _write_report(self, path):
         self._native.write_report(path)

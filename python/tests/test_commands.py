@@ -87,3 +87,4 @@ def test_discover_finds_what_the_cli_finds(lab, tmp_path):
     assert found.missing == cli["missing"] and found.missing  # 1 dof leaves the heat exchange out
     assert found.final_fit.model == found.final_model
     assert found.baseline.verdict == "above-noise-floor" and found.final_fit.verdict == "at-noise-floor"
+    assert found.ambiguities == cli["ambiguities"] and found.decision is None

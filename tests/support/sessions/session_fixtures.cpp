@@ -15,15 +15,13 @@ std::vector<rig::MatrixEntry> StandardExperiments(const std::string& labels) {
   return matrix;
 }
 
-ident::FitData SimulatedFitData(const std::string& truth_model, const std::string& changes, unsigned seed, int n,
-                                const std::string& labels) {
+ident::FitData SimulatedFitData(const std::string& truth_model, const std::string& changes, unsigned seed, int n) {
   const ident::Model model = ident::Model::Build(truth_model, ident::Causality::kStrokeInput);
   ident::ParameterSet truth = model.defaults();
   if (!changes.empty()) truth.apply_assignments(changes);
   sim::PeriodicSessionOptions options;
   options.seed = seed;
-  const daq::Session session = sim::SimulatePeriodicSession(
-      truth_model, truth.values(), labels.empty() ? rig::StandardMatrix() : StandardExperiments(labels), options);
+  const daq::Session session = sim::SimulatePeriodicSession(truth_model, truth.values(), rig::StandardMatrix(), options);
   return ident::PrepareFitData(session, "simulated", model, n);
 }
 

@@ -27,10 +27,8 @@ void WriteTwoDofSession(const std::string& path, const std::string& labels);
 
 //! The standard matrix simulated by `truth_model` (stroke input) at its defaults with `changes`
 //! (--set syntax), its noise from `seed` (sim::SimulatePeriodicSession's default sensors), prepared
-//! for a fit of `truth_model` on the n-point grid. `labels`: only the standard matrix's experiments
-//! named (StandardExperiments); empty, all 14.
-ident::FitData SimulatedFitData(const std::string& truth_model, const std::string& changes, unsigned seed, int n,
-                                const std::string& labels = "");
+//! for a fit of `truth_model` on the n-point grid.
+ident::FitData SimulatedFitData(const std::string& truth_model, const std::string& changes, unsigned seed, int n);
 
 //! The default fit of `composition` (every parameter the data determine, stroke input) on the
 //! n-point grid.

@@ -37,7 +37,7 @@ TEST(DiscoverCommand, NamesExplanationsThatFitAlikeAndTheTestOnTheSimulatedRigDe
   const std::string unit = " --draw 2022 --effect dead-volume --ideal-actuator";
   ASSERT_EQ(test::RunStrut("-q sim matrix" + unit + " -o " + dir.file("s.h5")).exit_code, 0);
   const auto r = test::RunStrut("discover " + dir.file("s.h5") + " --json " + dir.file("d.json") + " --decide " +
-                                dir.file("decide.h5") + " --rig sim --speed 200" + unit);
+                                dir.file("decide.h5") + " --rig sim --speed 100" + unit);
   ASSERT_EQ(r.exit_code, 0) << r.output;
   const nlohmann::json j = nlohmann::json::parse(test::ReadFile(dir.file("d.json")));
   ASSERT_EQ(j["ambiguities"].size(), 1u) << j["conclusion"];
@@ -65,6 +65,24 @@ TEST(DiscoverCommand, NamesExplanationsThatFitAlikeAndTheTestOnTheSimulatedRigDe
                                     " --rig sim" + unit);
   EXPECT_EQ(again.exit_code, 1);
   EXPECT_NE(again.output.find("decide.h5"), std::string::npos) << again.output;
+}
+
+// Drawn unit 2000 with charge lost during its session and charge-loss left out of the catalogue:
+// discovery first bends the gas law to the leak (real-gas, then oil-compressibility, before the
+// empirical drift existed); once the discrepancy's gas drift is in, the data no longer support them
+// and they are taken out again. No wrong term is named, and the drift is described.
+TEST(DiscoverCommand, LeftOutChargeLossIsNotBlamedOnTheGasLaw) {
+  test::TempDir dir;
+  const auto r = test::RunStrut("-q bench confusion --units 1 --first-seed 2000 --leave-out --effects charge-loss --json " +
+                                dir.file("c.json"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const nlohmann::json j = nlohmann::json::parse(test::ReadFile(dir.file("c.json")));
+  const nlohmann::json& unit = j["units"][0];
+  EXPECT_TRUE(unit["found"].empty()) << unit.dump(1);
+  ASSERT_FALSE(unit["empirical"].empty()) << unit.dump(1);
+  EXPECT_EQ(unit["empirical"][0], "gas-drift");
+  EXPECT_TRUE(unit["described"].get<bool>());
+  EXPECT_TRUE(unit["at_floor"].get<bool>());
 }
 
 TEST(DiscoverCommand, DecideNeedsARig) {

@@ -90,7 +90,7 @@ void DiscoverCommand::Run() const {
   // The conclusion and the steps are the data (stdout); the library logs only its progress (stderr).
   std::cout << result.conclusion << "\n";
   for (const auto& s : result.steps)
-    std::cout << fmt::format("  + {:<20} ΔBIC {:+.1f}  {}\n", s.term, s.delta_bic, s.evidence);
+    std::cout << fmt::format("  {} {:<20} ΔBIC {:+.1f}  {}\n", s.removed ? '-' : '+', s.term, s.delta_bic, s.evidence);
   for (const auto& a : result.ambiguities)
     for (const auto& r : a.rivals)
       std::cout << fmt::format("  ? {:<20} or {}: {}\n", a.kept, r.term, r.why);

@@ -70,6 +70,7 @@ nlohmann::json DiscoveryJson(const ident::DiscoveryResult& r) {
   for (const auto& s : r.steps) {
     nlohmann::json step{{"term", s.term},
                         {"empirical", s.empirical},
+                        {"removed", s.removed},
                         {"evidence", s.evidence},
                         {"delta_bic", s.delta_bic},
                         {"noise_before", RatiosJson(s.noise_before)},

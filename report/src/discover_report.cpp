@@ -58,7 +58,7 @@ void WriteDiscoveryReport(const DiscoveryResult& r, const std::string& path) {
   report.AddHeading("What was added");
   std::vector<std::vector<std::string>> rows;
   for (const auto& s : r.steps)
-    rows.push_back({s.term, fmt::format("{:+.1f}", s.delta_bic), Ratios(s.noise_before), Ratios(s.noise_after),
+    rows.push_back({s.removed ? s.term + " (taken out again)" : s.term, fmt::format("{:+.1f}", s.delta_bic), Ratios(s.noise_before), Ratios(s.noise_after),
                     Number(s.cv_before, "{:.3f}"), Number(s.cv_after, "{:.3f}"), s.evidence});
   if (rows.empty()) {
     report.AddParagraph(r.nothing_missing ? "Nothing: the baseline " + r.baseline.model +
@@ -72,6 +72,7 @@ void WriteDiscoveryReport(const DiscoveryResult& r, const std::string& path) {
                     "down and predicts left-out experiments better.");
   }
   for (std::size_t k = 0; k < r.steps.size(); ++k) {
+    if (r.steps[k].candidates.empty()) continue;  // a term taken out again: no round of candidates
     rows.clear();
     for (const auto& c : r.steps[k].candidates)
       rows.push_back({c.term, c.ok ? fmt::format("{:+.1f}", c.delta_bic) : "—", Ratios(c.noise_ratio),

@@ -695,6 +695,7 @@ class DiscoveryRun {
   RivalExplanation CompareRival(const KeptWithRivals& kept, const std::string& rival, const FitSummary& rival_fit,
                                 const DiscoveryResult& result) const;
   void FindAmbiguities(DiscoveryResult& result) const;
+  void RemoveUnsupportedTerms(FitSummary& current, std::map<std::string, double>& ratio, DiscoveryResult& result) const;
 
   const FitData& data_;
   const DiscoverOptions& options_;
@@ -1096,13 +1097,68 @@ RivalExplanation DiscoveryRun::CompareRival(const KeptWithRivals& kept, const st
   return out;
 }
 
+// Backward elimination once the empirical discrepancy is in: a catalogue term added before it may
+// have taken up part of what the discrepancy now models (a gas law bent to follow a charge that
+// leaks). Each is refitted away, last added first, from the current values and estimated set; it goes
+// when its absence costs less than the BIC threshold and keeps the fit where the floor test had it.
+void DiscoveryRun::RemoveUnsupportedTerms(FitSummary& current, std::map<std::string, double>& ratio,
+                                          DiscoveryResult& result) const {
+  for (auto term = result.missing.rbegin(); term != result.missing.rend();) {
+    std::string without = base_;
+    for (const std::string& t : result.missing)
+      if (t != *term) without += "+" + t;
+    without += "+discrepancy";
+    FitSummary fit;
+    try {
+      const Model model = Model::Build(without, causality_);
+      ParameterSet start = model.defaults();
+      std::vector<ParameterChoice> choices(start.size());
+      for (int i = 0; i < start.size(); ++i)
+        if (const auto p = current.parameters.find(start.spec(i).key())) {
+          start.set(start.spec(i).key(), current.parameters.value(*p));
+          if (current.estimates[*p].estimated) choices[i] = ParameterChoice{true, current.estimates[*p].prior_sd};
+        }
+      fit = Estimator(model, session_options_.estimator).Fit(data_.experiments, start, choices, data_.issues);
+    } catch (const EstimationError& e) {
+      spdlog::debug("without {}: {}", *term, e.what());
+    } catch (const PeriodicSolverError& e) {
+      spdlog::debug("without {}: {}", *term, e.what());
+    } catch (const ModelError& e) {  // another term needs it
+      spdlog::debug("without {}: {}", *term, e.what());
+    }
+    const double delta = fit.bic - current.bic;
+    if (!fit.converged || !fit.IsSolutionUsable() || !(delta < options_.bic_threshold) ||
+        (AtNoiseFloor(current) && !AtNoiseFloor(fit))) {
+      ++term;
+      continue;
+    }
+    DiscoveryStep step;
+    step.term = *term;
+    step.removed = true;
+    step.delta_bic = delta;
+    step.noise_before = ratio;
+    step.noise_after = PooledNoiseRatio(fit);
+    step.evidence = fmt::format("taken out again: with the empirical discrepancy in, the data do not support it "
+                                "(without it the BIC changes by {:+.1f}, less than {:g})",
+                                delta, options_.bic_threshold);
+    Say(fmt::format("removed {}: {}", *term, step.evidence));
+    result.steps.push_back(std::move(step));
+    current = std::move(fit);
+    ratio = PooledNoiseRatio(current);
+    term = decltype(term)(result.missing.erase(std::next(term).base()));
+  }
+}
+
 void DiscoveryRun::FindAmbiguities(DiscoveryResult& result) const {
   if (!options_.ambiguity || kept_with_rivals_.empty()) return;
   const Stopwatch watch;
   std::vector<std::pair<const KeptWithRivals*, const std::pair<std::string, FitSummary>*>> work;
-  for (const KeptWithRivals& kept : kept_with_rivals_)
+  for (const KeptWithRivals& kept : kept_with_rivals_) {
+    // A term taken out again (RemoveUnsupportedTerms) has no place left to swap a rival into.
+    if (std::find(result.missing.begin(), result.missing.end(), kept.kept) == result.missing.end()) continue;
     for (const auto& rival : kept.rivals)
       if (!Model::Build(result.final_model, causality_).has_term(rival.first)) work.emplace_back(&kept, &rival);
+  }
   Say(fmt::format("comparing {} rival explanations with the final model", work.size()));
   std::vector<std::optional<RivalExplanation>> compared(work.size());
   ParallelFor(static_cast<int>(work.size()), options_.threads, [&](int k) {
@@ -1207,7 +1263,10 @@ DiscoveryResult DiscoveryRun::Run() {
     Say("no catalogue term explains what is left: it is modelled empirically, the discrepancy's functions one at a time");
     for (int added = 0; added < options_.max_discrepancy_functions && !AtNoiseFloor(current); ++added, ++number)
       if (!Advance(number, /*empirical=*/true, current, ratio, result)) break;
-    if (Model::Build(current.model, causality_).has_term("discrepancy")) result.discrepancy = DescribeDiscrepancy(current);
+    if (Model::Build(current.model, causality_).has_term("discrepancy")) {
+      RemoveUnsupportedTerms(current, ratio, result);
+      result.discrepancy = DescribeDiscrepancy(current);
+    }
   }
 
   result.final_model = current.model;

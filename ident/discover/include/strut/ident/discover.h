@@ -94,6 +94,9 @@ struct CandidateFit {
 struct DiscoveryStep {
   std::string term;        //!< a catalogue term, or "discrepancy:NAME" (empirical)
   bool empirical = false;  //!< a function of the empirical discrepancy, not a catalogue term
+  //! A catalogue term taken out again once the empirical discrepancy was in: without it the BIC
+  //! rises by less than the threshold (delta_bic: without minus with), so the data do not support it.
+  bool removed = false;
   std::string evidence;
   double delta_bic = 0.0;
   std::map<std::string, double> noise_before, noise_after;

@@ -1,10 +1,15 @@
 // The batch library alone (docs/batch.md): shard ranges cover every item once, the plan reads back
-// as written, records flatten into CSV columns, the tasks file and the sbatch script of an array.
+// as written, records flatten into CSV columns, the tasks file and the sbatch script of an array,
+// the local engine's progress (shards done, failed and running, the time to go).
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <fstream>
+#include <mutex>
+#include <vector>
 #include <set>
 
+#include "strut/batch/engine.h"
 #include "strut/batch/plan.h"
 #include "strut/batch/results.h"
 #include "strut/batch/slurm.h"
@@ -50,6 +55,42 @@ TEST(BatchResults, RecordsFlattenIntoColumnsWithoutTiming) {
             "a+b,\"x, \"\"y\"\"\",1000,force,1.5,0.5,-1.25,\n"
             ",,1001,,,,,\n");
   EXPECT_EQ(Flatten({{"x", 0.1 + 0.2}})[0].second, "0.30000000000000004");  // every digit a double needs
+}
+
+TEST(BatchEngine, ProgressCountsShardsDoneFailedAndRunningWithATimeToGo) {
+  // The line the progress bar shows: 13 of 40 shards ended fill 7 of 24 places.
+  EXPECT_EQ(ProgressLine({40, 12, 1, 2, 30.0, 200.0}), "[#######.................] 12/40 done, 1 failed, 2 running, 3m20s to go");
+  EXPECT_EQ(ProgressLine({40, 0, 0, 2, 1.0, -1.0}), "[........................] 0/40 done, 0 failed, 2 running, time to go unknown");
+
+  // Three shards on two threads, each an identify of a file that is no session: each fails on its
+  // own (the others go on), and the progress counts them as they end.
+  test::TempDir dir;
+  for (const char* name : {"a.h5", "b.h5", "c.h5"}) std::ofstream(dir.file(name)) << "not a session\n";
+  std::ofstream(dir.file("m.toml")) << "[[job]]\nname = \"fits\"\nkind = \"identify\"\nsessions = [\"*.h5\"]\n";
+  const ResultsFolder folder = ResultsFolder::Prepare(dir.file("out"), ReadManifest(dir.file("m.toml")), false);
+  std::mutex seen_lock;
+  std::vector<Progress> seen;
+  RunLocal(folder, AllShards(folder.plan()), 2, [&](const Progress& p) {
+    std::lock_guard guard(seen_lock);
+    seen.push_back(p);
+  });
+  ASSERT_EQ(seen.size(), 4u);  // at the start and as each shard ends
+  EXPECT_EQ(seen.front().done + seen.front().failed, 0);
+  EXPECT_LT(seen.front().eta, 0.0);  // nothing ended yet: unknown
+  for (std::size_t k = 1; k < seen.size(); ++k) {
+    EXPECT_EQ(seen[k].total, 3);
+    EXPECT_EQ(seen[k].done, 0);
+    EXPECT_EQ(seen[k].failed, static_cast<int>(k));
+    EXPECT_LE(seen[k].running, std::min(2, 3 - static_cast<int>(k)));  // never more than the threads, nor the shards left
+    EXPECT_GE(seen[k].eta, 0.0);
+  }
+  EXPECT_EQ(seen.back().running, 0);
+  EXPECT_EQ(ProgressLine(seen.back()), "[########################] 0/3 done, 3 failed, 0 running, 0s to go");
+  EXPECT_EQ(folder.Pending().size(), 3u);  // a failed shard runs again next time
+  // Its record names the session once (the reader's message begins with it).
+  const std::string error = folder.Record({"fits", 1})->value("error", "");
+  EXPECT_EQ(error.find(dir.file("b.h5")), 0u) << error;
+  EXPECT_EQ(error.find(dir.file("b.h5"), 1), std::string::npos) << error;
 }
 
 TEST(BatchSlurm, TasksFileAndScriptOfAnArray) {

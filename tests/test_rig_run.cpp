@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 #include <spdlog/fmt/fmt.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <functional>
@@ -314,6 +315,25 @@ TEST(MatrixRunner, UnderPeakWithHoldPausesTheRunResumably) {
   EXPECT_TRUE(b.report.disarmed);
   EXPECT_NE(FindEvent(s, "trip", "under-peak"), "") << AllEvents(s);
   EXPECT_NE(FindEvent(s, "paused"), "");
+}
+
+TEST(MatrixRunner, AStreamLateByMoreThanTheRampIsNotJudgedUnderPeakOnTheRampsSamples) {
+  // Every sample arrives 600 ms after its time: six 10 Hz cycles, while the ramp in is one. When
+  // the controller reports full amplitude the stream still holds the ramp and the slow move to the
+  // static position before it, which are not full-amplitude cycles (they tripped under-peak:
+  // 3 cycles below 80 %).
+  Bench b;
+  b.options.static_rate = 0.02;  // the 20 mm move to the static position takes 10 cycles' time
+  b.acquisition.delay_ns = 600'000'000;
+  b.safety.lag.max_lag = std::chrono::milliseconds(2000);  // late by design here, not a lagging module
+  b.safety.stale.timeout = std::chrono::milliseconds(1500);  // the first sample comes 600 ms after the start
+  const daq::Session s = b.Run({Entry("a", 0.12)});
+  EXPECT_EQ(b.report.outcome, RunOutcome::kComplete) << b.report.cause << "\n" << AllEvents(s);
+  EXPECT_EQ(FindEvent(s, "trip"), "") << AllEvents(s);
+  ASSERT_EQ(s.experiments.size(), 1u);
+  const std::vector<double>& stroke = s.experiments[0].channel("stroke").samples;
+  const auto [lo, hi] = std::minmax_element(stroke.begin(), stroke.end());
+  EXPECT_NEAR(0.5 * (*hi - *lo), 0.01, 2e-4);  // the record is at full amplitude
 }
 
 TEST(MatrixRunner, ALostControllerEndsTheRunWithTheRecordKeptAndTheCause) {

@@ -1,6 +1,7 @@
 // strut replay: a recorded session played back through the acquisition interface as the rig's
 // stream (docs/replay.md): recorded in-process through the recorder (-o), or sent as CAN frames
-// to a transport (--to) where a CanAcquisition receives it.
+// to a transport (--to) where a CanAcquisition receives it; either way shown live on the monitor's
+// page (--monitor, docs/monitor.md).
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
@@ -14,59 +15,14 @@
 #include "option_checks.h"
 #include "output_files.h"
 #include "strut/daq/replay.h"
-#include "strut/rig/steady_state.h"
+#include "strut/monitor/replay_view.h"
+#include "strut/monitor/server.h"
+#include "strut/rig/replay_steady_state.h"
 
 namespace strut::tools {
 namespace {
 
-// The matrix runner's steady-state detector (rig/steady_state.h) re-run on the replayed stream:
-// each periodic experiment's blocks cut into whole cycles and judged as the runner judges them live.
-class SteadyStateOnReplay : public daq::ReplayObserver {
- public:
-  struct Row {
-    bool judged = false;  //!< periodic with whole samples per cycle, stroke and force there
-    rig::SteadyStateVerdict verdict;
-  };
-
-  void BeginExperiment(const daq::ReplayedExperiment& x) override {
-    rows_.emplace_back();
-    summariser_.reset();
-    detector_.reset();
-    const auto per_cycle = daq::WholeSamplesPerPeriod(x.stream.sample_rate, x.header.frequency, 2);
-    if (x.header.kind != daq::ExperimentKind::kPeriodic || !per_cycle) return;
-    stroke_ = force_ = pressure_ = -1;
-    for (std::size_t c = 0; c < x.stream.channels.size(); ++c) {
-      const std::string& name = x.stream.channels[c].name;
-      if (name == "stroke") stroke_ = static_cast<int>(c);
-      if (name == "force") force_ = static_cast<int>(c);
-      if (name == "pressure") pressure_ = static_cast<int>(c);
-    }
-    if (stroke_ < 0 || force_ < 0) return;
-    summariser_.emplace(*per_cycle);
-    detector_.emplace();
-    rows_.back().judged = true;
-  }
-  void Block(const daq::ReplayedExperiment&, const daq::AcquiredBlock& b) override {
-    if (!summariser_) return;
-    if (b.quality.has(daq::Quality::kSequenceGap)) summariser_->Restart();
-    const std::span<const double> pressure =
-        pressure_ >= 0 ? std::span<const double>(b.values[pressure_]) : std::span<const double>();
-    for (const rig::CycleSummary& c : summariser_->Add(b.time_ns, b.values[stroke_], b.values[force_], pressure))
-      detector_->Add(c);
-  }
-  void EndExperiment(const daq::ReplayedExperiment&) override {
-    if (detector_) rows_.back().verdict = detector_->verdict();
-  }
-  const std::vector<Row>& rows() const { return rows_; }
-
- private:
-  std::vector<Row> rows_;
-  std::optional<rig::CycleSummariser> summariser_;
-  std::optional<rig::SteadyStateDetector> detector_;
-  int stroke_ = -1, force_ = -1, pressure_ = -1;
-};
-
-std::string SteadyText(const SteadyStateOnReplay::Row& row) {
+std::string SteadyText(const rig::SteadyStateOnReplay::Row& row) {
   if (!row.judged) return "-";
   return fmt::format("{} ({} cycles)", row.verdict.steady ? "yes" : "no", row.verdict.cycles);
 }
@@ -75,12 +31,22 @@ struct ReplayCommand {
   std::string file, out, to, speed;
   bool force = false;
   int gzip = 4;
+  std::string monitor_endpoint;  // --monitor [HOST:PORT]
+  CLI::Option* monitor_option = nullptr;
+
+  bool monitoring() const { return monitor_option != nullptr && monitor_option->count() > 0; }
 
   // --speed: a number > 0 or "max"; the default is as fast as possible in-process, the rig's own
-  // pace (1) over a transport, where a receiver must keep up.
+  // pace (1) over a transport, where a receiver must keep up, and on the monitor, where a person
+  // watches.
   double Speed() const {
-    if (speed.empty()) return to.empty() ? 0.0 : 1.0;
-    if (speed == "max") return 0.0;
+    if (speed.empty()) return to.empty() && !monitoring() ? 0.0 : 1.0;
+    if (speed == "max") {
+      if (monitoring())
+        throw std::invalid_argument("--speed max with --monitor: the page shows the replay as it plays; give a speed "
+                                    "(1: the recorded pace)");
+      return 0.0;
+    }
     double value = NAN;
     std::size_t used = 0;
     try {
@@ -118,7 +84,19 @@ struct ReplayCommand {
     const std::string pace = options.pace();
 
     daq::ReplayFigures figures;
-    SteadyStateOnReplay steady;
+    rig::SteadyStateOnReplay steady;
+    // With --monitor the page's observer runs the steady-state detector first, so what is printed
+    // below is what the page showed.
+    daq::ReplayObserver* observer = &steady;
+    std::optional<monitor::ReplayMonitor> view;
+    std::optional<monitor::MonitorServer> page;
+    if (monitoring()) {
+      view.emplace(*replay, &steady);
+      page.emplace(view->feed(), monitor::ReplaySetup(*replay, fmt::format("replay of {} {}", file, pace)),
+                   monitor::ParseMonitorEndpoint(monitor_endpoint));
+      spdlog::info("monitor: {}", page->url());
+      observer = &*view;
+    }
     if (!to.empty()) {
       const daq::CanAcquisitionOptions can = daq::ReplayCanOptions(*replay);
       // What a receiver is configured with: the calibration travels only here.
@@ -130,21 +108,25 @@ struct ReplayCommand {
         std::cout << fmt::format("  channel {:<10} [{}] = {} + {} x counts, range {} .. {}\n", c.name, c.unit,
                                  c.calibration.offset, c.calibration.gain, c.calibration.range_min,
                                  c.calibration.range_max);
-      figures = daq::SendReplay(*replay, daq::OpenCanTransport(to, false, can.layout.fd), can, &steady);
+      figures = daq::SendReplay(*replay, daq::OpenCanTransport(to, false, can.layout.fd), can, observer);
     } else {
       std::cout << fmt::format("replay {}{} {}\n", file, out.empty() ? "" : " -> " + out, pace);
       if (out.empty()) {
-        figures = daq::PlayReplay(*replay, nullptr, &steady);
+        figures = daq::PlayReplay(*replay, nullptr, observer);
       } else {
         daq::RecorderOptions recorder_options;
         recorder_options.force = force;
         recorder_options.write.gzip_level = gzip;
         daq::Recorder recorder = daq::Recorder::Open(out, daq::ReplayMetadata(replay->session()), recorder_options);
-        figures = daq::PlayReplay(*replay, &recorder, &steady);
+        figures = daq::PlayReplay(*replay, &recorder, observer);
         recorder.Close();
         daq::ReadSession(out);  // what was written passes the contract check
         spdlog::info("wrote {}", out);
       }
+    }
+    if (view) {
+      view->Finish();
+      page->Stop();  // after the pages have the session's last events: they show "disconnected"
     }
     std::cout << fmt::format("{:<10} {:<9} {:>9} {:>10}  {:<13}  {}\n", "label", "kind", "samples", "end", "counts",
                              "steady (replayed stream)");
@@ -188,11 +170,17 @@ void RegisterReplayCommand(CLI::App& app) {
   sub->add_option("session", command->file, "The session to play (HDF5).")->required()->check(CLI::ExistingFile);
   sub->add_option("--speed", command->speed,
                   "Recorded seconds per wall second (a number > 0), or max: as fast as possible. Default: max, "
-                  "1 with --to.");
+                  "1 with --to or --monitor.");
   sub->add_option("--to", command->to,
                   "Send the stream as CAN frames to udp:HOST:PORT or can:IFACE instead of recording it here.");
   sub->add_option("-o,--out", command->out, "Record the replay into this session file (HDF5), as a rig run records.");
   sub->add_flag("--force", command->force, "Replace an existing file at the output path.");
+  command->monitor_option =
+      sub->add_option("--monitor", command->monitor_endpoint,
+                      "Show the replay live on the monitor's web page at HOST:PORT (default 127.0.0.1:8080; port 0: "
+                      "any free port, logged), as strut rig run --monitor shows a run: the session's experiments as "
+                      "the matrix, its recorded limits and events (docs/monitor.md).")
+          ->expected(0, 1);
   sub->add_option("--gzip", command->gzip, "Compression level 0..9 of the recording.")
       ->check(Between(0, 9))
       ->capture_default_str();

@@ -56,7 +56,7 @@ extern "C" void OnSignal(int signal) {
 }
 
 monitor::MonitorOptions MonitorOptionsOf(const std::string& endpoint, bool control) {
-  monitor::MonitorOptions o = monitor::ParseMonitorEndpoint(endpoint.empty() ? "127.0.0.1:8080" : endpoint);
+  monitor::MonitorOptions o = monitor::ParseMonitorEndpoint(endpoint);
   o.control = control;
   return o;
 }

@@ -194,8 +194,10 @@ nlohmann::json RunShard(const Plan& plan, const JobRunner& runner, const ShardId
     } catch (const std::exception& e) {
       // The shard's boundary: whatever its item threw is its error, reported with the item, and
       // the batch's other shards go on (a batch runs thousands of sessions nobody has looked at).
+      // A session's reader names its file already: the item's name is not said twice.
+      const std::string item = runner.ItemName(k), what = e.what();
       record["status"] = "failed";
-      record["error"] = fmt::format("{}: {}", runner.ItemName(k), e.what());
+      record["error"] = what.rfind(item, 0) == 0 ? what : fmt::format("{}: {}", item, what);
       break;
     }
   }

@@ -85,6 +85,7 @@ std::string Sse(const char* event, const json& data) { return fmt::format("event
 
 MonitorOptions ParseMonitorEndpoint(const std::string& text) {
   MonitorOptions o;
+  if (text.empty()) return o;  // --monitor without a value: the defaults
   const auto colon = text.rfind(':');
   const std::string port = colon == std::string::npos ? text : text.substr(colon + 1);
   if (colon != std::string::npos) o.host = text.substr(0, colon);
@@ -292,5 +293,9 @@ void MonitorServer::Stop() {
 int MonitorServer::port() const { return impl_->port; }
 std::string MonitorServer::url() const { return fmt::format("http://{}:{}/", impl_->options.host, impl_->port); }
 int MonitorServer::clients() const { return impl_->clients.load(); }
+std::uint64_t MonitorServer::dropped() const {
+  std::lock_guard lock(impl_->mutex);
+  return impl_->dropped;
+}
 
 }  // namespace strut::monitor

@@ -92,6 +92,27 @@ daq::RecordingMetadata RunMetadata(const std::string& serial, const std::string&
   return m;
 }
 
+SafetyConfig RecordedLimits(const daq::Session& session) {
+  SafetyConfig config;
+  const daq::MetadataGroup* recording = session.find_metadata("recording");
+  const daq::MetadataGroup* limits = recording ? recording->find_group("limits") : nullptr;
+  const auto take = [limits](ChannelLimit& limit, const char* lower, const char* upper) {
+    const std::optional<double> lo = limits ? limits->number(lower) : std::nullopt;
+    const std::optional<double> hi = limits ? limits->number(upper) : std::nullopt;
+    limit.enabled = lo && hi;
+    if (limit.enabled) {
+      limit.lower = *lo;
+      limit.upper = *hi;
+    }
+  };
+  take(config.stroke, "stroke_min", "stroke_max");
+  take(config.force, "force_min", "force_max");
+  take(config.pressure, "pressure_min", "pressure_max");
+  if (const std::optional<double> following = limits ? limits->number("following_error") : std::nullopt)
+    config.following.max_error = *following;
+  return config;
+}
+
 daq::Recorder OpenRunRecorder(const RunStart& start, const daq::RecordingMetadata& metadata, std::size_t to_run) {
   if (start.resume) {
     daq::Session so_far;

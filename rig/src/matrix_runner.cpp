@@ -155,6 +155,7 @@ struct MatrixRunner::Impl {
     long recorded = 0;
     std::optional<std::int64_t> time_origin;    // the first recorded sample's stream time
     std::optional<std::int64_t> stream_origin;  // the first summarised sample's stream time
+    std::int64_t full_amplitude_ns = 0;         // when the controller was seen at full amplitude
     long first_recorded_cycle = -1;
     bool finished = false;
   };
@@ -299,6 +300,10 @@ struct MatrixRunner::Impl {
     }
     const std::size_t n = block.size();
     std::size_t pos = 0;
+    // A stream that arrives late (a starved receiver, a simulated rig at 25x where the ramp is
+    // 40 ms of wall time) still holds samples of the ramp, or from before it, after the controller
+    // reports full amplitude: cycles start from the first sample stamped after that report.
+    while (!c.stream_origin && pos < n && block.time_ns[pos] < c.full_amplitude_ns) ++pos;
     const auto slice = [&](int k, std::size_t from, std::size_t count) {
       return k < 0 ? std::span<const double>() : std::span<const double>(block.values[k]).subspan(from, count);
     };
@@ -620,6 +625,7 @@ struct MatrixRunner::Impl {
         (options.ramp_cycles + 1) / e.frequency, "full amplitude after the ramp in");
 
     SetPhase(RunPhase::kSettling);
+    c.full_amplitude_ns = Now();
     c.summariser.emplace(c.spp);
     c.detector.emplace(options.steady);
     c.summarising = true;

@@ -268,7 +268,7 @@ std::vector<Trip> SafetyMonitor::CheckBlock(const daq::AcquiredBlock& block) {
     double& margin = margins_.*c.margin;
     const std::vector<double>& v = block.values[c.k];
     for (std::size_t i = 0; i < v.size(); ++i) {
-      margin = std::min(margin, Margin(v[i], l.lower, l.upper));
+      if (l.enabled) margin = std::min(margin, Margin(v[i], l.lower, l.upper));  // no limit, no margin to it
       if (auto trip = CheckLimit(c.detector, c.unit, l, s, v[i], block.time_ns[i])) trips.push_back(std::move(*trip));
     }
   }

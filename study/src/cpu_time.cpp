@@ -13,6 +13,13 @@ double ThreadSeconds() {
   return t.tv_sec + 1e-9 * t.tv_nsec;
 }
 
+double ThreadSeconds(pthread_t thread) {
+  clockid_t clock{};
+  timespec t{};
+  if (pthread_getcpuclockid(thread, &clock) != 0 || clock_gettime(clock, &t) != 0) return NAN;
+  return t.tv_sec + 1e-9 * t.tv_nsec;
+}
+
 double ProcessSeconds() {
   timespec t{};
   clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);

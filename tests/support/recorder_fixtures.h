@@ -85,4 +85,28 @@ inline void RecordCutOff(const std::string& path, const std::string& copy, long 
   std::filesystem::copy_file(r.journal_path(), copy);
 }
 
+// A run as the matrix runner records one, with the limits it records (rig::RunMetadata) and
+// events before, during and after its experiments: a note before a; a mark in a at 0.3 s; a
+// force-limit trip in b at `trip_s`; a pause after b. Experiments a and b of `periods` periods
+// (Periodic, Block: 200 Hz, force = sample index + 100 in b); b starts 1 s after a ends.
+inline void RecordRunWithEvents(const std::string& path, long periods, double trip_s) {
+  daq::RecordingMetadata m = Metadata();
+  m.limits = {{"stroke_min", -0.008}, {"stroke_max", 0.27},     {"force_min", -1000.0}, {"force_max", 1000.0},
+              {"pressure_min", -1e5}, {"pressure_max", 18e6},   {"following_error", 0.01}};
+  daq::Recorder r = daq::Recorder::Open(path, m);
+  const long n = periods * 100;
+  const std::int64_t a0 = 1'000'000'000, b0 = a0 + (n + 200) * 5'000'000LL;
+  r.Event(a0 - 200'000'000, "note", "top-out reference skipped");
+  r.BeginExperiment(Periodic("a", periods));
+  for (long i = 0; i < n; i += 50) r.Append(Block(a0, i, 50));
+  r.Event(a0 + 300'000'000, "mark", "operator's mark in a");
+  r.EndExperiment(daq::EndStatus::kComplete);
+  r.BeginExperiment(Periodic("b", periods));
+  for (long i = 0; i < n; i += 50) r.Append(Block(b0, i, 50, 100));
+  r.Event(b0 + static_cast<std::int64_t>(trip_s * 1e9), "trip", "force-limit: force above 1000 N for 3 samples (action indicate)");
+  r.EndExperiment(daq::EndStatus::kComplete);
+  r.Event(b0 + n * 5'000'000LL + 100'000'000, "paused", "paused after experiment b");
+  r.Close();
+}
+
 }  // namespace strut::test

@@ -333,6 +333,7 @@ class PlantAcquisition final : public daq::AcquisitionModule {
   const daq::StreamDescription& description() const override { return description_; }
   void Start() override {
     plant_.TakeSamples();
+    held_.clear();
     running_ = true;
     next_index_ = 0;
     last_sample_ns_ = daq::MonotonicNs();
@@ -344,7 +345,10 @@ class PlantAcquisition final : public daq::AcquisitionModule {
     for (;;) {
       if (fail.load()) throw daq::DeviceError(daq::DeviceError::Kind::kConnection, "plant acquisition", "receive", "", 5,
                                               "Input/output error");
-      for (const PlantSample& s : plant_.TakeSamples()) {
+      for (const PlantSample& s : plant_.TakeSamples()) held_.push_back(s);
+      const std::int64_t due = daq::MonotonicNs() - delay_ns.load();
+      for (; !held_.empty() && held_.front().t <= due; held_.pop_front()) {
+        const PlantSample& s = held_.front();
         if (freeze.load()) continue;
         if (skip_ > 0) {
           --skip_;
@@ -407,6 +411,8 @@ class PlantAcquisition final : public daq::AcquisitionModule {
   void Gap(std::uint64_t n) { skip_ += n; }
   std::atomic<bool> freeze{false};
   std::atomic<bool> fail{false};
+  //! Each sample arrives this long after its time stamp: a stream late behind the controller.
+  std::atomic<std::int64_t> delay_ns{0};
 
  private:
   Plant& plant_;
@@ -414,6 +420,7 @@ class PlantAcquisition final : public daq::AcquisitionModule {
   daq::StreamDescription description_;
   daq::AcquisitionStats stats_;
   bool running_ = false;
+  std::deque<PlantSample> held_;  //!< taken from the plant, not yet arrived (delay_ns)
   std::deque<std::pair<PlantSample, std::uint64_t>> queue_;  //!< samples and the sets lost just before each
   std::uint64_t next_index_ = 0;
   std::atomic<std::uint64_t> skip_{0};

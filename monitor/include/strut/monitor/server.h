@@ -4,6 +4,7 @@
 // connects later needs; each page's stream waits on the hub, never on the acquisition.
 #pragma once
 
+#include <cstdint>
 #include <functional>
 #include <memory>
 #include <nlohmann/json.hpp>
@@ -35,7 +36,8 @@ struct MonitorControls {
   std::function<void()> pause, stop;
 };
 
-//! "HOST:PORT" or "PORT" into host and port; throws std::invalid_argument naming the text.
+//! "HOST:PORT" or "PORT" into host and port, "" the defaults (127.0.0.1:8080); throws
+//! std::invalid_argument naming the text.
 MonitorOptions ParseMonitorEndpoint(const std::string& text);
 
 class MonitorServer {
@@ -50,6 +52,8 @@ class MonitorServer {
   std::string url() const;
   //! Pages connected to the event stream now.
   int clients() const;
+  //! Points the producer dropped because the hub fell behind (MonitorFeed), so far.
+  std::uint64_t dropped() const;
   //! Stops serving (pages show "disconnected"); idempotent.
   void Stop();
 

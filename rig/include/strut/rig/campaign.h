@@ -71,6 +71,12 @@ std::optional<TopOutOptions> TopOutToRun(const RunStart& start, bool requested, 
 daq::RecordingMetadata RunMetadata(const std::string& serial, const std::string& rig, const std::string& operator_name,
                                    const std::string& matrix, const SafetyConfig& safety);
 
+//! The channel limits a session recorded (/recording/limits, as RunMetadata wrote them): each of
+//! stroke, force and pressure enabled with its recorded lower and upper limit where the session
+//! has both, disabled where it has not (a session of another tool has none). For a replay's
+//! monitor, which draws them and shows the margins to them; the actions are not recorded.
+SafetyConfig RecordedLimits(const daq::Session& session);
+
 //! The recorder of a run: a new session with `metadata` (replacing one there when forced), or
 //! the resumed session at `start.output`, with an event saying so and `to_run` experiments to go.
 daq::Recorder OpenRunRecorder(const RunStart& start, const daq::RecordingMetadata& metadata, std::size_t to_run);

@@ -133,17 +133,21 @@ TEST(TopOutReference, FindsTheLvdtZeroOfDrawnUnitsThroughTheServoAndTheShippedTr
   o.draw.shipped_calibration = true;
   o.speed = 100.0;
   o.scratch = dir.file("s.h5");
-  int within_1sd = 0;
+  // The served rig's timing moves the noise from run to run, so the bounds are the sampling
+  // distribution's at a false alarm of about 1e-3 for the whole test: each |z| below 3.5, and the
+  // three z^2 together below chi-square(3)'s 0.999 quantile, 16.3, which an sd too small by half
+  // exceeds in most runs. (Two of three within 1 sd failed a right sd one run in four.)
+  double chi2 = 0.0;
   for (int u = 0; u < 3; ++u) {
     const study::StrokeZeroUnit unit = study::ReferenceDrawnUnit(o, u);
     std::printf("%s\n", study::StrokeZeroLine(unit).c_str());
     ASSERT_TRUE(unit.found) << unit.failure;
-    EXPECT_LT(std::abs(unit.error()), 2.0 * unit.sd) << study::StrokeZeroLine(unit);
-    EXPECT_LT(std::abs(unit.zero - unit.theta12), 2.0 * unit.sd) << study::StrokeZeroLine(unit);
+    EXPECT_LT(std::abs(unit.error()), 3.5 * unit.sd) << study::StrokeZeroLine(unit);
+    EXPECT_LT(std::abs(unit.zero - unit.theta12), 3.5 * unit.sd) << study::StrokeZeroLine(unit);
     EXPECT_LT(unit.sd, 2e-5);  // a hundredth of the 2 mm prior or better
-    within_1sd += std::abs(unit.error()) <= unit.sd;
+    chi2 += std::pow(unit.error() / unit.sd, 2);
   }
-  EXPECT_GE(within_1sd, 2);
+  EXPECT_LT(chi2, 16.3);
 
   // The session holds it in /calibration, read as identify reads it, and its figures.
   const sim::Truth truth = study::DrawnUnitTruth(o.draw, 1003);

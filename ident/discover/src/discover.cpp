@@ -1111,14 +1111,8 @@ void DiscoveryRun::RemoveUnsupportedTerms(FitSummary& current, std::map<std::str
     FitSummary fit;
     try {
       const Model model = Model::Build(without, causality_);
-      ParameterSet start = model.defaults();
-      std::vector<ParameterChoice> choices(start.size());
-      for (int i = 0; i < start.size(); ++i)
-        if (const auto p = current.parameters.find(start.spec(i).key())) {
-          start.set(start.spec(i).key(), current.parameters.value(*p));
-          if (current.estimates[*p].estimated) choices[i] = ParameterChoice{true, current.estimates[*p].prior_sd};
-        }
-      fit = Estimator(model, session_options_.estimator).Fit(data_.experiments, start, choices, data_.issues);
+      const TermStart start = StartFromFit(model, current);
+      fit = Estimator(model, session_options_.estimator).Fit(data_.experiments, start.start, start.choices, data_.issues);
     } catch (const EstimationError& e) {
       spdlog::debug("without {}: {}", *term, e.what());
     } catch (const PeriodicSolverError& e) {
@@ -1153,11 +1147,12 @@ void DiscoveryRun::FindAmbiguities(DiscoveryResult& result) const {
   if (!options_.ambiguity || kept_with_rivals_.empty()) return;
   const Stopwatch watch;
   std::vector<std::pair<const KeptWithRivals*, const std::pair<std::string, FitSummary>*>> work;
+  const Model final_model = Model::Build(result.final_model, causality_);
   for (const KeptWithRivals& kept : kept_with_rivals_) {
     // A term taken out again (RemoveUnsupportedTerms) has no place left to swap a rival into.
     if (std::find(result.missing.begin(), result.missing.end(), kept.kept) == result.missing.end()) continue;
     for (const auto& rival : kept.rivals)
-      if (!Model::Build(result.final_model, causality_).has_term(rival.first)) work.emplace_back(&kept, &rival);
+      if (!final_model.has_term(rival.first)) work.emplace_back(&kept, &rival);
   }
   Say(fmt::format("comparing {} rival explanations with the final model", work.size()));
   std::vector<std::optional<RivalExplanation>> compared(work.size());

@@ -314,8 +314,7 @@ FitPlan PlanFit(const Model& model, const FitData& data, const SessionFitOptions
   return plan;
 }
 
-TermStart StartWithTerm(const Model& model, const std::string& term, const FitSummary& previous,
-                        std::vector<std::string>* log) {
+TermStart StartFromFit(const Model& model, const FitSummary& previous) {
   TermStart t{model.defaults(), DefaultChoices(model)};
   for (int i = 0; i < t.start.size(); ++i) {
     const ParameterSpec& spec = t.start.spec(i);
@@ -327,6 +326,12 @@ TermStart StartWithTerm(const Model& model, const std::string& term, const FitSu
                                                       : ParameterChoice{};
     }
   }
+  return t;
+}
+
+TermStart StartWithTerm(const Model& model, const std::string& term, const FitSummary& previous,
+                        std::vector<std::string>* log) {
+  TermStart t = StartFromFit(model, previous);
   if (model.causality() == Causality::kStrokeInput) {
     const CandidateStart candidate = CandidateStartingValues(term, previous, log);
     for (const auto& [key, value] : candidate.values) t.start.set(key, value);

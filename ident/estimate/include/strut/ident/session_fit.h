@@ -117,6 +117,9 @@ struct TermStart {
 };
 TermStart StartWithTerm(const Model& model, const std::string& term, const FitSummary& previous,
                         std::vector<std::string>* log = nullptr);
+//! The start of `model` from `previous` (a fit of the same data) alone: its values and estimated set
+//! (with their priors) where the two share a parameter, the rest at the defaults and DefaultChoices.
+TermStart StartFromFit(const Model& model, const FitSummary& previous);
 
 //! Reads, plans and fits.
 SessionFit FitSessions(const std::vector<std::string>& sessions, const SessionFitOptions& options,

@@ -1,9 +1,13 @@
 // Finding the missing physics on simulated sessions whose truth is known.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include "strut/ident/discover.h"
+#include "strut/rig/test_matrix.h"
+#include "strut/sim/simulated_rig.h"
+#include "strut/sim/truth.h"
 #include "session_fixtures.h"
 
 namespace strut::ident {
@@ -44,6 +48,27 @@ TEST(Discover, AddsNothingWhenTheModelHoldsTheTruthsPhysics) {
   EXPECT_TRUE(r.nothing_missing) << r.conclusion;
   EXPECT_TRUE(r.missing.empty());
   EXPECT_EQ(r.final_model, "2dof");
+}
+
+// The shipped truth on the simulated rig (servo actuator, shipped transducers), as `strut sim matrix`
+// records it. After Stribeck friction, oil compliance and the real gas, the force channel sits at
+// 1.06, just above its floor (1.05); the truth's seal viscous damping lowers the BIC by some 480 and
+// brings it to 1.02. A rule that asked a term to take away more misfit than noise puts between two
+// fits (the whole distance from 1 to the floor's limit) refused it.
+TEST(Discover, KeepsATermTheDataSupportWhereTheFitIsJustAboveTheFloor) {
+  const sim::SimulatedRig rig(sim::DefaultTruth());
+  const daq::Session session = rig.RunMatrix(rig::StandardMatrixPlan());
+  const SessionFitOptions fit;  // 2dof, the defaults of `strut discover`
+  const FitData data =
+      PrepareFitData(session, "shipped truth", Model::Build(fit.composition, fit.causality), fit.estimator.n);
+  const DiscoveryResult r = Discover(data, fit, Options());
+  const std::vector<std::string> truth = {"stribeck-friction", "oil-compressibility", "real-gas", "viscous-damping",
+                                          "end-stop", "heat-exchange", "gas-solubility"};
+  for (const std::string& term : r.missing)
+    EXPECT_NE(std::find(truth.begin(), truth.end(), term), truth.end()) << term << " is not in the truth";
+  EXPECT_NE(std::find(r.missing.begin(), r.missing.end(), "viscous-damping"), r.missing.end()) << r.conclusion;
+  EXPECT_EQ(r.final_fit.Verdict(), FitVerdict::kAtNoiseFloor) << r.conclusion;
+  EXPECT_FALSE(r.discrepancy.has_value()) << r.conclusion;
 }
 
 // Candidates, cross-validation folds and each fit's experiments run side by side on `threads`

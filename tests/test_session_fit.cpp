@@ -316,6 +316,42 @@ TEST(SessionFit, WhatNoExperimentReachesIsFixedAndNamed) {
   EXPECT_EQ(count, 5);  // theta4, theta6, theta16, theta11, theta12
 }
 
+TEST(SessionFit, AnEndStopTheStartDoesNotReachIsEstimatedOnceTheFitReachesIt) {
+  // Drawn unit 1005 of `bench units --effects-per-unit 3 --fit-truth`: its top-out stop lies inside
+  // the matrix's stroke, but at the data's start (the stop at full extension) no experiment reaches
+  // it, so the plan fixes its stiffness and position. The fit then bent the stroke zero to bring the
+  // fixed stop to the contact the data show: theta12 3 mm off with an sd of 3 microns (z +1077).
+  sim::UnitDraw draw;
+  draw.effects = {{"end-stop", std::nullopt}, {"real-gas", std::nullopt}};
+  const sim::SimulatedRig rig(sim::DrawUnit(sim::WithIdealRig(sim::DefaultTruth()), draw, 1005));
+  sim::RigRunOptions run;
+  run.seed = 1005;
+  const daq::Session session = rig.RunMatrix(rig::StandardMatrixPlan(), run);
+  const auto truth = sim::ReadRecordedTruth(session);
+  ASSERT_TRUE(truth);
+  SessionFitOptions options;
+  options.composition = "2dof+end-stop+real-gas";
+  const Model model = Model::Build(options.composition, options.causality);
+  const FitData data = PrepareFitData(session, "drawn", model, options.estimator.n);
+  const FitPlan plan = PlanFit(model, data, options);
+  const int position = plan.start.position("theta23");
+  ASSERT_NE(std::find(plan.undetermined_index.begin(), plan.undetermined_index.end(), position),
+            plan.undetermined_index.end())
+      << "the premise: the stop's position is out of the data's reach at the start";
+  const SessionFit fit = FitPlanned(data, model, plan, options);
+  ASSERT_EQ(fit.summary.Verdict(), FitVerdict::kAtNoiseFloor) << fit.summary.FullReport();
+  EXPECT_TRUE(fit.plan.choices[position].estimate);
+  for (const char* key : {"theta12", "theta23", "theta5", "theta6"}) {
+    const int i = fit.summary.parameters.position(key);
+    ASSERT_TRUE(fit.summary.estimates[i].estimated) << key;
+    const double z = (fit.summary.parameters.value(i) - truth->parameters.get(key)) / fit.summary.estimates[i].sd;
+    EXPECT_LT(std::abs(z), 3.5) << key << " estimate " << fit.summary.parameters.value(i) << " truth "
+                                << truth->parameters.get(key) << " sd " << fit.summary.estimates[i].sd;
+  }
+  EXPECT_GT(fit.summary.estimates[fit.summary.parameters.position("theta12")].sd, 1e-4)
+      << "the stroke zero's sd is the gas law's and its prior's, not the stop contact's";
+}
+
 TEST(SessionFit, ExcludeLeavesOutExperimentsAndChannelsAndNamesMistakes) {
   const daq::Session session = DrawnUnitSession(24);
   const Model model = Model::Build("2dof", Causality::kStrokeInput);

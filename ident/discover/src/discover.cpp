@@ -614,13 +614,16 @@ bool AtNoiseFloor(const FitSummary& fit) {
   return std::none_of(fit.channels.begin(), fit.channels.end(), [](const FitChannel& c) { return c.AboveNoiseFloor(); });
 }
 
-// Whether some channel's ratio falls from `current` to `candidate` by more than noise moves it: the
-// floor test's z times the ratio's sd, which is how far the channel's limit lies above 1.
+// Whether some channel's ratio falls from `current` to `candidate` by more than noise moves it (the
+// floor test's z times the ratio's sd, which is how far the channel's limit lies above 1), or a
+// channel above its noise floor comes down to it: near the floor the first asks the candidate to
+// take away more misfit than is left, and would refuse a term the BIC and the held-out test support.
 bool FallsBeyondNoise(const FitSummary& current, const FitSummary& candidate) {
   for (const FitChannel& c : current.channels) {
     const double margin = std::isfinite(c.noise_ratio_sd) ? c.noise_floor_limit - 1.0 : 0.0;
     for (const FitChannel& k : candidate.channels)
-      if (k.name == c.name && c.noise_ratio - k.noise_ratio > margin) return true;
+      if (k.name == c.name && (c.noise_ratio - k.noise_ratio > margin || (c.AboveNoiseFloor() && !k.AboveNoiseFloor())))
+        return true;
   }
   return false;
 }

@@ -233,25 +233,39 @@ FitPlan PlanFit(const Model& model, const FitData& data, const SessionFitOptions
   }
   if (!defaults) return plan;
 
-  // What the data can determine: with the channels' noise floors as their variances, the sd each
-  // estimated parameter would have. One that exceeds its size is fixed and named, the least
-  // determined first (fixing it can make the others determinable). Judged at the data's own
-  // starting values (the user's values only for the parameters that are not estimated), so what is
-  // estimated depends on the data and on what the user says (the values given with --set or in a
-  // file: an end stop's known position), not on the data's rough starting values.
+  // What the data can determine, judged at the data's own starting values (the user's values only
+  // for the parameters that are not estimated), so what is estimated depends on the data and on
+  // what the user says (the values given with --set or in a file: an end stop's known position),
+  // not on the data's rough starting values.
   ParameterSet at = plan.data_start;
+  for (int i = 0; i < at.size(); ++i)
+    if (!plan.choices[i].estimate || plan.choices[i].prior_sd || plan.sources[i] != plan.data_sources[i])
+      at.values()[i] = plan.start.value(i);
+  for (Undetermined& u : UndeterminedAt(model, data, options.estimator, at, plan.choices, "the start")) {
+    plan.choices[u.index].estimate = false;
+    plan.undetermined_index.push_back(u.index);
+    plan.undetermined.push_back(std::move(u.why));
+  }
+  return plan;
+}
+
+std::vector<Undetermined> UndeterminedAt(const Model& model, const FitData& data, const EstimatorOptions& estimator,
+                                         const ParameterSet& at, const std::vector<ParameterChoice>& choices,
+                                         std::string_view where) {
+  // With the channels' noise floors as their variances, the sd each estimated parameter would have
+  // at `at`. One that exceeds its size is fixed and named, the least determined first (fixing it can
+  // make the others determinable).
+  std::vector<Undetermined> fixed;
   std::vector<int> est;
   std::vector<double> scale(at.size());
   for (int i = 0; i < at.size(); ++i) {
-    if (!plan.choices[i].estimate || plan.choices[i].prior_sd || plan.sources[i] != plan.data_sources[i])
-      at.values()[i] = plan.start.value(i);
     scale[i] = std::max({std::abs(at.value(i)), at.spec(i).typical_size(), 1e-300});
-    if (plan.choices[i].estimate) est.push_back(i);
+    if (choices[i].estimate) est.push_back(i);
   }
-  if (est.empty()) return plan;
-  FitProblem problem(model, options.estimator, data.experiments, data.issues, est, scale, data.transients);
+  if (est.empty()) return fixed;
+  FitProblem problem(model, estimator, data.experiments, data.issues, est, scale, data.transients);
   problem.Solve(at.values(), true);
-  if (problem.active_count() == 0) return plan;  // the fit itself will say why
+  if (problem.active_count() == 0) return fixed;  // the fit itself will say why
   std::vector<double> variance;
   for (const std::string& channel : problem.channels()) {
     double sum = 0.0;
@@ -274,7 +288,7 @@ FitPlan PlanFit(const Model& model, const FitData& data, const SessionFitOptions
     Eigen::MatrixXd h(m, m);
     for (Eigen::Index a = 0; a < m; ++a) {
       for (Eigen::Index b = 0; b < m; ++b) h(a, b) = eq.information(kept[a], kept[b]);
-      const auto& prior = plan.choices[est[kept[a]]].prior_sd;
+      const auto& prior = choices[est[kept[a]]].prior_sd;
       if (prior) h(a, a) += std::pow(scale[est[kept[a]]] / *prior, 2);
     }
     // A ridge far below any determined parameter's information: a direction the data do not see at
@@ -291,27 +305,26 @@ FitPlan PlanFit(const Model& model, const FitData& data, const SessionFitOptions
       const int i = est[kept[a]];
       // Against the parameter's own size where that is larger than its typical one (a sharpness
       // started at 5e4 s/m is determined to 10 % even when that is 2.5 of the typical 2e3).
-      const double typical = std::max(plan.start.spec(i).typical_size(), std::abs(at.value(i))) / scale[i];
+      const double typical = std::max(at.spec(i).typical_size(), std::abs(at.value(i))) / scale[i];
       // No information at all (the data do not depend on it): undetermined whatever its size.
       const bool blind = !(h(a, a) - ridge > 1e-13 * largest);
       const double ratio = blind || !std::isfinite(sd[a]) ? INFINITY : sd[a] / std::max(typical, 1e-300);
-      if (plan.choices[i].prior_sd || !(ratio > worst_ratio)) continue;
+      if (choices[i].prior_sd || !(ratio > worst_ratio)) continue;
       worst_ratio = ratio;
       worst = a;
     }
     if (worst < 0) break;
     const int i = est[kept[worst]];
-    plan.choices[i].estimate = false;
-    const double size = std::max(plan.start.spec(i).typical_size(), std::abs(at.value(i)));
-    const ParameterSpec& spec = plan.start.spec(i);
-    plan.undetermined.push_back(
-        std::isfinite(worst_ratio)
-            ? fmt::format("{} {} (sd at the start {:.3g} {}, {:.3g} times its size {:.3g})", spec.key(), spec.name,
+    const double size = std::max(at.spec(i).typical_size(), std::abs(at.value(i)));
+    const ParameterSpec& spec = at.spec(i);
+    fixed.push_back(
+        {i, std::isfinite(worst_ratio)
+            ? fmt::format("{} {} (sd at {} {:.3g} {}, {:.3g} times its size {:.3g})", spec.key(), spec.name, where,
                           worst_ratio * size, spec.unit, worst_ratio, size)
-            : fmt::format("{} {} (no experiment's outputs depend on it at the start)", spec.key(), spec.name));
+            : fmt::format("{} {} (no experiment's outputs depend on it at {})", spec.key(), spec.name, where)});
     kept.erase(kept.begin() + worst);
   }
-  return plan;
+  return fixed;
 }
 
 TermStart StartFromFit(const Model& model, const FitSummary& previous) {
@@ -400,6 +413,43 @@ std::optional<FitSummary> FitByContinuation(const FitData& data, const Model& mo
   return std::nullopt;
 }
 
+// What the data determine is judged at the start; a fit can move into reach of what was out of it.
+// An end stop no experiment reaches at the data's start has its position fixed; the fit then bends
+// the stroke zero theta12 until the fixed stop touches the top-out the data show, and ends at the
+// noise floor with theta12 millimetres off and an sd of microns. So the fixed parameters are judged
+// again at the fit, and where some are determined there, the fit goes on from it with them estimated.
+void RejudgeUndetermined(SessionFit& fit, const Estimator& estimator, const SessionFitOptions& options,
+                         const std::function<void(const FitProgress&)>& progress) {
+  if (fit.plan.undetermined_index.empty() || !fit.summary.IsSolutionUsable()) return;
+  std::vector<ParameterChoice> choices = fit.plan.choices;
+  for (const int i : fit.plan.undetermined_index) choices[i].estimate = true;
+  const std::vector<Undetermined> still =
+      UndeterminedAt(fit.model, fit.data, options.estimator, fit.summary.parameters, choices, "the fit");
+  if (still.size() == fit.plan.undetermined_index.size()) return;
+  for (const Undetermined& u : still) choices[u.index].estimate = false;
+  FitSummary again = estimator.Fit(fit.data.experiments, fit.summary.parameters, choices, fit.data.issues, progress,
+                                   fit.data.transients);
+  std::string freed;
+  for (const int i : fit.plan.undetermined_index)
+    if (choices[i].estimate) freed += (freed.empty() ? "" : ", ") + fit.plan.start.spec(i).key();
+  const bool better = Better(again, fit.summary);
+  spdlog::info("{} determined at the fit, not at the start: the fit with {} estimated {}{}", freed,
+               freed.find(',') == std::string::npos ? "it" : "them", ToString(again.Verdict()),
+               better ? " (kept)" : "");
+  if (!better) return;
+  again.warnings.push_back(fmt::format("{} fixed at the start, where the data did not determine {}, and estimated from "
+                                       "the fit on, where they do",
+                                       freed, freed.find(',') == std::string::npos ? "it" : "them"));
+  fit.summary = std::move(again);
+  fit.plan.choices = std::move(choices);
+  fit.plan.undetermined.clear();
+  fit.plan.undetermined_index.clear();
+  for (const Undetermined& u : still) {
+    fit.plan.undetermined.push_back(u.why);
+    fit.plan.undetermined_index.push_back(u.index);
+  }
+}
+
 }  // namespace
 
 SessionFit FitPrepared(FitData data, const Model& model, const SessionFitOptions& options,
@@ -448,6 +498,7 @@ SessionFit FitPlanned(FitData data, const Model& model, FitPlan plan, const Sess
       }
     }
   }
+  if (default_choices) RejudgeUndetermined(fit, estimator, options, progress);
   for (const std::string& u : fit.plan.undetermined)
     fit.summary.warnings.push_back("fixed at its starting value, the data do not determine it: " + u);
   return fit;

@@ -7,6 +7,7 @@
 #include <optional>
 #include <map>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "strut/daq/session.h"
@@ -89,6 +90,7 @@ struct FitPlan {
   std::vector<ParameterChoice> choices;
   std::vector<std::string> sources;       //!< per parameter: where its starting value came from
   std::vector<std::string> undetermined;  //!< parameters fixed because the data do not determine them, with why
+  std::vector<int> undetermined_index;    //!< their positions in `start`, in the same order
   //! Lines for the log: every parameter's starting value as used, its source, estimated or fixed.
   std::vector<std::string> Describe() const;
 };
@@ -98,6 +100,20 @@ struct FitPlan {
 //! experiments) exceeds its typical size is fixed and named in `undetermined` (an optional term
 //! whose effect no experiment reaches, for example).
 FitPlan PlanFit(const Model& model, const FitData& data, const SessionFitOptions& options);
+
+//! A parameter the data do not determine: its position and why, in words.
+struct Undetermined {
+  int index = 0;
+  std::string why;
+};
+//! The estimated parameters of `choices` that the data do not determine at `at`: with the channels'
+//! noise floors as their variances, an sd (from the information of all experiments and the priors)
+//! beyond the parameter's size. Fixed one at a time, the least determined first, since fixing one
+//! can make the others determinable; a parameter with a prior is never fixed. `where` names the
+//! point in the reasons ("the start", "the fit").
+std::vector<Undetermined> UndeterminedAt(const Model& model, const FitData& data, const EstimatorOptions& estimator,
+                                         const ParameterSet& at, const std::vector<ParameterChoice>& choices,
+                                         std::string_view where);
 
 struct SessionFit {
   Model model;

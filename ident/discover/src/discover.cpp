@@ -684,6 +684,8 @@ class DiscoveryRun {
   }
   FitSummary FitCandidate(const std::string& term, const Model& model, TermStart start, const FitSummary& previous,
                           bool empirical) const;
+  FitSummary RefitFromTheCurrentFit(const std::string& term, const Model& model, TermStart nested,
+                                    const FitSummary& previous, FitSummary stalled) const;
   std::optional<std::string> Screened(const TermStart& start, const FitSummary& current) const;
   Round Candidates(const FitSummary& current) const;
   Round EmpiricalCandidates(const FitSummary& current) const;
@@ -736,6 +738,8 @@ FitSummary DiscoveryRun::FitCandidate(const std::string& term, const Model& mode
   const std::vector<ParameterChoice>& choices = term_start.choices;
   const Estimator fitter(model, estimator);
   FitSummary fit = fitter.Fit(data_.experiments, start, choices, data_.issues);
+  if (!fit.converged && fit.IsSolutionUsable() && fit.bic > previous.bic && !empirical)
+    return RefitFromTheCurrentFit(term, model, term_start, previous, std::move(fit));
   // Only a stalled candidate that already explains something (its BIC below the current one by the
   // threshold) is worth the second try: the others would be refused anyway.
   if (fit.converged || !fit.IsSolutionUsable() || !(fit.bic - previous.bic < -options_.bic_threshold)) return fit;
@@ -758,6 +762,26 @@ FitSummary DiscoveryRun::FitCandidate(const std::string& term, const Model& mode
                 fit.converged ? "converged on a second try" : "not converged on a second try either", tries.size(),
                 retry_watch.Seconds());
   return fit;
+}
+
+// A candidate that stalled worse than the current model started too far from it: the located start
+// put the size where the model's response is far from linear (a real gas on a gas law that the
+// heat balance has just bent), and the line search found no way back. With its sizes at 0 the
+// candidate is the current model exactly, so a fit from there cannot end worse; it is kept when it
+// converges.
+FitSummary DiscoveryRun::RefitFromTheCurrentFit(const std::string& term, const Model& model, TermStart nested,
+                                                const FitSummary& previous, FitSummary stalled) const {
+  for (int i = 0; i < nested.start.size(); ++i)
+    if (nested.start.spec(i).sizes_term && !previous.parameters.find(nested.start.spec(i).key()))
+      nested.start.values()[i] = 0.0;
+  const Stopwatch watch;
+  FitSummary again = Estimator(model, session_options_.estimator)
+                         .Fit(data_.experiments, nested.start, nested.choices, data_.issues);
+  spdlog::debug("candidate {}: stalled at ΔBIC {:+.1f} from its located start; from its sizes at 0 {} at ΔBIC {:+.1f} "
+                "(timing: {:.2f} s)",
+                term, stalled.bic - previous.bic, again.converged ? "converged" : "not converged",
+                again.bic - previous.bic, watch.Seconds());
+  return again.converged && again.IsSolutionUsable() ? again : stalled;
 }
 
 Round DiscoveryRun::Candidates(const FitSummary& current) const {

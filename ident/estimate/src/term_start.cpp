@@ -243,9 +243,9 @@ std::pair<Regression, double> EndStopSearch(const std::vector<Sample>& samples, 
 // alone (no shape parameter to search), 0 for the other terms.
 int GaussNewtonSizeIndex(const std::string& term) {
   static const std::pair<const char*, int> sizes[] = {
-      {"oil-compressibility", 26}, {"real-gas", 31},           {"recoil-damping", 32},        {"metering-pin", 33},
-      {"friction-asymmetry", 34},  {"pressure-heat-transfer", 35}, {"dead-volume", 36},
-      {"charge-loss", 37}};
+      {"gas-solubility", 7},       {"oil-compressibility", 26},    {"real-gas", 31},
+      {"recoil-damping", 32},      {"metering-pin", 33},           {"friction-asymmetry", 34},
+      {"pressure-heat-transfer", 35}, {"dead-volume", 36},         {"charge-loss", 37}};
   for (const auto& [name, index] : sizes)
     if (term == name) return index;
   return 0;

@@ -134,6 +134,58 @@ Regression Regress(const std::vector<Sample>& samples, const std::vector<Column>
   return Solve(a, b, norm, r);
 }
 
+// The same regression for many first columns beside one set of nuisance columns (a search over a
+// shape: the stop's position): the nuisance is factorised once, and each candidate column is
+// regressed on what the nuisance leaves of it and of the error (Frisch-Waugh-Lovell), which gives
+// the joint regression's coefficient, residual sum of squares and t at the cost of two projections.
+class NuisanceRegression {
+ public:
+  NuisanceRegression(const std::vector<Sample>& samples, const std::vector<Column>& nuisance) {
+    for (const Sample& s : samples)
+      if (s.force_weight > 0) used_.push_back(&s);
+    const Eigen::Index m = static_cast<Eigen::Index>(used_.size()), k = static_cast<Eigen::Index>(nuisance.size());
+    if (m < 4 * (k + 1) + 8) return;
+    Eigen::MatrixXd a(m, k);
+    Eigen::VectorXd b(m);
+    for (Eigen::Index i = 0; i < m; ++i) {
+      for (Eigen::Index j = 0; j < k; ++j) a(i, j) = used_[i]->force_weight * nuisance[j](*used_[i]);
+      b[i] = used_[i]->force_weight * used_[i]->force_error;
+    }
+    for (Eigen::Index j = 0; j < k; ++j)
+      if (const double norm = a.col(j).norm(); norm > 0) a.col(j) /= norm;
+    const Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(a);
+    basis_ = qr.householderQ() * Eigen::MatrixXd::Identity(m, qr.rank());
+    left_ = b - basis_ * (basis_.transpose() * b);
+    ok_ = true;
+  }
+
+  Regression Fit(const Column& first) const {
+    Regression r;
+    if (!ok_) return r;
+    const Eigen::Index m = static_cast<Eigen::Index>(used_.size());
+    Eigen::VectorXd c(m);
+    for (Eigen::Index i = 0; i < m; ++i) c[i] = used_[i]->force_weight * first(*used_[i]);
+    const double norm = c.norm();
+    if (!(norm > 0)) return r;
+    const Eigen::VectorXd c_left = c - basis_ * (basis_.transpose() * c);
+    const double distance2 = c_left.squaredNorm();
+    if (!(distance2 > 1e-24 * norm * norm)) return r;  // in the nuisance's span: no coefficient of its own
+    const double along = c_left.dot(left_);
+    r.coefficient = along / distance2;
+    r.rss = std::max(left_.squaredNorm() - along * along / distance2, 0.0);
+    const double sd = std::sqrt(r.rss / std::max<Eigen::Index>(1, m - basis_.cols() - 1));
+    r.t = sd > 0 ? along / std::sqrt(distance2) / sd : 0.0;
+    r.ok = std::isfinite(r.coefficient);
+    return r;
+  }
+
+ private:
+  std::vector<const Sample*> used_;
+  Eigen::MatrixXd basis_;  // orthonormal, spanning the weighted nuisance columns
+  Eigen::VectorXd left_;   // the weighted error less its projection on them
+  bool ok_ = false;
+};
+
 // The force balance's sensitivities to the parameters the baseline estimated (method.md eq. 21).
 std::vector<Column> ForceNuisance(const Values& v) {
   std::vector<Column> c;
@@ -212,6 +264,114 @@ Regression GaussNewtonSize(const FitSummary& baseline, const Model& model, const
   return Solve(a, b, norm, r);
 }
 
+// GaussNewtonSize over the values of a shape parameter that, with the size at 0, changes nothing
+// (a Stribeck width at zero excess): the solutions and the nuisance sensitivities are the same for
+// every value, so they are made and factorised once, and each value costs the size's own
+// sensitivity (on the solutions' kept factorisations) and two projections (Frisch-Waugh-Lovell, as
+// NuisanceRegression).
+class SizeStepOverShape {
+ public:
+  SizeStepOverShape(const FitSummary& baseline, const Model& model, const std::vector<double>& theta,
+                    int size_position, int shape_position, std::vector<std::string>& problems)
+      : size_(size_position), shape_(shape_position) {
+    std::vector<int> nuisance;
+    for (int i = 0; i < baseline.parameters.size(); ++i)
+      if (i < static_cast<int>(baseline.estimates.size()) && baseline.estimates[i].estimated)
+        if (const auto p = model.defaults().find(baseline.parameters.spec(i).key())) nuisance.push_back(*p);
+    std::vector<Eigen::MatrixXd> blocks;
+    std::vector<Eigen::VectorXd> targets;
+    for (const ExperimentFit& e : baseline.experiments) {
+      if (!e.converged || e.solution.n == 0) continue;
+      PeriodicSolverOptions options;
+      options.scheme = e.solution.scheme;
+      Experiment x{PeriodicSolver(model, options), {}, model.AtSessionTime(theta, e.session_time), {}};
+      std::vector<Eigen::MatrixXd> sensitivities;
+      try {
+        x.solution = x.solver.Solve(e.solution.input, x.at, &e.solution);
+        sensitivities = x.solver.OutputSensitivities(x.solution, x.at, nuisance);
+      } catch (const PeriodicSolverError& ex) {
+        problems.push_back(fmt::format("experiment '{}': {}", e.label, ex.what()));
+        continue;
+      }
+      for (const auto& [channel, residual] : e.residual) {
+        const auto variance = e.noise_variance.find(channel);
+        const auto row = std::find(x.solution.channels.begin(), x.solution.channels.end(), channel);
+        if (variance == e.noise_variance.end() || !(variance->second > 0) || row == x.solution.channels.end()) continue;
+        const int r = static_cast<int>(row - x.solution.channels.begin());
+        const double w = 1.0 / std::sqrt(variance->second);
+        x.channels.push_back({r, PhaseInterpolation::Cubic(x.solution.input.phases, x.solution.n, e.phases), w});
+        blocks.push_back(w * x.channels.back().map.Columns(sensitivities[r]));
+        targets.push_back(w * residual);
+      }
+      experiments_.push_back(std::move(x));
+    }
+    for (const auto& b : blocks) rows_ += b.rows();
+    if (rows_ < 8 * static_cast<Eigen::Index>(nuisance.size() + 1)) return;
+    Eigen::MatrixXd a(rows_, static_cast<Eigen::Index>(nuisance.size()));
+    Eigen::VectorXd b(rows_);
+    Eigen::Index at = 0;
+    for (std::size_t i = 0; i < blocks.size(); ++i) {
+      a.middleRows(at, blocks[i].rows()) = blocks[i];
+      b.segment(at, blocks[i].rows()) = targets[i];
+      at += blocks[i].rows();
+    }
+    for (Eigen::Index j = 0; j < a.cols(); ++j)
+      if (const double norm = a.col(j).norm(); norm > 0) a.col(j) /= norm;
+    const Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(a);
+    basis_ = qr.householderQ() * Eigen::MatrixXd::Identity(rows_, qr.rank());
+    left_ = b - basis_ * (basis_.transpose() * b);
+    ok_ = true;
+  }
+
+  //! The size's step and t with the shape at `value`.
+  Regression At(double value) {
+    Regression r;
+    if (!ok_) return r;
+    Eigen::VectorXd c(rows_);
+    Eigen::Index at = 0;
+    for (Experiment& x : experiments_) {
+      x.at[shape_] = value;
+      const std::vector<Eigen::MatrixXd> sensitivity = x.solver.OutputSensitivities(x.solution, x.at, std::span<const int>(&size_, 1));
+      for (const Channel& ch : x.channels) {
+        const Eigen::MatrixXd column = ch.weight * ch.map.Columns(sensitivity[ch.row]);
+        c.segment(at, column.rows()) = column.col(0);
+        at += column.rows();
+      }
+    }
+    const double norm = c.norm();
+    if (!(norm > 0)) return r;
+    const Eigen::VectorXd c_left = c - basis_ * (basis_.transpose() * c);
+    const double distance2 = c_left.squaredNorm();
+    if (!(distance2 > 1e-24 * norm * norm)) return r;
+    const double along = c_left.dot(left_);
+    r.coefficient = along / distance2;
+    r.rss = std::max(left_.squaredNorm() - along * along / distance2, 0.0);
+    const double sd = std::sqrt(r.rss / std::max<Eigen::Index>(1, rows_ - basis_.cols() - 1));
+    r.t = sd > 0 ? along / std::sqrt(distance2) / sd : 0.0;
+    r.ok = std::isfinite(r.coefficient);
+    return r;
+  }
+
+ private:
+  struct Channel {
+    int row;
+    PhaseInterpolation map;
+    double weight;
+  };
+  struct Experiment {
+    PeriodicSolver solver;
+    PeriodicSolution solution;
+    std::vector<double> at;
+    std::vector<Channel> channels;
+  };
+  int size_, shape_;
+  std::vector<Experiment> experiments_;
+  Eigen::Index rows_ = 0;
+  Eigen::MatrixXd basis_;
+  Eigen::VectorXd left_;
+  bool ok_ = false;
+};
+
 // log(1 + e^x) without overflow, as the end-stop term.
 double Softplus(double x) { return x > 0 ? x + std::log1p(std::exp(-x)) : std::log1p(std::exp(x)); }
 
@@ -226,14 +386,12 @@ std::pair<Regression, double> EndStopSearch(const std::vector<Sample>& samples, 
                                             double smoothing, double dissipation) {
   Regression best;
   double position = NAN;
+  const NuisanceRegression regression(samples, ForceNuisance(v));
   for (double x = q_min - 2e-3; x <= q_min + 30e-3; x += 1e-4) {
-    const Column shape = [=](const Sample& s) {
+    const Regression r = regression.Fit([=](const Sample& s) {
       const double d = smoothing * Softplus((x - s.q) / smoothing);
       return -d * (1.0 - dissipation * s.rate);
-    };
-    std::vector<Column> columns = ForceNuisance(v);
-    columns.insert(columns.begin(), shape);
-    const Regression r = Regress(samples, columns);
+    });
     if (r.ok && r.coefficient > 0 && r.rss < best.rss) best = r, position = x;
   }
   return {best, position};
@@ -324,10 +482,9 @@ CandidateStart CandidateStartingValues(const std::string& term, const FitSummary
     Regression best;
     double width = NAN;
     std::vector<std::string> problems;
+    SizeStepOverShape step(baseline, model, theta, excess, velocity, problems);
     for (double w = 5e-4; w <= 4e-2; w *= 1.2) {
-      theta[velocity] = w;
-      problems.clear();
-      const Regression r = GaussNewtonSize(baseline, model, theta, excess, problems);
+      const Regression r = step.At(w);
       if (r.ok && r.coefficient > 0 && r.rss < best.rss) best = r, width = w;
     }
     for (const auto& p : problems) note(fmt::format("{}: left out: {}", term, p));

@@ -28,10 +28,11 @@ std::vector<Case> AllCases() {
   for (Causality k : {Causality::kForceInput, Causality::kStrokeInput})
     cases.push_back({"2dof+end-stop+stribeck-friction+real-gas", k, "theta23=0.135"});
   // The empirical discrepancy's whole library, every coefficient away from 0, half-way through the
-  // session (its drifts act).
+  // session (its drifts act), at a static position of 150 mm (its static functions act).
   const std::string library = "theta70=0.3,theta71=-0.2,theta72=0.1,theta73=0.2,theta74=0.4,theta75=-0.3,theta76=0.5,"
                               "theta77=0.1,theta78=-0.1,theta79=0.05,theta80=-0.02,theta81=0.01,theta82=0.004,"
-                              "theta83=-0.002,theta84=0.01,theta85=-0.005,theta38=0.5";
+                              "theta83=-0.002,theta84=0.01,theta85=-0.005,theta86=0.01,theta87=-0.005,theta88=0.004,"
+                              "theta89=-0.002,theta38=0.5,theta40=0.15";
   for (Causality k : {Causality::kForceInput, Causality::kStrokeInput}) {
     cases.push_back({"2dof+discrepancy", k, library});
     cases.push_back({"1dof+discrepancy", k, library});

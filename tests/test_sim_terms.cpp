@@ -123,9 +123,9 @@ TEST(SimTerms, ChargeLossLowersTheFreeGasWithTheExperimentsSessionTime) {
   ASSERT_GT(t(37), 0.0);
   EXPECT_TRUE(lossy.defaults().spec(lossy.defaults().position_of_index(kSessionTimeIndex)).experiment_condition);
   // A model without the condition takes theta as it is.
-  EXPECT_EQ(plain.AtSessionTime(plain.defaults().values(), 0.7), plain.defaults().values());
+  EXPECT_EQ(plain.AtExperiment(plain.defaults().values(), {0.7, 0.1}), plain.defaults().values());
   const auto pressure = [&](double session_time) {
-    return lossy.StaticEquilibrium(0.12, lossy.AtSessionTime(theta, session_time))[1];
+    return lossy.StaticEquilibrium(0.12, lossy.AtExperiment(theta, {session_time, 0.0}))[1];
   };
   // At the session's start the charge is the plain model's; later p = theta5 ((1 - theta37 s) / V)^theta7.
   const double start = plain.StaticEquilibrium(0.12, plain.defaults().values())[1];

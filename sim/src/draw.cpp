@@ -414,8 +414,8 @@ EffectSignal MeasureEffectSignal(const Truth& unit, std::string_view effect, con
     std::vector<Eigen::MatrixXd> d_outputs;
     try {
       const double session_time = daq::OrderSessionTime(a, matrix.size());
-      const std::vector<double> with_at = model.AtSessionTime(with, session_time);
-      const std::vector<double> neutral_at = model.AtSessionTime(neutral, session_time);
+      const std::vector<double> with_at = model.AtExperiment(with, {session_time, e.static_position});
+      const std::vector<double> neutral_at = model.AtExperiment(neutral, {session_time, e.static_position});
       on = solver.Solve(input, with_at);
       off = solver.Solve(input, neutral_at, &on);
       d_outputs = solver.OutputSensitivities(off, neutral_at, estimated);

@@ -37,7 +37,8 @@ daq::Session SimulatePeriodicSession(const std::string& composition, std::span<c
     const long k = std::max<long>(1, (4000 + n - 1) / n);
     const ident::PeriodicSolution fine = solver.Solve(
         ident::PeriodicInput::Sine(entry.frequency, entry.static_position, entry.amplitude, static_cast<int>(n * k)),
-        model.AtSessionTime(std::vector<double>(theta.begin(), theta.end()), daq::OrderSessionTime(index, matrix.size())));
+        model.AtExperiment(std::vector<double>(theta.begin(), theta.end()),
+                           {daq::OrderSessionTime(index, matrix.size()), entry.static_position}));
     struct Sampled {
       const ident::PeriodicSolution& s;
       long k;

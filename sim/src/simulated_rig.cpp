@@ -366,7 +366,7 @@ daq::Experiment SimulatedRig::RunPeriodic(const rig::MatrixEntry& entry, double 
                                           std::mt19937_64& rng, PeriodicRunReport* report_out, SimulationClock* clock,
                                           const SampleSink& sink, std::optional<double> start_phase,
                                           double session_time) const {
-  const std::vector<double> theta = model_.AtSessionTime(theta_, session_time);
+  const std::vector<double> theta = model_.AtExperiment(theta_, {session_time, entry.static_position});
   const auto wall_start = Clock::now();
   const AcquisitionOptions& acq = truth_.acquisition;
   const double f = entry.frequency, period = 1.0 / f;

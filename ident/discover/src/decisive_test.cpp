@@ -43,7 +43,7 @@ class Predictor {
  public:
   explicit Predictor(const FitSummary& fit)
       : model_(Model::Build(fit.model, Causality::kStrokeInput)),
-        theta_(model_.AtSessionTime(fit.parameters.values(), 1.0)),
+        theta_(fit.parameters.values()),
         solver_(model_, PeriodicSolverOptions{}) {
     // The posterior covariance of the estimated parameters, sd_i r_ij sd_j, as L L^T.
     const std::vector<int>& p = fit.estimated_positions;
@@ -61,11 +61,13 @@ class Predictor {
 
   std::optional<Response> Predict(double static_position, double amplitude, double frequency) {
     try {
+      // Run after the recorded experiments: at the end of the session.
+      const std::vector<double> at = model_.AtExperiment(theta_, {1.0, static_position});
       const PeriodicSolution s =
-          solver_.Solve(PeriodicInput::Sine(frequency, static_position, amplitude, kPredictionPoints), theta_);
+          solver_.Solve(PeriodicInput::Sine(frequency, static_position, amplitude, kPredictionPoints), at);
       Response r;
       std::vector<Eigen::MatrixXd> sensitivities;
-      if (!positions_.empty()) sensitivities = solver_.OutputSensitivities(s, theta_, positions_);
+      if (!positions_.empty()) sensitivities = solver_.OutputSensitivities(s, at, positions_);
       for (std::size_t c = 0; c < s.channels.size(); ++c) {
         if (s.channels[c] == model_.input_channel()) continue;
         r.outputs[s.channels[c]] = s.outputs.row(c).transpose();

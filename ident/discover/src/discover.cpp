@@ -437,6 +437,7 @@ double Median(std::vector<double> v) {
 // rate, and the measured pressure against the stroke (a quadratic through all the averaged data).
 struct MatrixReach {
   double q_lo = INFINITY, q_hi = -INFINITY, q_mid = NAN, v_typical = NAN, v_max = 0.0;
+  double static_lo = NAN, static_hi = NAN;
   Eigen::Vector3d pressure = Eigen::Vector3d::Zero();  // p(q) = c0 + c1 q + c2 q^2
   double PressureAt(double q) const { return pressure[0] + q * (pressure[1] + q * pressure[2]); }
 };
@@ -458,6 +459,10 @@ MatrixReach Reach(const FitSummary& fit) {
       for (Eigen::Index i = 0; i < p->second.size(); ++i) qs.push_back(stroke->second[i]), ps.push_back(p->second[i]);
   }
   m.q_mid = Median(statics);
+  if (!statics.empty()) {
+    m.static_lo = *std::min_element(statics.begin(), statics.end());
+    m.static_hi = *std::max_element(statics.begin(), statics.end());
+  }
   m.v_typical = Median(peaks);
   if (qs.size() >= 3) {
     Eigen::MatrixXd a(qs.size(), 3);
@@ -505,7 +510,7 @@ EmpiricalDiscrepancy DescribeDiscrepancy(const FitSummary& fit) {
       const StateSpec spec = model.unknown_spec(j);
       x[j] = spec.name == "pressure" ? m.PressureAt(q) : spec.name == "temperature" ? -value_of(17) : spec.typical_value;
     }
-    model.Residual<double>(x, xd, xdd, q, v, 0.0, model.AtSessionTime(theta, 0.0), r);
+    model.Residual<double>(x, xd, xdd, q, v, 0.0, model.AtExperiment(theta, {0.0, m.q_mid}), r);
     return r[0];
   };
   std::vector<double> without = p.values();
@@ -580,6 +585,24 @@ EmpiricalDiscrepancy DescribeDiscrepancy(const FitSummary& fit) {
       d.dependence.push_back(fmt::format("free gas changing by {:+.2f} % of the charge from the first experiment to the last",
                                          100.0 * f.value));
   }
+  // The static functions against the middle static position: the levels of the lowest and the
+  // highest static-position group (the global levels theta11 and theta5 hold the middle one).
+  const auto static_level = [&](int linear, int squared, double z) {
+    const double s = z / 0.1, s_mid = m.q_mid / 0.1;
+    return value_of(linear) * (s - s_mid) + value_of(squared) * (s * s - s_mid * s_mid);
+  };
+  const auto static_sentence = [&](const char* what, double scale, const char* unit, int precision, int linear,
+                                   int squared) {
+    return fmt::format("{} changing with the experiment's static position: {:+.{}f} {} at {:.0f} mm and {:+.{}f} {} at "
+                       "{:.0f} mm against the level at {:.0f} mm",
+                       what, scale * static_level(linear, squared, m.static_lo), precision, unit, m.static_lo * 1e3,
+                       scale * static_level(linear, squared, m.static_hi), precision, unit, m.static_hi * 1e3,
+                       m.q_mid * 1e3);
+  };
+  if (has([](int i) { return i == 86 || i == 87; }) && std::isfinite(m.static_lo))
+    d.dependence.push_back(static_sentence("a force level", value_of(4) * 1e6, "N", 0, 86, 87));
+  if (has([](int i) { return i == 88 || i == 89; }) && std::isfinite(m.static_lo))
+    d.dependence.push_back(static_sentence("free gas", 100.0, "% of the charge", 2, 88, 89));
   // The curves: the missing force (every force function) against the rate at the middle static
   // position, and against the stroke in each direction at the median peak rate.
   EmpiricalDiscrepancy::Curve rate{"against stroke rate (m/s) at the middle static position", {}, {}};

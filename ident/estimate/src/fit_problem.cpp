@@ -506,7 +506,7 @@ bool FitProblem::Solve(const std::vector<double>& theta, bool allow_drop, int it
       progress({iteration, a + 1, experiment_count(), NAN});
     }
     try {
-      const std::vector<double> at = model_.AtSessionTime(theta, s.data->session_time);
+      const std::vector<double> at = model_.AtExperiment(theta, s.data->Conditions());
       s.solution = s.solution.n == s.n() ? s.solver->Solve(s.input, at, &s.solution) : FirstSolve(s, at);
     } catch (const PeriodicSolverError& e) {
       failure[a] = e.what();
@@ -541,7 +541,7 @@ bool FitProblem::Readmit(const std::vector<double>& theta) {
   for (Experiment& s : experiments_) {
     if (s.active || !s.dropped_at_start) continue;
     try {
-      s.solution = FirstSolve(s, model_.AtSessionTime(theta, s.data->session_time));
+      s.solution = FirstSolve(s, model_.AtExperiment(theta, s.data->Conditions()));
       s.active = true;
       s.error.clear();
       s.sensitivity_rows.clear();
@@ -703,7 +703,7 @@ NormalEquations FitProblem::Linearise(const std::vector<double>& theta, const st
   ParallelFor(experiment_count(), threads_, [&](int a) {
     Experiment& s = experiments_[a];
     if (!s.active) return;
-    const std::vector<double> at = model_.AtSessionTime(theta, s.data->session_time);
+    const std::vector<double> at = model_.AtExperiment(theta, s.data->Conditions());
     const bool inputs_fresh = mode.inputs && s.estimate && RefreshInputSensitivities(s, at, mode);
     const bool with_estimate = mode.inputs && s.estimate;
     const bool parameters_fresh = RefreshParameterSensitivities(s, at, mode);
@@ -819,7 +819,7 @@ FitProblem::GainGradient FitProblem::GainGradients(const std::string& channel, c
     std::vector<Eigen::MatrixXd> along_input;
     if (input) {
       const Eigen::Map<const Eigen::VectorXd> u(s.solution.input.values.data(), s.n());
-      along_input = s.solver->InputSensitivities(s.solution, model_.AtSessionTime(theta, s.data->session_time),
+      along_input = s.solver->InputSensitivities(s.solution, model_.AtExperiment(theta, s.data->Conditions()),
                                                  Eigen::MatrixXd(u), true);
       if (along_input.empty()) {
         covered = false;

@@ -227,7 +227,7 @@ Regression GaussNewtonSize(const FitSummary& baseline, const Model& model, const
     std::vector<Eigen::MatrixXd> sensitivities;
     try {
       // The baseline's solution is the candidate's at size 0: Newton starts at the answer.
-      const std::vector<double> at = model.AtSessionTime(theta, e.session_time);
+      const std::vector<double> at = model.AtExperiment(theta, {e.session_time, e.static_position});
       solution = solver.Solve(e.solution.input, at, &e.solution);
       sensitivities = solver.OutputSensitivities(solution, at, positions);
     } catch (const PeriodicSolverError& ex) {
@@ -284,7 +284,7 @@ class SizeStepOverShape {
       if (!e.converged || e.solution.n == 0) continue;
       PeriodicSolverOptions options;
       options.scheme = e.solution.scheme;
-      Experiment x{PeriodicSolver(model, options), {}, model.AtSessionTime(theta, e.session_time), {}};
+      Experiment x{PeriodicSolver(model, options), {}, model.AtExperiment(theta, {e.session_time, e.static_position}), {}};
       std::vector<Eigen::MatrixXd> sensitivities;
       try {
         x.solution = x.solver.Solve(e.solution.input, x.at, &e.solution);

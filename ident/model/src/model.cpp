@@ -157,11 +157,13 @@ Model Model::Build(std::string_view composition, Causality causality) {
   model.stroke_offset_position_ =
       builder.output_offset_index_ >= 0 ? builder.parameter_position(builder.output_offset_index_) : -1;
   model.session_time_position_ = model.defaults_.position_of_index(kSessionTimeIndex);
+  model.static_position_position_ = model.defaults_.position_of_index(kStaticPositionIndex);
   return model;
 }
 
-std::vector<double> Model::AtSessionTime(std::vector<double> theta, double session_time) const {
-  if (session_time_position_ >= 0) theta.at(session_time_position_) = session_time;
+std::vector<double> Model::AtExperiment(std::vector<double> theta, const ExperimentConditions& conditions) const {
+  if (session_time_position_ >= 0) theta.at(session_time_position_) = conditions.session_time;
+  if (static_position_position_ >= 0) theta.at(static_position_position_) = conditions.static_position;
   return theta;
 }
 

@@ -800,6 +800,10 @@ enum class Shape {
   kVolumeCubed,             // gas volume + (q/L)^3
   kGasPressure,             // free gas + p / p_r
   kGasDrift,                // free gas + s
+  kForceStatic,             // theta4 p_u (z/L): z the experiment's static position
+  kForceStaticSquared,      // theta4 p_u (z/L)^2
+  kGasStatic,               // free gas + z/L
+  kGasStaticSquared,        // free gas + (z/L)^2
 };
 
 struct Function {
@@ -828,13 +832,19 @@ const std::vector<Function>& Library() {
       {Shape::kVolumeCubed, {83, "volume-stroke-cubed", "gas volume + (q / 0.1 m)^3", "dead-volume", 0.01}, "gas-volume", "", true},
       {Shape::kGasPressure, {84, "gas-pressure", "free gas + p / 10 MPa (free gas that changes with the pressure)", "gas-solubility", 0.01}, "gas-volume", "", true},
       {Shape::kGasDrift, {85, "gas-drift", "free gas + s (free gas that changes with the recording time s)", "charge-loss", 0.01}, "gas-volume", "charge-loss", true},
+      // With the global levels (theta11, theta5) the static functions give each of three
+      // static-position groups a level of its own.
+      {Shape::kForceStatic, {86, "force-static-position", "theta4 (1 MPa) (z / 0.1 m) (a force level that changes with the experiment's static position z)", "", 0.01}, "gas-force", ""},
+      {Shape::kForceStaticSquared, {87, "force-static-position-squared", "theta4 (1 MPa) (z / 0.1 m)^2 (a force level curving with the static position)", "", 0.01}, "gas-force", ""},
+      {Shape::kGasStatic, {88, "gas-static-position", "free gas + z / 0.1 m (free gas that changes with the experiment's static position z)", "", 0.01}, "gas-volume", "", true},
+      {Shape::kGasStaticSquared, {89, "gas-static-position-squared", "free gas + (z / 0.1 m)^2 (free gas curving with the static position)", "", 0.01}, "gas-volume", "", true},
   };
   return functions;
 }
 
 }  // namespace discrepancy
 
-//! theta70..theta85: the empirical discrepancy, the library above. Functions whose level the model
+//! theta70..theta89: the empirical discrepancy, the library above. Functions whose level the model
 //! lacks, or whose catalogue twin it has, are left out.
 class Discrepancy final : public Term {
  public:
@@ -849,12 +859,17 @@ class Discrepancy final : public Term {
                        .prior_sd = p.typical});
       used_.push_back({f.shape, -1});
       if (f.shape == discrepancy::Shape::kForceDrift || f.shape == discrepancy::Shape::kGasDrift) drift_ = true;
+      if (IsStatic(f.shape)) static_ = true;
     }
     if (used_.empty()) throw ModelError("discrepancy needs a damper model (quadratic-damping, gas-force, gas-volume)");
     if (drift_)
       b.add_parameter({.index = kSessionTimeIndex, .name = "session_time", .unit = "-", .default_value = 0.0,
                        .description = "when the experiment was recorded, as a fraction of the session (set from the recording)",
                        .typical = 1.0, .range = {0.0, 1.0, false, false}, .experiment_condition = true});
+    if (static_)
+      b.add_parameter({.index = kStaticPositionIndex, .name = "static_position", .unit = "m", .default_value = 0.0,
+                       .description = "the experiment's static stroke position (set from the recording)",
+                       .typical = 0.1, .experiment_condition = true});
   }
   void Bind(const ModelBuilder& b) override {
     std::size_t k = 0;
@@ -867,6 +882,7 @@ class Discrepancy final : public Term {
     sharpness_ = position("pressure-friction", 10);
     area_ = position("gas-force", 4);
     time_ = drift_ ? b.parameter_position(kSessionTimeIndex) : -1;
+    static_position_ = static_ ? b.parameter_position(kStaticPositionIndex) : -1;
     pressure_ = b.has_state("pressure") ? b.state_position("pressure", name()) : -1;
   }
   template <class S>
@@ -937,6 +953,20 @@ class Discrepancy final : public Term {
         case Shape::kGasDrift:
           if (!balance) c.gas_amount += coefficient * c.theta[time_];
           break;
+        case Shape::kForceStatic:
+        case Shape::kForceStaticSquared:
+          if (balance) {
+            const S z = c.theta[static_position_] * (1.0 / d::kStroke);
+            c.force += coefficient * c.theta[area_] * d::kPressure * (u.shape == Shape::kForceStatic ? z : z * z);
+          }
+          break;
+        case Shape::kGasStatic:
+        case Shape::kGasStaticSquared:
+          if (!balance) {
+            const S z = c.theta[static_position_] * (1.0 / d::kStroke);
+            c.gas_amount += coefficient * (u.shape == Shape::kGasStatic ? z : z * z);
+          }
+          break;
       }
     }
   }
@@ -947,10 +977,15 @@ class Discrepancy final : public Term {
     discrepancy::Shape shape;
     int position;
   };
+  static bool IsStatic(discrepancy::Shape s) {
+    using discrepancy::Shape;
+    return s == Shape::kForceStatic || s == Shape::kForceStaticSquared || s == Shape::kGasStatic ||
+           s == Shape::kGasStaticSquared;
+  }
   std::vector<Used> used_;
-  bool drift_ = false;
+  bool drift_ = false, static_ = false;
   int damping_ = -1, friction_base_ = -1, friction_pressure_ = -1, sharpness_ = -1, area_ = -1, time_ = -1,
-      pressure_ = -1;
+      static_position_ = -1, pressure_ = -1;
 };
 
 // ---------------------------------------------------------------------------------------------
@@ -1154,7 +1189,7 @@ const std::vector<TermEntry>& Catalogue() {
        "wall heat conductance growing as (p / p_charge)^(2/3), weight theta35", "loop-pressure",
        "a thermal loop that grows with the pressure more than one wall conductance allows: natural convection"},
       // No locus: discovery adds its functions one by one when no catalogue term explains what is left.
-      {"discrepancy", &Make<Discrepancy>, "", "empirical discrepancy: a sparse sum of library functions, theta70..theta85",
+      {"discrepancy", &Make<Discrepancy>, "", "empirical discrepancy: a sparse sum of library functions, theta70..theta89",
        "", ""},
       // Generic oscillators (docs/silverbox.md); no locus yet: discovery does not propose them.
       {"linear-oscillator", &Make<LinearOscillator>, "", "forced oscillator theta50 y'' + theta51 y' + theta52 y = u", "", ""},

@@ -69,7 +69,7 @@ struct DecisiveTest {
 };
 
 //! Every test of `space` predicted with both fits (their models under stroke input, at the end of
-//! the session: Model::AtSessionTime 1), the best separation per minute kept (at space.periods);
+//! the session: Model::AtExperiment, session time 1), the best separation per minute kept (at space.periods);
 //! its periods are then raised towards separation_wanted. nullopt when no test of the space has a
 //! solution under both models within the force and pressure limits. `a` and `b` must be fits of
 //! damper models with stroke, force and pressure channels.

@@ -62,8 +62,9 @@ struct ExperimentData {
   long periods = 0;
   double sample_rate = 0.0;  //!< Hz, as recorded (the noise_variance is per sample at this rate)
   //! When it was recorded, as a fraction of its session (daq::ExperimentSessionTimes): theta38 of
-  //! its solves (Model::AtSessionTime).
+  //! its solves; with static_position (theta40) its conditions (Model::AtExperiment).
   double session_time = 0.0;
+  ExperimentConditions Conditions() const { return {session_time, static_position}; }
   //! The model input (force or stroke) on the experiment's solver grid: n points, or, when a period
   //! holds a whole number of samples, the smallest whole multiple of them that is at least n (a slow
   //! experiment's grid then holds every recorded sample phase).

@@ -162,7 +162,7 @@ class FitProblem {
   PeriodicSolution FirstSolve(Experiment& experiment, const std::vector<double>& theta) const;
   // The sensitivities Linearise needs, recomputed unless `mode` reuses current ones; true when
   // recomputed. Without input sensitivities from the predictor the experiment's input estimate is dropped.
-  // `at`: the parameters at the experiment's session time (Model::AtSessionTime).
+  // `at`: the parameters at the experiment's session time (Model::AtExperiment).
   bool RefreshInputSensitivities(Experiment& experiment, const std::vector<double>& at, LinearisationMode mode);
   bool RefreshParameterSensitivities(Experiment& experiment, const std::vector<double>& at,
                                      LinearisationMode mode) const;

@@ -8,7 +8,7 @@
 namespace strut::ident {
 
 //! Most derivative directions one evaluation carries (state, rate and parameter directions).
-inline constexpr int kMaxDerivatives = 48;
+inline constexpr int kMaxDerivatives = 64;
 
 using DerivativeVector = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kMaxDerivatives, 1>;
 

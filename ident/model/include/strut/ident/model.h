@@ -138,6 +138,12 @@ class ModelBuilder {
 };
 
 //! A composed model with a fixed causality. Cheap to copy (terms are shared, immutable).
+//! What is known of each experiment that some terms are a function of (ParameterSpec::experiment_condition).
+struct ExperimentConditions {
+  double session_time = 0.0;     //!< theta38: 0 the session's first experiment, 1 its last
+  double static_position = 0.0;  //!< theta40: m, the experiment's static stroke position
+};
+
 class Model {
  public:
   //! Builds "BASE[+term...]" (BASE: 1dof, 2dof, linear-oscillator). Throws ModelError listing
@@ -154,9 +160,9 @@ class Model {
 
   //! Parameter specs with default values.
   const ParameterSet& defaults() const { return defaults_; }
-  //! `theta` for an experiment recorded at `session_time` (0 the session's first experiment, 1 its
-  //! last): theta38 set to it where the model has it (charge-loss), else `theta` as it is.
-  std::vector<double> AtSessionTime(std::vector<double> theta, double session_time) const;
+  //! `theta` for one experiment: its conditions set where the model has them (theta38 for charge-loss
+  //! and the discrepancy's drifts, theta40 for its static functions), the rest as it is.
+  std::vector<double> AtExperiment(std::vector<double> theta, const ExperimentConditions& conditions) const;
   int parameter_count() const { return defaults_.size(); }
 
   //! Unknowns per grid point: [mechanical unknown, states...].
@@ -219,7 +225,8 @@ class Model {
   ParameterSet defaults_;
   StateSpec displacement_, drive_;  //!< the two mechanical slots: stroke and force for dampers
   int stroke_offset_position_ = -1;  //!< output offset (theta12 for dampers) position, -1 if none
-  int session_time_position_ = -1;   //!< theta38's position, -1 if none
+  int session_time_position_ = -1;     //!< theta38's position, -1 if none
+  int static_position_position_ = -1;  //!< theta40's position, -1 if none
 };
 
 }  // namespace strut::ident

@@ -29,6 +29,9 @@ inline constexpr int kLoadCellZeroIndex = 39;
 //! theta38: when an experiment was recorded, as a fraction of its session (0 the first, 1 the last;
 //! daq::ExperimentSessionTimes), the condition a drift over the session (charge-loss) is a function of.
 inline constexpr int kSessionTimeIndex = 38;
+//! theta40: the experiment's static stroke position (m, as recorded), the condition a level that
+//! differs between static-position groups (the empirical discrepancy's static functions) is a function of.
+inline constexpr int kStaticPositionIndex = 40;
 
 //! A user mistake in naming or giving parameters (unknown name, bad number, bad file line).
 class ParameterError : public std::invalid_argument {
@@ -90,8 +93,8 @@ struct ParameterSpec {
   //! stroke zero).
   double prior_sd = 0.0;
   //! A known condition of each experiment rather than a property of the unit (theta38, when the
-  //! experiment was recorded): the fit sets it per experiment from the recording (Model::AtSessionTime)
-  //! and never estimates it.
+  //! experiment was recorded; theta40, its static position): the fit sets it per experiment from the
+  //! recording (Model::AtExperiment) and never estimates it.
   bool experiment_condition = false;
 
   double typical_size() const { return typical > 0 ? typical : std::abs(default_value); }

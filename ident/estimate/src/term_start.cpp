@@ -134,10 +134,46 @@ Regression Regress(const std::vector<Sample>& samples, const std::vector<Column>
   return Solve(a, b, norm, r);
 }
 
-// The same regression for many first columns beside one set of nuisance columns (a search over a
-// shape: the stop's position): the nuisance is factorised once, and each candidate column is
-// regressed on what the nuisance leaves of it and of the error (Frisch-Waugh-Lovell), which gives
-// the joint regression's coefficient, residual sum of squares and t at the cost of two projections.
+// Least squares of b on one column beside fixed nuisance columns, for many such columns (a search
+// over a shape): the nuisance is factorised once, and each column is regressed on what the nuisance
+// leaves of it and of b (Frisch-Waugh-Lovell), which gives the joint regression's coefficient,
+// residual sum of squares and t at the cost of two projections.
+class ProjectedRegression {
+ public:
+  ProjectedRegression() = default;
+  ProjectedRegression(Eigen::MatrixXd nuisance, const Eigen::VectorXd& b) {
+    // Columns scaled to unit norm so that the QR's rank decision is about directions, not units.
+    for (Eigen::Index j = 0; j < nuisance.cols(); ++j)
+      if (const double norm = nuisance.col(j).norm(); norm > 0) nuisance.col(j) /= norm;
+    const Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(nuisance);
+    basis_ = qr.householderQ() * Eigen::MatrixXd::Identity(nuisance.rows(), qr.rank());
+    left_ = b - basis_ * (basis_.transpose() * b);
+    ok_ = true;
+  }
+
+  Regression Fit(const Eigen::VectorXd& c) const {
+    Regression r;
+    const double norm = c.norm();
+    if (!ok_ || !(norm > 0)) return r;
+    const Eigen::VectorXd c_left = c - basis_ * (basis_.transpose() * c);
+    const double distance2 = c_left.squaredNorm();
+    if (!(distance2 > 1e-24 * norm * norm)) return r;  // in the nuisance's span: no coefficient of its own
+    const double along = c_left.dot(left_);
+    r.coefficient = along / distance2;
+    r.rss = std::max(left_.squaredNorm() - along * along / distance2, 0.0);
+    const double sd = std::sqrt(r.rss / std::max<Eigen::Index>(1, c.size() - basis_.cols() - 1));
+    r.t = sd > 0 ? along / std::sqrt(distance2) / sd : 0.0;
+    r.ok = std::isfinite(r.coefficient);
+    return r;
+  }
+
+ private:
+  Eigen::MatrixXd basis_;  // orthonormal, spanning the nuisance columns
+  Eigen::VectorXd left_;   // b less its projection on them
+  bool ok_ = false;
+};
+
+// Regress with one set of nuisance columns and many first columns (the end stop's position search).
 class NuisanceRegression {
  public:
   NuisanceRegression(const std::vector<Sample>& samples, const std::vector<Column>& nuisance) {
@@ -151,39 +187,18 @@ class NuisanceRegression {
       for (Eigen::Index j = 0; j < k; ++j) a(i, j) = used_[i]->force_weight * nuisance[j](*used_[i]);
       b[i] = used_[i]->force_weight * used_[i]->force_error;
     }
-    for (Eigen::Index j = 0; j < k; ++j)
-      if (const double norm = a.col(j).norm(); norm > 0) a.col(j) /= norm;
-    const Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(a);
-    basis_ = qr.householderQ() * Eigen::MatrixXd::Identity(m, qr.rank());
-    left_ = b - basis_ * (basis_.transpose() * b);
-    ok_ = true;
+    regression_ = ProjectedRegression(std::move(a), b);
   }
 
   Regression Fit(const Column& first) const {
-    Regression r;
-    if (!ok_) return r;
-    const Eigen::Index m = static_cast<Eigen::Index>(used_.size());
-    Eigen::VectorXd c(m);
-    for (Eigen::Index i = 0; i < m; ++i) c[i] = used_[i]->force_weight * first(*used_[i]);
-    const double norm = c.norm();
-    if (!(norm > 0)) return r;
-    const Eigen::VectorXd c_left = c - basis_ * (basis_.transpose() * c);
-    const double distance2 = c_left.squaredNorm();
-    if (!(distance2 > 1e-24 * norm * norm)) return r;  // in the nuisance's span: no coefficient of its own
-    const double along = c_left.dot(left_);
-    r.coefficient = along / distance2;
-    r.rss = std::max(left_.squaredNorm() - along * along / distance2, 0.0);
-    const double sd = std::sqrt(r.rss / std::max<Eigen::Index>(1, m - basis_.cols() - 1));
-    r.t = sd > 0 ? along / std::sqrt(distance2) / sd : 0.0;
-    r.ok = std::isfinite(r.coefficient);
-    return r;
+    Eigen::VectorXd c(static_cast<Eigen::Index>(used_.size()));
+    for (Eigen::Index i = 0; i < c.size(); ++i) c[i] = used_[i]->force_weight * first(*used_[i]);
+    return regression_.Fit(c);
   }
 
  private:
   std::vector<const Sample*> used_;
-  Eigen::MatrixXd basis_;  // orthonormal, spanning the weighted nuisance columns
-  Eigen::VectorXd left_;   // the weighted error less its projection on them
-  bool ok_ = false;
+  ProjectedRegression regression_;
 };
 
 // The force balance's sensitivities to the parameters the baseline estimated (method.md eq. 21).
@@ -267,8 +282,7 @@ Regression GaussNewtonSize(const FitSummary& baseline, const Model& model, const
 // GaussNewtonSize over the values of a shape parameter that, with the size at 0, changes nothing
 // (a Stribeck width at zero excess): the solutions and the nuisance sensitivities are the same for
 // every value, so they are made and factorised once, and each value costs the size's own
-// sensitivity (on the solutions' kept factorisations) and two projections (Frisch-Waugh-Lovell, as
-// NuisanceRegression).
+// sensitivity (on the solutions' kept factorisations) and a ProjectedRegression.
 class SizeStepOverShape {
  public:
   SizeStepOverShape(const FitSummary& baseline, const Model& model, const std::vector<double>& theta,
@@ -315,41 +329,24 @@ class SizeStepOverShape {
       b.segment(at, blocks[i].rows()) = targets[i];
       at += blocks[i].rows();
     }
-    for (Eigen::Index j = 0; j < a.cols(); ++j)
-      if (const double norm = a.col(j).norm(); norm > 0) a.col(j) /= norm;
-    const Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(a);
-    basis_ = qr.householderQ() * Eigen::MatrixXd::Identity(rows_, qr.rank());
-    left_ = b - basis_ * (basis_.transpose() * b);
-    ok_ = true;
+    regression_ = ProjectedRegression(std::move(a), b);
   }
 
   //! The size's step and t with the shape at `value`.
   Regression At(double value) {
-    Regression r;
-    if (!ok_) return r;
     Eigen::VectorXd c(rows_);
     Eigen::Index at = 0;
     for (Experiment& x : experiments_) {
       x.at[shape_] = value;
-      const std::vector<Eigen::MatrixXd> sensitivity = x.solver.OutputSensitivities(x.solution, x.at, std::span<const int>(&size_, 1));
+      const std::vector<Eigen::MatrixXd> sensitivity =
+          x.solver.OutputSensitivities(x.solution, x.at, std::span<const int>(&size_, 1));
       for (const Channel& ch : x.channels) {
         const Eigen::MatrixXd column = ch.weight * ch.map.Columns(sensitivity[ch.row]);
         c.segment(at, column.rows()) = column.col(0);
         at += column.rows();
       }
     }
-    const double norm = c.norm();
-    if (!(norm > 0)) return r;
-    const Eigen::VectorXd c_left = c - basis_ * (basis_.transpose() * c);
-    const double distance2 = c_left.squaredNorm();
-    if (!(distance2 > 1e-24 * norm * norm)) return r;
-    const double along = c_left.dot(left_);
-    r.coefficient = along / distance2;
-    r.rss = std::max(left_.squaredNorm() - along * along / distance2, 0.0);
-    const double sd = std::sqrt(r.rss / std::max<Eigen::Index>(1, rows_ - basis_.cols() - 1));
-    r.t = sd > 0 ? along / std::sqrt(distance2) / sd : 0.0;
-    r.ok = std::isfinite(r.coefficient);
-    return r;
+    return regression_.Fit(c);
   }
 
  private:
@@ -367,9 +364,7 @@ class SizeStepOverShape {
   int size_, shape_;
   std::vector<Experiment> experiments_;
   Eigen::Index rows_ = 0;
-  Eigen::MatrixXd basis_;
-  Eigen::VectorXd left_;
-  bool ok_ = false;
+  ProjectedRegression regression_;
 };
 
 // log(1 + e^x) without overflow, as the end-stop term.

@@ -224,70 +224,15 @@ std::vector<Column> ForceNuisance(const Values& v) {
 // the candidate is the baseline and its residual is nearly linear in the size): the fitted
 // channels' residuals regressed on the exact periodic sensitivities to the size and to every
 // parameter the baseline estimated, weighted by the noise. `theta` holds the candidate's values.
-Regression GaussNewtonSize(const FitSummary& baseline, const Model& model, const std::vector<double>& theta,
-                           int size_position, std::vector<std::string>& problems) {
-  Regression r;
-  std::vector<int> positions = {size_position};
-  for (int i = 0; i < baseline.parameters.size(); ++i)
-    if (i < static_cast<int>(baseline.estimates.size()) && baseline.estimates[i].estimated)
-      if (const auto p = model.defaults().find(baseline.parameters.spec(i).key())) positions.push_back(*p);
-  std::vector<Eigen::MatrixXd> blocks;
-  std::vector<Eigen::VectorXd> targets;
-  for (const ExperimentFit& e : baseline.experiments) {
-    if (!e.converged || e.solution.n == 0) continue;
-    PeriodicSolverOptions options;
-    options.scheme = e.solution.scheme;
-    PeriodicSolver solver(model, options);
-    PeriodicSolution solution;
-    std::vector<Eigen::MatrixXd> sensitivities;
-    try {
-      // The baseline's solution is the candidate's at size 0: Newton starts at the answer.
-      const std::vector<double> at = model.AtExperiment(theta, {e.session_time, e.static_position});
-      solution = solver.Solve(e.solution.input, at, &e.solution);
-      sensitivities = solver.OutputSensitivities(solution, at, positions);
-    } catch (const PeriodicSolverError& ex) {
-      problems.push_back(fmt::format("experiment '{}': {}", e.label, ex.what()));
-      continue;
-    }
-    const int n = solution.n;
-    for (const auto& [channel, residual] : e.residual) {
-      const auto variance = e.noise_variance.find(channel);
-      const auto row = std::find(solution.channels.begin(), solution.channels.end(), channel);
-      if (variance == e.noise_variance.end() || !(variance->second > 0) || row == solution.channels.end()) continue;
-      const Eigen::MatrixXd& grid = sensitivities[row - solution.channels.begin()];
-      const double w = 1.0 / std::sqrt(variance->second);
-      // Cubic (4-point Lagrange) interpolation from the grid to the data phases, as the estimator.
-      blocks.push_back(w * PhaseInterpolation::Cubic(solution.input.phases, n, e.phases).Columns(grid));
-      targets.push_back(w * residual);
-    }
-  }
-  Eigen::Index rows = 0;
-  for (const auto& b : blocks) rows += b.rows();
-  if (rows < 8 * static_cast<Eigen::Index>(positions.size())) return r;
-  Eigen::MatrixXd a(rows, static_cast<Eigen::Index>(positions.size()));
-  Eigen::VectorXd b(rows);
-  rows = 0;
-  for (std::size_t i = 0; i < blocks.size(); ++i) {
-    a.middleRows(rows, blocks[i].rows()) = blocks[i];
-    b.segment(rows, blocks[i].rows()) = targets[i];
-    rows += blocks[i].rows();
-  }
-  Eigen::VectorXd norm = a.colwise().norm().transpose();
-  if (!(norm[0] > 0)) return r;
-  for (Eigen::Index j = 0; j < a.cols(); ++j)
-    if (norm[j] > 0) a.col(j) /= norm[j];
-  return Solve(a, b, norm, r);
-}
-
-// GaussNewtonSize over the values of a shape parameter that, with the size at 0, changes nothing
-// (a Stribeck width at zero excess): the solutions and the nuisance sensitivities are the same for
-// every value, so they are made and factorised once, and each value costs the size's own
-// sensitivity (on the solutions' kept factorisations) and a ProjectedRegression.
-class SizeStepOverShape {
+// Over the values of a shape parameter that, with the size at 0, changes nothing (a Stribeck width
+// at zero excess) the solutions and the nuisance sensitivities stay the same: they are made and
+// factorised once, and each value costs the size's own sensitivity (on the solutions' kept
+// factorisations) and a ProjectedRegression.
+class SizeStep {
  public:
-  SizeStepOverShape(const FitSummary& baseline, const Model& model, const std::vector<double>& theta,
-                    int size_position, int shape_position, std::vector<std::string>& problems)
-      : size_(size_position), shape_(shape_position) {
+  SizeStep(const FitSummary& baseline, const Model& model, const std::vector<double>& theta, int size_position,
+           std::vector<std::string>& problems)
+      : size_(size_position) {
     std::vector<int> nuisance;
     for (int i = 0; i < baseline.parameters.size(); ++i)
       if (i < static_cast<int>(baseline.estimates.size()) && baseline.estimates[i].estimated)
@@ -332,12 +277,14 @@ class SizeStepOverShape {
     regression_ = ProjectedRegression(std::move(a), b);
   }
 
-  //! The size's step and t with the shape at `value`.
-  Regression At(double value) {
+  //! The size's step and t.
+  Regression At() { return At(-1, 0.0); }
+  //! The size's step and t with the shape parameter at `shape_position` at `value`.
+  Regression At(int shape_position, double value) {
     Eigen::VectorXd c(rows_);
     Eigen::Index at = 0;
     for (Experiment& x : experiments_) {
-      x.at[shape_] = value;
+      if (shape_position >= 0) x.at[shape_position] = value;
       const std::vector<Eigen::MatrixXd> sensitivity =
           x.solver.OutputSensitivities(x.solution, x.at, std::span<const int>(&size_, 1));
       for (const Channel& ch : x.channels) {
@@ -361,7 +308,7 @@ class SizeStepOverShape {
     std::vector<double> at;
     std::vector<Channel> channels;
   };
-  int size_, shape_;
+  int size_;
   std::vector<Experiment> experiments_;
   Eigen::Index rows_ = 0;
   ProjectedRegression regression_;
@@ -477,9 +424,9 @@ CandidateStart CandidateStartingValues(const std::string& term, const FitSummary
     Regression best;
     double width = NAN;
     std::vector<std::string> problems;
-    SizeStepOverShape step(baseline, model, theta, excess, velocity, problems);
+    SizeStep step(baseline, model, theta, excess, problems);
     for (double w = 5e-4; w <= 4e-2; w *= 1.2) {
-      const Regression r = step.At(w);
+      const Regression r = step.At(velocity, w);
       if (r.ok && r.coefficient > 0 && r.rss < best.rss) best = r, width = w;
     }
     for (const auto& p : problems) note(fmt::format("{}: left out: {}", term, p));
@@ -511,7 +458,7 @@ CandidateStart CandidateStartingValues(const std::string& term, const FitSummary
     const int size = candidate.position_of_index(index);
     theta[size] = 0.0;
     std::vector<std::string> problems;
-    const Regression r = GaussNewtonSize(baseline, model, theta, size, problems);
+    const Regression r = SizeStep(baseline, model, theta, size, problems).At();
     for (const auto& p : problems) note(fmt::format("{}: left out: {}", term, p));
     if (r.ok) {
       give(index, r.coefficient,
@@ -535,7 +482,7 @@ CandidateStart DiscrepancyStartingValue(const Model& model, int index, const Fit
     if (const auto p = baseline.parameters.find(candidate.spec(i).key())) theta[i] = baseline.parameters.value(*p);
   theta[size] = 0.0;
   std::vector<std::string> problems;
-  const Regression r = GaussNewtonSize(baseline, model, theta, size, problems);
+  const Regression r = SizeStep(baseline, model, theta, size, problems).At();
   if (log) {
     for (const auto& p : problems) log->push_back(fmt::format("{}: left out: {}", candidate.spec(size).name, p));
     if (r.ok)

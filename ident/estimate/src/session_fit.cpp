@@ -425,13 +425,26 @@ void RejudgeUndetermined(SessionFit& fit, const Estimator& estimator, const Sess
   for (const int i : fit.plan.undetermined_index) choices[i].estimate = true;
   const std::vector<Undetermined> still =
       UndeterminedAt(fit.model, fit.data, options.estimator, fit.summary.parameters, choices, "the fit");
-  if (still.size() == fit.plan.undetermined_index.size()) return;
-  for (const Undetermined& u : still) choices[u.index].estimate = false;
+  // Only what was fixed at the start is in question here: the rest keeps the plan's choice.
+  const auto stays_fixed = [&](int i) {
+    return std::any_of(still.begin(), still.end(), [&](const Undetermined& u) { return u.index == i; });
+  };
+  std::string freed;
+  std::vector<std::string> undetermined;
+  std::vector<int> undetermined_index;
+  for (std::size_t k = 0; k < fit.plan.undetermined_index.size(); ++k) {
+    const int i = fit.plan.undetermined_index[k];
+    if (stays_fixed(i)) {
+      choices[i].estimate = false;
+      undetermined.push_back(fit.plan.undetermined[k]);
+      undetermined_index.push_back(i);
+    } else {
+      freed += (freed.empty() ? "" : ", ") + fit.plan.start.spec(i).key();
+    }
+  }
+  if (freed.empty()) return;
   FitSummary again = estimator.Fit(fit.data.experiments, fit.summary.parameters, choices, fit.data.issues, progress,
                                    fit.data.transients);
-  std::string freed;
-  for (const int i : fit.plan.undetermined_index)
-    if (choices[i].estimate) freed += (freed.empty() ? "" : ", ") + fit.plan.start.spec(i).key();
   const bool better = Better(again, fit.summary);
   spdlog::info("{} determined at the fit, not at the start: the fit with {} estimated {}{}", freed,
                freed.find(',') == std::string::npos ? "it" : "them", ToString(again.Verdict()),
@@ -442,12 +455,8 @@ void RejudgeUndetermined(SessionFit& fit, const Estimator& estimator, const Sess
                                        freed, freed.find(',') == std::string::npos ? "it" : "them"));
   fit.summary = std::move(again);
   fit.plan.choices = std::move(choices);
-  fit.plan.undetermined.clear();
-  fit.plan.undetermined_index.clear();
-  for (const Undetermined& u : still) {
-    fit.plan.undetermined.push_back(u.why);
-    fit.plan.undetermined_index.push_back(u.index);
-  }
+  fit.plan.undetermined = std::move(undetermined);
+  fit.plan.undetermined_index = std::move(undetermined_index);
 }
 
 }  // namespace

@@ -113,11 +113,12 @@ const std::vector<std::string>& SignatureFunctions(const std::string& term) {
       {"metering-pin", {"damping-stroke", "damping-stroke-squared", "damping-stroke-direction"}},
       {"viscous-damping", {"viscous"}},
       {"friction-asymmetry", {"friction-direction"}},
-      {"pressure-heat-transfer", {"damping-pressure"}},
+      {"pressure-heat-transfer", {"conductance-pressure", "damping-pressure"}},
+      {"stribeck-friction", {"friction-low-speed", "friction-low-speed-wide", "friction-low-speed-narrow"}},
       {"charge-loss", {"gas-drift", "force-drift"}},
       {"gas-solubility", {"gas-pressure"}},
       {"dead-volume", {"volume-stroke-squared", "volume-stroke-cubed", "stiffness-squared", "stiffness-cubed", "gas-pressure"}},
-      {"oil-compressibility", {"volume-stroke-squared", "volume-stroke-cubed", "stiffness-squared", "stiffness-cubed", "gas-pressure"}},
+      {"oil-compressibility", {"volume-pressure", "volume-stroke-squared", "volume-stroke-cubed", "stiffness-squared", "stiffness-cubed", "gas-pressure"}},
       {"real-gas", {"volume-stroke-squared", "volume-stroke-cubed", "stiffness-squared", "stiffness-cubed", "gas-pressure"}},
   };
   static const std::vector<std::string> none;

@@ -438,6 +438,7 @@ double Median(std::vector<double> v) {
 struct MatrixReach {
   double q_lo = INFINITY, q_hi = -INFINITY, q_mid = NAN, v_typical = NAN, v_max = 0.0;
   double static_lo = NAN, static_hi = NAN;
+  double p_lo = NAN, p_hi = NAN;  // the lowest and highest pressure measured
   Eigen::Vector3d pressure = Eigen::Vector3d::Zero();  // p(q) = c0 + c1 q + c2 q^2
   double PressureAt(double q) const { return pressure[0] + q * (pressure[1] + q * pressure[2]); }
 };
@@ -457,6 +458,10 @@ MatrixReach Reach(const FitSummary& fit) {
     m.v_max = std::max(m.v_max, peak);
     if (const auto p = e.measured.find("pressure"); p != e.measured.end() && p->second.size() == stroke->second.size())
       for (Eigen::Index i = 0; i < p->second.size(); ++i) qs.push_back(stroke->second[i]), ps.push_back(p->second[i]);
+  }
+  if (!ps.empty()) {
+    m.p_lo = *std::min_element(ps.begin(), ps.end());
+    m.p_hi = *std::max_element(ps.begin(), ps.end());
   }
   m.q_mid = Median(statics);
   if (!statics.empty()) {
@@ -584,6 +589,37 @@ EmpiricalDiscrepancy DescribeDiscrepancy(const FitSummary& fit) {
     else if (f.index == 85)
       d.dependence.push_back(fmt::format("free gas changing by {:+.2f} % of the charge from the first experiment to the last",
                                          100.0 * f.value));
+    else if (f.index == 90)
+      d.dependence.push_back(fmt::format("a gas volume growing with the pressure, {:+.2f} % of the charge volume per 10 MPa",
+                                         100.0 * f.value));
+  }
+  if (has([](int i) { return i == 91; }) && m.p_lo > 0) {
+    // The wall's heat conductance relative to theta16's, 1 + c91 (p / 10 MPa)^theta92, at the
+    // lowest and highest pressure measured.
+    const double exponent = value_of(92);
+    const auto conductance = [&](double pressure) { return 1.0 + value_of(91) * std::pow(pressure / 1e7, exponent); };
+    const int position = p.position_of_index(92);
+    const double sd = position >= 0 && position < static_cast<int>(fit.estimates.size()) ? fit.estimates[position].sd : NAN;
+    d.dependence.push_back(fmt::format("heat flowing through the wall more readily at high pressure: the wall's heat "
+                                       "conductance {} as high at {:.1f} MPa as at {:.1f} MPa, its growth as the "
+                                       "pressure to the power {:.2f} (sd {:.2f})",
+                                       Times(conductance(m.p_hi) / conductance(m.p_lo)), m.p_hi * 1e-6, m.p_lo * 1e-6,
+                                       exponent, sd));
+  }
+  if (has([](int i) { return i == 93 || i == 94 || i == 95; })) {
+    // The friction's excess over sliding where atan(theta10 q') has saturated: c93 e^-(v/4.5 mm/s)^2
+    // + c94 e^-(v/10 mm/s)^2 + c95 e^-(v/2 mm/s)^2 of the sliding level; the speed at which half of
+    // it is left.
+    const auto excess = [&](double speed) {
+      return value_of(93) * std::exp(-std::pow(speed / 4.5e-3, 2)) + value_of(94) * std::exp(-std::pow(speed / 1e-2, 2)) +
+             value_of(95) * std::exp(-std::pow(speed / 2e-3, 2));
+    };
+    const double peak = excess(0.0);
+    double half = 0.0;
+    while (half < 0.05 && std::abs(excess(half)) > 0.5 * std::abs(peak)) half += 1e-4;
+    d.dependence.push_back(fmt::format("friction {:+.0f} % of the sliding friction near the velocity reversals, half of "
+                                       "that left at {:.1f} mm/s",
+                                       100.0 * peak, half * 1e3));
   }
   // The static functions against the middle static position: the levels of the lowest and the
   // highest static-position group (the global levels theta11 and theta5 hold the middle one).
@@ -662,6 +698,16 @@ const TermEntry& CatalogueEntry(const std::string& term) {
   return *std::find_if(catalogue.begin(), catalogue.end(), [&](const TermEntry& e) { return e.name == term; });
 }
 
+// A discrepancy function out of a start: its coefficient at 0 and fixed, its shape fixed.
+void LeaveFunctionOut(const Model& model, const DiscrepancyFunction& f, TermStart& start) {
+  const int position = model.defaults().position_of_index(f.index);
+  if (position < 0) return;
+  start.start.set(model.defaults().spec(position).key(), 0.0);
+  start.choices[position] = ParameterChoice{};
+  if (const int shape = f.shape_index ? model.defaults().position_of_index(f.shape_index) : -1; shape >= 0)
+    start.choices[shape] = ParameterChoice{};
+}
+
 constexpr const char* kNotBetterHeldOut = "does not predict left-out experiments better";
 
 // One round's candidates: each term that composes with the current model, its refit and its verdict.
@@ -723,6 +769,8 @@ class DiscoveryRun {
   RivalExplanation CompareRival(const KeptWithRivals& kept, const std::string& rival, const FitSummary& rival_fit,
                                 const DiscoveryResult& result) const;
   void FindAmbiguities(DiscoveryResult& result) const;
+  void RemoveUnsupportedFunctions(FitSummary& current, std::map<std::string, double>& ratio,
+                                  DiscoveryResult& result) const;
   void RemoveUnsupportedTerms(FitSummary& current, std::map<std::string, double>& ratio, DiscoveryResult& result) const;
 
   const FitData& data_;
@@ -850,15 +898,24 @@ Round DiscoveryRun::EmpiricalCandidates(const FitSummary& current) const {
   round.fits.resize(n);
   round.held_out.resize(n);
   round.starts.resize(n);
+  const std::vector<ParameterChoice> defaults = DefaultChoices(model);
   ParallelFor(static_cast<int>(n), options_.threads, [&](int c) {
-    // The current fit's values and estimated set; of the discrepancy, only what it estimated and this one.
+    // The current fit's values and estimated set; of the discrepancy, only what it estimated and this
+    // one, which the current fit (once it holds the discrepancy) has fixed at 0.
     std::vector<std::string> log;
     TermStart t = StartWithTerm(model, "discrepancy", current);
     for (const DiscrepancyFunction& f : DiscrepancyLibrary()) {
       const int position = model.defaults().position_of_index(f.index);
       if (position < 0) continue;
       const auto p = current.parameters.find(model.defaults().spec(position).key());
-      if (!(p && current.estimates[*p].estimated) && f.index != round.function[c]) t.choices[position] = ParameterChoice{};
+      if (f.index == round.function[c]) {
+        t.choices[position] = defaults[position];
+        // Its shape is the data's to say: estimated without a prior.
+        if (const int shape = f.shape_index ? model.defaults().position_of_index(f.shape_index) : -1; shape >= 0)
+          t.choices[shape] = ParameterChoice{.estimate = true};
+      } else if (!(p && current.estimates[*p].estimated)) {
+        LeaveFunctionOut(model, f, t);
+      }
     }
     const CandidateStart start = DiscrepancyStartingValue(model, round.function[c], current, &log);
     for (const std::string& line : log) spdlog::debug("candidate {}: {}", round.candidates[c].first, line);
@@ -1161,7 +1218,11 @@ void DiscoveryRun::RemoveUnsupportedTerms(FitSummary& current, std::map<std::str
     FitSummary fit;
     try {
       const Model model = Model::Build(without, causality_);
-      const TermStart start = StartFromFit(model, current);
+      TermStart start = StartFromFit(model, current);
+      // A function whose catalogue twin the term was joins the model with it gone; it stays at 0
+      // like every function no round chose.
+      for (const DiscrepancyFunction& f : DiscrepancyLibrary())
+        if (current.parameters.position_of_index(f.index) < 0) LeaveFunctionOut(model, f, start);
       fit = Estimator(model, session_options_.estimator).Fit(data_.experiments, start.start, start.choices, data_.issues);
     } catch (const EstimationError& e) {
       spdlog::debug("without {}: {}", *term, e.what());
@@ -1190,6 +1251,57 @@ void DiscoveryRun::RemoveUnsupportedTerms(FitSummary& current, std::map<std::str
     current = std::move(fit);
     ratio = PooledNoiseRatio(current);
     term = decltype(term)(result.missing.erase(std::next(term).base()));
+  }
+  RemoveUnsupportedFunctions(current, ratio, result);
+}
+
+// The same for the discrepancy's own functions, the last chosen first: one chosen early may have
+// stood in for what a later one models better (a gas drift for a heat flow), and stays in the sum
+// at a size the data no longer support. The last function standing stays.
+void DiscoveryRun::RemoveUnsupportedFunctions(FitSummary& current, std::map<std::string, double>& ratio,
+                                              DiscoveryResult& result) const {
+  std::vector<std::string> chosen;  // "discrepancy:NAME", in the order the rounds added them
+  for (const DiscoveryStep& step : result.steps)
+    if (step.empirical && !step.removed) chosen.push_back(step.term);
+  const Model model = Model::Build(current.model, causality_);
+  for (auto function = chosen.rbegin(); function != chosen.rend() && chosen.size() > 1;) {
+    const auto entry = std::find_if(DiscrepancyLibrary().begin(), DiscrepancyLibrary().end(),
+                                    [&](const DiscrepancyFunction& f) { return "discrepancy:" + f.name == *function; });
+    if (entry == DiscrepancyLibrary().end() || model.defaults().position_of_index(entry->index) < 0) {
+      ++function;
+      continue;
+    }
+    FitSummary fit;
+    try {
+      TermStart start = StartFromFit(model, current);
+      LeaveFunctionOut(model, *entry, start);
+      fit = Estimator(model, session_options_.estimator).Fit(data_.experiments, start.start, start.choices, data_.issues);
+    } catch (const EstimationError& e) {
+      spdlog::debug("without {}: {}", *function, e.what());
+    } catch (const PeriodicSolverError& e) {
+      spdlog::debug("without {}: {}", *function, e.what());
+    }
+    const double delta = fit.bic - current.bic;
+    if (!fit.converged || !fit.IsSolutionUsable() || !(delta < options_.bic_threshold) ||
+        (AtNoiseFloor(current) && !AtNoiseFloor(fit))) {
+      ++function;
+      continue;
+    }
+    DiscoveryStep step;
+    step.term = *function;
+    step.empirical = true;
+    step.removed = true;
+    step.delta_bic = delta;
+    step.noise_before = ratio;
+    step.noise_after = PooledNoiseRatio(fit);
+    step.evidence = fmt::format("taken out again: with the functions chosen after it, the data do not support it "
+                                "(without it the BIC changes by {:+.1f}, less than {:g})",
+                                delta, options_.bic_threshold);
+    Say(fmt::format("removed {}: {}", *function, step.evidence));
+    result.steps.push_back(std::move(step));
+    current = std::move(fit);
+    ratio = PooledNoiseRatio(current);
+    function = decltype(function)(chosen.erase(std::next(function).base()));
   }
 }
 

@@ -782,6 +782,12 @@ constexpr double kRate = 0.1;         // m/s: the rate at which the linear dampi
 constexpr double kDirection = 2e-3;   // m/s: the width of the smoothed direction sgn(q')
 constexpr double kPressure = 1e6;     // Pa: the gas force unit theta4 kPressure
 constexpr double kLoopPressure = 1e7; // Pa: the pressure unit of the pressure-damping shape
+// m/s: the widths of the low-speed friction shapes, spread over the 1-10 mm/s a seal's Stribeck
+// velocity spans (damper-physics.md §2.8), about twice apart: sums of neighbours take the widths
+// between them.
+constexpr double kLowSpeedNarrow = 2e-3;
+constexpr double kLowSpeed = 4.5e-3;
+constexpr double kLowSpeedWide = 1e-2;
 
 enum class Shape {
   kDampingDirection,        // theta3 q'^2: even in the rate
@@ -804,6 +810,11 @@ enum class Shape {
   kForceStaticSquared,      // theta4 p_u (z/L)^2
   kGasStatic,               // free gas + z/L
   kGasStaticSquared,        // free gas + (z/L)^2
+  kVolumePressure,          // gas volume + p / p_r
+  kConductancePressure,     // wall heat flow x (p / p_r)^n, n the shape parameter
+  kFrictionLowSpeed,        // F_f atan(theta10 q') exp(-(q'/v_1)^2)
+  kFrictionLowSpeedWide,    // F_f atan(theta10 q') exp(-(q'/v_2)^2)
+  kFrictionLowSpeedNarrow,  // F_f atan(theta10 q') exp(-(q'/v_0)^2)
 };
 
 struct Function {
@@ -811,7 +822,7 @@ struct Function {
   DiscrepancyFunction public_part;
   const char* needs;  // the term whose level scales it
   const char* twin;   // a catalogue term it duplicates: left out beside it
-  bool gas = false;   // acts on the gas state, not the force
+  bool gas = false;   // acts on the gas state, not the force (or the heat balance)
 };
 
 const std::vector<Function>& Library() {
@@ -838,13 +849,21 @@ const std::vector<Function>& Library() {
       {Shape::kForceStaticSquared, {87, "force-static-position-squared", "theta4 (1 MPa) (z / 0.1 m)^2 (a force level curving with the static position)", "", 0.01}, "gas-force", ""},
       {Shape::kGasStatic, {88, "gas-static-position", "free gas + z / 0.1 m (free gas that changes with the experiment's static position z)", "", 0.01}, "gas-volume", "", true},
       {Shape::kGasStaticSquared, {89, "gas-static-position-squared", "free gas + (z / 0.1 m)^2 (free gas curving with the static position)", "", 0.01}, "gas-volume", "", true},
+      {Shape::kVolumePressure, {90, "volume-pressure", "gas volume + p / 10 MPa (a gas volume growing with the pressure: oil or cylinder that give way)", "oil-compressibility", 0.01}, "gas-volume", "oil-compressibility", true},
+      // The wall heat flow of heat-exchange, theta16 (1 + theta6 q)(T + theta17), times a power of
+      // the pressure, the exponent theta92 its shape: a heat-transfer correlation's form (h grows
+      // as a power of the gas density), whose exponent the data give.
+      {Shape::kConductancePressure, {91, "conductance-pressure", "wall heat flow x (p / 10 MPa)^theta92 (a wall heat conductance growing as a power of the pressure)", "pressure-heat-transfer", 5.0, 92}, "heat-exchange", "pressure-heat-transfer", true},
+      {Shape::kFrictionLowSpeed, {93, "friction-low-speed", "(theta8 + theta9 p) atan(theta10 q') exp(-(q' / 4.5 mm/s)^2) (friction higher near the reversals than sliding)", "stribeck-friction", 0.2}, "pressure-friction", "stribeck-friction"},
+      {Shape::kFrictionLowSpeedWide, {94, "friction-low-speed-wide", "(theta8 + theta9 p) atan(theta10 q') exp(-(q' / 10 mm/s)^2) (friction higher at low speed, over a wider band)", "stribeck-friction", 0.2}, "pressure-friction", "stribeck-friction"},
+      {Shape::kFrictionLowSpeedNarrow, {95, "friction-low-speed-narrow", "(theta8 + theta9 p) atan(theta10 q') exp(-(q' / 2 mm/s)^2) (friction higher only just at the reversals)", "stribeck-friction", 0.2}, "pressure-friction", "stribeck-friction"},
   };
   return functions;
 }
 
 }  // namespace discrepancy
 
-//! theta70..theta89: the empirical discrepancy, the library above. Functions whose level the model
+//! theta70..theta95: the empirical discrepancy, the library above. Functions whose level the model
 //! lacks, or whose catalogue twin it has, are left out.
 class Discrepancy final : public Term {
  public:
@@ -858,6 +877,10 @@ class Discrepancy final : public Term {
                        .description = "empirical: " + p.shape, .estimate_by_default = true, .typical = p.typical,
                        .prior_sd = p.typical});
       used_.push_back({f.shape, -1});
+      if (f.shape == discrepancy::Shape::kConductancePressure)
+        b.add_parameter({.index = p.shape_index, .name = "discrepancy_conductance-pressure_exponent", .unit = "-",
+                         .default_value = 1.0, .description = "empirical: the power of the pressure the wall heat conductance grows with",
+                         .estimate_by_default = true, .typical = 0.5, .prior_sd = 0.5});
       if (f.shape == discrepancy::Shape::kForceDrift || f.shape == discrepancy::Shape::kGasDrift) drift_ = true;
       if (IsStatic(f.shape)) static_ = true;
     }
@@ -884,6 +907,13 @@ class Discrepancy final : public Term {
     time_ = drift_ ? b.parameter_position(kSessionTimeIndex) : -1;
     static_position_ = static_ ? b.parameter_position(kStaticPositionIndex) : -1;
     pressure_ = b.has_state("pressure") ? b.state_position("pressure", name()) : -1;
+    if (b.has_term("heat-exchange")) {
+      exponent_ = b.parameter_position(92);
+      conductance_ = b.parameter_position(16);
+      per_stroke_ = b.parameter_position(6);
+      minus_ambient_ = b.parameter_position(17);
+      temperature_ = b.state_position("temperature", name());
+    }
   }
   template <class S>
   void Eval(TermContext<S>& c) const {
@@ -967,6 +997,30 @@ class Discrepancy final : public Term {
             c.gas_amount += coefficient * (u.shape == Shape::kGasStatic ? z : z * z);
           }
           break;
+        case Shape::kVolumePressure:
+          if (!balance) c.gas_volume += coefficient * v.states[pressure_] * (1.0 / d::kLoopPressure);
+          break;
+        case Shape::kConductancePressure:
+          if (balance) {
+            const S x = v.states[pressure_] * (1.0 / d::kLoopPressure);
+            const S wall_heat_flow = c.theta[conductance_] * (1.0 + c.theta[per_stroke_] * v.stroke) *
+                                     (v.states[temperature_] + c.theta[minus_ambient_]);
+            c.state_residuals[temperature_] += coefficient * wall_heat_flow * Pow(x, c.theta[exponent_]);
+          }
+          break;
+        case Shape::kFrictionLowSpeed:
+        case Shape::kFrictionLowSpeedWide:
+        case Shape::kFrictionLowSpeedNarrow:
+          if (balance) {
+            using std::exp;
+            const S amplitude = c.theta[friction_base_] + c.theta[friction_pressure_] * v.states[pressure_];
+            const double width = u.shape == Shape::kFrictionLowSpeedNarrow ? d::kLowSpeedNarrow
+                                 : u.shape == Shape::kFrictionLowSpeed     ? d::kLowSpeed
+                                                                           : d::kLowSpeedWide;
+            const S ratio = rate * (1.0 / width);
+            c.force += coefficient * amplitude * Atan(S(c.theta[sharpness_] * rate)) * S(exp(S(-ratio * ratio)));
+          }
+          break;
       }
     }
   }
@@ -985,7 +1039,8 @@ class Discrepancy final : public Term {
   std::vector<Used> used_;
   bool drift_ = false, static_ = false;
   int damping_ = -1, friction_base_ = -1, friction_pressure_ = -1, sharpness_ = -1, area_ = -1, time_ = -1,
-      static_position_ = -1, pressure_ = -1;
+      static_position_ = -1, pressure_ = -1, conductance_ = -1, per_stroke_ = -1, minus_ambient_ = -1,
+      temperature_ = -1, exponent_ = -1;
 };
 
 // ---------------------------------------------------------------------------------------------
@@ -1189,7 +1244,7 @@ const std::vector<TermEntry>& Catalogue() {
        "wall heat conductance growing as (p / p_charge)^(2/3), weight theta35", "loop-pressure",
        "a thermal loop that grows with the pressure more than one wall conductance allows: natural convection"},
       // No locus: discovery adds its functions one by one when no catalogue term explains what is left.
-      {"discrepancy", &Make<Discrepancy>, "", "empirical discrepancy: a sparse sum of library functions, theta70..theta89",
+      {"discrepancy", &Make<Discrepancy>, "", "empirical discrepancy: a sparse sum of library functions, theta70..theta95",
        "", ""},
       // Generic oscillators (docs/silverbox.md); no locus yet: discovery does not propose them.
       {"linear-oscillator", &Make<LinearOscillator>, "", "forced oscillator theta50 y'' + theta51 y' + theta52 y = u", "", ""},

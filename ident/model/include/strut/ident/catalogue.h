@@ -27,11 +27,14 @@ const std::vector<TermEntry>& Catalogue();
 //! One function of the empirical discrepancy's library (the `discrepancy` term, docs/discovery.md):
 //! its coefficient theta<index> is dimensionless, 0 absent.
 struct DiscrepancyFunction {
-  int index = 0;          //!< paper-style index of its coefficient (70..89)
+  int index = 0;          //!< paper-style index of its coefficient (70..95)
   std::string name;       //!< e.g. "damping-direction"
   std::string shape;      //!< the function, in symbols and words
   std::string resembles;  //!< the catalogue term whose signature it shares ("" none)
   double typical = 0.0;   //!< size of a meaningful coefficient (the prior's sd under --model ...+discrepancy)
+  //! theta<shape_index>: a parameter of the function's shape (an exponent), estimated where the
+  //! function is and fixed where it is not (0: none).
+  int shape_index = 0;
 };
 
 //! The discrepancy's whole library, in evaluation order (a model holds those its terms allow).

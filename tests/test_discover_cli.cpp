@@ -85,6 +85,26 @@ TEST(DiscoverCommand, LeftOutChargeLossIsNotBlamedOnTheGasLaw) {
   EXPECT_TRUE(unit["at_floor"].get<bool>());
 }
 
+// The gas solubility is 2dof's beyond 1dof+heat-exchange: it is studied as an effect from that base
+// only, and any other is refused before any unit is drawn.
+TEST(DiscoverCommand, BenchConfusionStudiesTheGasSolubilityFromTheBaseWithoutIt) {
+  const auto refused = test::RunStrut("-q bench confusion --units 1 --effects gas-solubility");
+  EXPECT_EQ(refused.exit_code, 1);
+  EXPECT_NE(refused.output.find("'gas-solubility' is studied from the base 1dof+heat-exchange"), std::string::npos)
+      << refused.output;
+  EXPECT_EQ(refused.output.find("truth holds"), std::string::npos) << refused.output;
+  test::TempDir dir;
+  // Unit 2001 draws a plain solubility (164 noise sd).
+  const auto r = test::RunStrut("-q bench confusion --units 1 --first-seed 2001 --base 1dof+heat-exchange "
+                                "--effects gas-solubility --json " + dir.file("c.json"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const nlohmann::json j = nlohmann::json::parse(test::ReadFile(dir.file("c.json")));
+  const nlohmann::json& unit = j["units"][0];
+  ASSERT_FALSE(unit["found"].empty()) << unit.dump(1);
+  EXPECT_EQ(unit["found"][0], "gas-solubility") << unit.dump(1);
+  EXPECT_GT(unit["signal"]["rms"].get<double>(), 100.0) << unit.dump(1);
+}
+
 TEST(DiscoverCommand, DecideNeedsARig) {
   test::TempDir dir;
   test::WriteTwoDofSession(dir.file("s.h5"), "abgk");

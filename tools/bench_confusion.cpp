@@ -30,9 +30,7 @@ struct BenchConfusion {
     std::stringstream in(effects);
     for (std::string item; std::getline(in, item, ',');) options.effects.push_back(item);
     options.study_sizes = sizes == "study";
-    for (const std::string& effect : options.effects)
-      if (options.study_sizes && effect != "none" && !study::FindStudyRange(effect))
-        throw std::invalid_argument(fmt::format("--effects: no study range for '{}'", effect));
+    study::CheckConfusionEffects(options);
     std::cout << study::ConfusionHeading(options);
     nlohmann::json unit_rows = nlohmann::json::array();
     const auto on_unit = [&](const study::ConfusionUnit& unit, const daq::Session& session) {
@@ -71,7 +69,8 @@ void RegisterBenchConfusion(CLI::App& bench) {
   AddDrawnUnitsOptions(*sub, command->options, "Drawn units per effect.", 10000, "Seed of the first unit.");
   AddUnitsBaseOption(*sub, command->options.base,
                      "The units' base physics and the baseline model: 1dof, 1dof+heat-exchange or 2dof.");
-  sub->add_option("--effects", command->effects, "The effects, separated by commas; 'none' stands for units with nothing missing.")
+  sub->add_option("--effects", command->effects, "The effects, separated by commas; 'none' stands for units with nothing missing; 'gas-solubility' "
+                  "(with --base 1dof+heat-exchange) for units drawn as 2dof, which holds it.")
       ->capture_default_str();
   sub->add_flag("--servo", command->options.servo, "Drive the damper through the servo actuator (default: an ideal actuator).");
   sub->add_flag("--shipped-calibration", command->options.shipped_calibration,

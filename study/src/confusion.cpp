@@ -18,6 +18,9 @@
 namespace strut::study {
 namespace {
 
+// The one effect a drawn base holds rather than adds: from 1dof+heat-exchange, the gas solubility.
+constexpr const char* kBaseHeldEffect = "gas-solubility";
+
 sim::Truth DrawConfusionUnit(const ConfusionOptions& options, const std::string& effect, const StudyRange* study,
                              unsigned long seed) {
   sim::Truth around = sim::WithIdealRig(sim::DefaultTruth());
@@ -25,7 +28,11 @@ sim::Truth DrawConfusionUnit(const ConfusionOptions& options, const std::string&
   if (options.shipped_calibration) around.sensors = sim::DefaultTruth().sensors;
   sim::UnitDraw draw;
   draw.base = options.base;
-  if (effect != "none") {
+  if (effect == kBaseHeldEffect) {
+    // 2dof is 1dof+heat-exchange with the gas solubility: the unit's base holds it, drawn as the
+    // simulated rig draws it (0-2 times the nominal), and discovery starts from the base without it.
+    draw.base = "2dof";
+  } else if (effect != "none") {
     std::optional<double> size;
     if (study && !study->via_draw) {
       // Its own stream, so the size does not move the unit's other drawn quantities.
@@ -220,11 +227,20 @@ ConfusionRow SummariseConfusion(const ConfusionOptions& options, const std::stri
   return row;
 }
 
-std::vector<ConfusionRow> RunConfusionStudy(
-    const ConfusionOptions& options, const std::function<void(const ConfusionUnit&, const daq::Session&)>& on_unit) {
-  for (const std::string& effect : options.effects)
+void CheckConfusionEffects(const ConfusionOptions& options) {
+  for (const std::string& effect : options.effects) {
     if (options.study_sizes && effect != "none" && !FindStudyRange(effect))
       throw std::invalid_argument(fmt::format("no study range for the effect '{}'", effect));
+    if (effect == kBaseHeldEffect && options.base != "1dof+heat-exchange")
+      throw std::invalid_argument(fmt::format("the effect '{}' is studied from the base 1dof+heat-exchange (the units "
+                                              "are 2dof), not from {}",
+                                              effect, options.base));
+  }
+}
+
+std::vector<ConfusionRow> RunConfusionStudy(
+    const ConfusionOptions& options, const std::function<void(const ConfusionUnit&, const daq::Session&)>& on_unit) {
+  CheckConfusionEffects(options);
   std::vector<ConfusionRow> rows;
   for (const std::string& effect : options.effects) {
     std::vector<ConfusionUnit> units;

@@ -59,6 +59,10 @@ struct ConfusionOptions {
   bool decide = false;
 };
 
+//! Throws std::invalid_argument naming the effect that the options cannot study: one without a
+//! study range under study sizes, or the gas solubility from a base other than 1dof+heat-exchange.
+void CheckConfusionEffects(const ConfusionOptions& options);
+
 //! The empirical discrepancy's functions whose shape is the signature of a catalogue term (the
 //! leave-one-out study's automatic check of the description; empty: no function of the library has
 //! that shape, e.g. the Stribeck spike at the reversals or a contact at full extension).

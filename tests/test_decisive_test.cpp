@@ -114,6 +114,30 @@ TEST(DecisiveTest, NothingSeparatesAModelFromItself) {
   EXPECT_EQ(t->separation, 0.0);
 }
 
+FitSummary FitWithBic(double bic, bool converged) {
+  FitSummary f;
+  f.experiments.resize(1);
+  f.experiments.front().converged = true;
+  f.loglik = -0.5 * bic;
+  f.bic = bic;
+  f.converged = converged;
+  return f;
+}
+
+TEST(DecisiveTest, AWinnerOnlyWhenEveryModelsFitConverged) {
+  const std::vector<std::string> models{"2dof+dead-volume", "2dof+pressure-heat-transfer"};
+  const Decision clear = DecideByBic(models, {FitWithBic(100.0, true), FitWithBic(150.0, true)});
+  EXPECT_EQ(clear.winner, 0);
+  EXPECT_DOUBLE_EQ(clear.delta_bic, 50.0);
+  EXPECT_EQ(DecideByBic(models, {FitWithBic(100.0, true), FitWithBic(105.0, true)}).winner, -1);
+  // The rival stopped short, far above: its own best may still be below the first's.
+  const Decision unfinished = DecideByBic(models, {FitWithBic(100.0, true), FitWithBic(500.0, false)});
+  EXPECT_EQ(unfinished.winner, -1);
+  EXPECT_NE(unfinished.conclusion.find("2dof+pressure-heat-transfer did not converge"), std::string::npos)
+      << unfinished.conclusion;
+  EXPECT_THROW(DecideByBic({models[0]}, {FitWithBic(100.0, true)}), std::invalid_argument);
+}
+
 TEST(DecisiveTest, RefusesASpaceWithoutNoise) {
   TestSpace s = StandardSpace();
   s.noise_sd.clear();

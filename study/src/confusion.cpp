@@ -146,6 +146,8 @@ const std::vector<StudyRange>& StudyRanges() {
       {"metering-pin", 33, 0.1, 8.0, true, false, "1/m"},
       {"friction-asymmetry", 34, 0.01, 0.4, true, false, "-"},
       {"pressure-heat-transfer", 35, 0.03, 1.0, true, false, "-"},
+      // From 1dof+heat-exchange: the 2dof draw's own 0-2 times the nominal 2e-5 1/K.
+      {"gas-solubility", 7, 0.0, 4e-5, false, true, "1/K"},
   };
   return ranges;
 }

@@ -254,16 +254,23 @@ std::optional<DecisiveTest> ProposeDecisiveTest(const FitSummary& a, const FitSu
 Decision Decide(const FitData& data, const std::vector<std::string>& models, const SessionFitOptions& options,
                 double margin, int threads) {
   if (models.size() < 2) throw std::invalid_argument("decide: at least two models to decide between");
-  Decision d;
-  d.models = models;
-  d.margin = margin;
-  d.fits.resize(models.size());
+  std::vector<FitSummary> fits(models.size());
   ParallelFor(static_cast<int>(models.size()), threads, [&](int k) {
     SessionFitOptions own = options;
     own.composition = models[k];
     own.estimator.threads = 1;
-    d.fits[k] = FitPrepared(data, Model::Build(models[k], options.causality), own).summary;
+    fits[k] = FitPrepared(data, Model::Build(models[k], options.causality), own).summary;
   });
+  return DecideByBic(models, std::move(fits), margin);
+}
+
+Decision DecideByBic(const std::vector<std::string>& models, std::vector<FitSummary> fits, double margin) {
+  if (models.size() < 2 || fits.size() != models.size())
+    throw std::invalid_argument("decide: a fit for each of at least two models");
+  Decision d;
+  d.models = models;
+  d.margin = margin;
+  d.fits = std::move(fits);
   std::vector<int> order;
   for (int k = 0; k < static_cast<int>(models.size()); ++k)
     if (d.fits[k].converged && d.fits[k].IsSolutionUsable()) order.push_back(k);
@@ -277,7 +284,15 @@ Decision Decide(const FitData& data, const std::vector<std::string>& models, con
     return d;
   }
   d.delta_bic = order.size() > 1 ? d.fits[order[1]].bic - d.fits[order[0]].bic : INFINITY;
-  if (d.delta_bic > margin) {
+  // A model whose fit stopped short has a BIC above its own optimum's: losing by it rules nothing out.
+  std::string unfinished;
+  for (int k = 0; k < static_cast<int>(models.size()); ++k)
+    if (!(d.fits[k].converged && d.fits[k].IsSolutionUsable())) unfinished += (unfinished.empty() ? "" : ", ") + models[k];
+  if (!unfinished.empty()) {
+    d.conclusion = fmt::format("With the decisive test {} did not converge, so its best BIC is unknown and nothing is "
+                               "decided; {} fits best so far ({}).",
+                               unfinished, models[order[0]], bics);
+  } else if (d.delta_bic > margin) {
     d.winner = order[0];
     d.conclusion = fmt::format("With the decisive test the data choose {}: every other model's BIC lies {:.1f} or more "
                                "above it, beyond the margin of {:g} ({}).",

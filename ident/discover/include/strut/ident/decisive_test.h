@@ -88,5 +88,8 @@ struct Decision {
 };
 Decision Decide(const FitData& data, const std::vector<std::string>& models, const SessionFitOptions& options,
                 double margin = 10.0, int threads = 1);
+//! The decision from the models' fits: a winner only when every fit converged (a fit that stopped
+//! short has a BIC above its model's best, so losing by it rules nothing out).
+Decision DecideByBic(const std::vector<std::string>& models, std::vector<FitSummary> fits, double margin = 10.0);
 
 }  // namespace strut::ident

@@ -594,10 +594,13 @@ EmpiricalDiscrepancy DescribeDiscrepancy(const FitSummary& fit) {
                                          100.0 * f.value));
   }
   if (has([](int i) { return i == 91; }) && m.p_lo > 0) {
-    // The wall's heat conductance relative to theta16's, 1 + c91 (p / 10 MPa)^theta92, at the
-    // lowest and highest pressure measured.
+    // The wall's heat conductance relative to theta16's, 1 + c91 ((p / 2 MPa)^n - 1) / n, n = theta92,
+    // at the lowest and highest pressure measured.
     const double exponent = value_of(92);
-    const auto conductance = [&](double pressure) { return 1.0 + value_of(91) * std::pow(pressure / 1e7, exponent); };
+    const auto conductance = [&](double pressure) {
+      const double ln_x = std::log(pressure / 2e6);
+      return 1.0 + value_of(91) * (std::abs(exponent) < 1e-6 ? ln_x : std::expm1(exponent * ln_x) / exponent);
+    };
     const int position = p.position_of_index(92);
     const double sd = position >= 0 && position < static_cast<int>(fit.estimates.size()) ? fit.estimates[position].sd : NAN;
     d.dependence.push_back(fmt::format("heat flowing through the wall more readily at high pressure: the wall's heat "

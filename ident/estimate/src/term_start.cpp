@@ -482,15 +482,31 @@ CandidateStart DiscrepancyStartingValue(const Model& model, int index, const Fit
     if (const auto p = baseline.parameters.find(candidate.spec(i).key())) theta[i] = baseline.parameters.value(*p);
   theta[size] = 0.0;
   std::vector<std::string> problems;
-  const Regression r = SizeStep(baseline, model, theta, size, problems).At();
+  SizeStep step(baseline, model, theta, size, problems);
+  Regression r = step.At();
+  // A function with a shape (the heat flow's exponent) is linear in its coefficient only: one step
+  // at each shape of a grid, the shape whose step leaves the least residual.
+  const auto function = std::find_if(DiscrepancyLibrary().begin(), DiscrepancyLibrary().end(),
+                                     [&](const DiscrepancyFunction& f) { return f.index == index; });
+  const int shape = function != DiscrepancyLibrary().end() && function->shape_index
+                        ? candidate.position_of_index(function->shape_index)
+                        : -1;
+  double shape_value = NAN;
+  if (shape >= 0)
+    for (const double n : {0.25, 0.4, 0.55, 0.7, 0.85, 1.0, 1.25, 1.5, 2.0}) {
+      const Regression at = step.At(shape, n);
+      if (at.ok && at.rss < (std::isfinite(shape_value) ? r.rss : INFINITY)) r = at, shape_value = n;
+    }
   if (log) {
     for (const auto& p : problems) log->push_back(fmt::format("{}: left out: {}", candidate.spec(size).name, p));
     if (r.ok)
-      log->push_back(fmt::format("{} {} = {:.4g} (one Gauss-Newton step from the baseline with it at 0, t {:+.1f})",
-                                 candidate.spec(size).key(), candidate.spec(size).name, r.coefficient, r.t));
+      log->push_back(fmt::format("{} {} = {:.4g} (one Gauss-Newton step from the baseline with it at 0, t {:+.1f}){}",
+                                 candidate.spec(size).key(), candidate.spec(size).name, r.coefficient, r.t,
+                                 std::isfinite(shape_value) ? fmt::format(" with its shape at {:g}", shape_value) : ""));
   }
   if (r.ok && std::isfinite(r.coefficient)) {
     start.values.emplace_back(candidate.spec(size).key(), r.coefficient);
+    if (std::isfinite(shape_value)) start.values.emplace_back(candidate.spec(shape).key(), shape_value);
     start.size_score = r.t;
   }
   return start;

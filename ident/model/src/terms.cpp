@@ -782,6 +782,9 @@ constexpr double kRate = 0.1;         // m/s: the rate at which the linear dampi
 constexpr double kDirection = 2e-3;   // m/s: the width of the smoothed direction sgn(q')
 constexpr double kPressure = 1e6;     // Pa: the gas force unit theta4 kPressure
 constexpr double kLoopPressure = 1e7; // Pa: the pressure unit of the pressure-damping shape
+// Pa: the pressure at which the heat-flow function's power is 1, about the geometric middle of a
+// strut's 0.5-10 MPa, so that its coefficient and its exponent are nearly independent.
+constexpr double kConductancePressure = 2e6;
 // m/s: the widths of the low-speed friction shapes, spread over the 1-10 mm/s a seal's Stribeck
 // velocity spans (damper-physics.md §2.8), about twice apart: sums of neighbours take the widths
 // between them.
@@ -851,9 +854,9 @@ const std::vector<Function>& Library() {
       {Shape::kGasStaticSquared, {89, "gas-static-position-squared", "free gas + (z / 0.1 m)^2 (free gas curving with the static position)", "", 0.01}, "gas-volume", "", true},
       {Shape::kVolumePressure, {90, "volume-pressure", "gas volume + p / 10 MPa (a gas volume growing with the pressure: oil or cylinder that give way)", "oil-compressibility", 0.01}, "gas-volume", "oil-compressibility", true},
       // The wall heat flow of heat-exchange, theta16 (1 + theta6 q)(T + theta17), times a power of
-      // the pressure, the exponent theta92 its shape: a heat-transfer correlation's form (h grows
-      // as a power of the gas density), whose exponent the data give.
-      {Shape::kConductancePressure, {91, "conductance-pressure", "wall heat flow x (p / 10 MPa)^theta92 (a wall heat conductance growing as a power of the pressure)", "pressure-heat-transfer", 5.0, 92}, "heat-exchange", "pressure-heat-transfer", true},
+      // the pressure less its value at 2 MPa, the exponent theta92 its shape: a heat-transfer
+      // correlation's form (h grows as a power of the gas density), whose exponent the data give.
+      {Shape::kConductancePressure, {91, "conductance-pressure", "wall heat flow x ((p / 2 MPa)^theta92 - 1) / theta92 (a wall heat conductance growing as a power of the pressure)", "pressure-heat-transfer", 1.0, 92}, "heat-exchange", "pressure-heat-transfer", true},
       {Shape::kFrictionLowSpeed, {93, "friction-low-speed", "(theta8 + theta9 p) atan(theta10 q') exp(-(q' / 4.5 mm/s)^2) (friction higher near the reversals than sliding)", "stribeck-friction", 0.2}, "pressure-friction", "stribeck-friction"},
       {Shape::kFrictionLowSpeedWide, {94, "friction-low-speed-wide", "(theta8 + theta9 p) atan(theta10 q') exp(-(q' / 10 mm/s)^2) (friction higher at low speed, over a wider band)", "stribeck-friction", 0.2}, "pressure-friction", "stribeck-friction"},
       {Shape::kFrictionLowSpeedNarrow, {95, "friction-low-speed-narrow", "(theta8 + theta9 p) atan(theta10 q') exp(-(q' / 2 mm/s)^2) (friction higher only just at the reversals)", "stribeck-friction", 0.2}, "pressure-friction", "stribeck-friction"},
@@ -1002,10 +1005,19 @@ class Discrepancy final : public Term {
           break;
         case Shape::kConductancePressure:
           if (balance) {
-            const S x = v.states[pressure_] * (1.0 / d::kLoopPressure);
+            const S x = v.states[pressure_] * (1.0 / d::kConductancePressure);
             const S wall_heat_flow = c.theta[conductance_] * (1.0 + c.theta[per_stroke_] * v.stroke) *
                                      (v.states[temperature_] + c.theta[minus_ambient_]);
-            c.state_residuals[temperature_] += coefficient * wall_heat_flow * Pow(x, c.theta[exponent_]);
+            // (x^n - 1) / n, the Box-Cox transform: 0 at 2 MPa whatever n, its slope in ln p there
+            // 1, so that the coefficient is the conductance's growth per e-fold of pressure and the
+            // exponent only its curvature (x^n alone trades a large coefficient for a small n
+            // along a valley the fit creeps through); ln x at n = 0.
+            using std::log;
+            const S& n = c.theta[exponent_];
+            const S ln_x = log(x);
+            const S growth = Abs(Value(n)) < 1e-6 ? S(ln_x * (1.0 + 0.5 * n * ln_x))
+                                                  : S((Pow(x, n) - 1.0) / n);
+            c.state_residuals[temperature_] += coefficient * wall_heat_flow * growth;
           }
           break;
         case Shape::kFrictionLowSpeed:

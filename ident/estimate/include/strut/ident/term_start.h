@@ -57,8 +57,9 @@ CandidateStart CandidateStartingValues(const std::string& term, const FitSummary
 //! The starting value and size score of the empirical discrepancy's coefficient theta<index>
 //! (DiscrepancyLibrary) when it is added to the fit `baseline` as the stroke-input model `model`
 //! (a composition with the discrepancy term): one Gauss-Newton step from the baseline with the
-//! coefficient at 0, as for the catalogue's sizes. Empty where `model` lacks the coefficient or the
-//! data cannot say.
+//! coefficient at 0, as for the catalogue's sizes; a function with a shape parameter also gets the
+//! shape of a grid whose step leaves the least residual. Empty where `model` lacks the coefficient or
+//! the data cannot say.
 CandidateStart DiscrepancyStartingValue(const Model& model, int index, const FitSummary& baseline,
                                         std::vector<std::string>* log = nullptr);
 

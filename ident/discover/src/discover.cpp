@@ -772,6 +772,9 @@ class DiscoveryRun {
   RivalExplanation CompareRival(const KeptWithRivals& kept, const std::string& rival, const FitSummary& rival_fit,
                                 const DiscoveryResult& result) const;
   void FindAmbiguities(DiscoveryResult& result) const;
+  bool TakeOutIfUnsupported(const std::string& name, bool empirical, const Model& model, const TermStart& start,
+                            const std::string& context, FitSummary& current, std::map<std::string, double>& ratio,
+                            DiscoveryResult& result) const;
   void RemoveUnsupportedFunctions(FitSummary& current, std::map<std::string, double>& ratio,
                                   DiscoveryResult& result) const;
   void RemoveUnsupportedTerms(FitSummary& current, std::map<std::string, double>& ratio, DiscoveryResult& result) const;
@@ -1207,10 +1210,44 @@ RivalExplanation DiscoveryRun::CompareRival(const KeptWithRivals& kept, const st
   return out;
 }
 
+// Refits `model` from `start` (the current fit less `name`) and, where the data do not support
+// `name` (its absence costs less than the BIC threshold and keeps the fit where the floor test had
+// it), takes it out: the refit becomes the current fit and a removed step says why (`context`).
+bool DiscoveryRun::TakeOutIfUnsupported(const std::string& name, bool empirical, const Model& model,
+                                        const TermStart& start, const std::string& context, FitSummary& current,
+                                        std::map<std::string, double>& ratio, DiscoveryResult& result) const {
+  FitSummary fit;
+  try {
+    fit = Estimator(model, session_options_.estimator).Fit(data_.experiments, start.start, start.choices, data_.issues);
+  } catch (const EstimationError& e) {
+    spdlog::debug("without {}: {}", name, e.what());
+  } catch (const PeriodicSolverError& e) {
+    spdlog::debug("without {}: {}", name, e.what());
+  }
+  const double delta = fit.bic - current.bic;
+  if (!fit.converged || !fit.IsSolutionUsable() || !(delta < options_.bic_threshold) ||
+      (AtNoiseFloor(current) && !AtNoiseFloor(fit)))
+    return false;
+  DiscoveryStep step;
+  step.term = name;
+  step.empirical = empirical;
+  step.removed = true;
+  step.delta_bic = delta;
+  step.noise_before = ratio;
+  step.noise_after = PooledNoiseRatio(fit);
+  step.evidence = fmt::format("taken out again: {}, the data do not support it (without it the BIC changes by {:+.1f}, "
+                              "less than {:g})",
+                              context, delta, options_.bic_threshold);
+  Say(fmt::format("removed {}: {}", name, step.evidence));
+  result.steps.push_back(std::move(step));
+  current = std::move(fit);
+  ratio = PooledNoiseRatio(current);
+  return true;
+}
+
 // Backward elimination once the empirical discrepancy is in: a catalogue term added before it may
 // have taken up part of what the discrepancy now models (a gas law bent to follow a charge that
-// leaks). Each is refitted away, last added first, from the current values and estimated set; it goes
-// when its absence costs less than the BIC threshold and keeps the fit where the floor test had it.
+// leaks). Each is refitted away, last added first, from the current values and estimated set.
 void DiscoveryRun::RemoveUnsupportedTerms(FitSummary& current, std::map<std::string, double>& ratio,
                                           DiscoveryResult& result) const {
   for (auto term = result.missing.rbegin(); term != result.missing.rend();) {
@@ -1218,42 +1255,23 @@ void DiscoveryRun::RemoveUnsupportedTerms(FitSummary& current, std::map<std::str
     for (const std::string& t : result.missing)
       if (t != *term) without += "+" + t;
     without += "+discrepancy";
-    FitSummary fit;
+    std::optional<Model> model;
     try {
-      const Model model = Model::Build(without, causality_);
-      TermStart start = StartFromFit(model, current);
-      // A function whose catalogue twin the term was joins the model with it gone; it stays at 0
-      // like every function no round chose.
-      for (const DiscrepancyFunction& f : DiscrepancyLibrary())
-        if (current.parameters.position_of_index(f.index) < 0) LeaveFunctionOut(model, f, start);
-      fit = Estimator(model, session_options_.estimator).Fit(data_.experiments, start.start, start.choices, data_.issues);
-    } catch (const EstimationError& e) {
-      spdlog::debug("without {}: {}", *term, e.what());
-    } catch (const PeriodicSolverError& e) {
-      spdlog::debug("without {}: {}", *term, e.what());
+      model = Model::Build(without, causality_);
     } catch (const ModelError& e) {  // another term needs it
       spdlog::debug("without {}: {}", *term, e.what());
-    }
-    const double delta = fit.bic - current.bic;
-    if (!fit.converged || !fit.IsSolutionUsable() || !(delta < options_.bic_threshold) ||
-        (AtNoiseFloor(current) && !AtNoiseFloor(fit))) {
       ++term;
       continue;
     }
-    DiscoveryStep step;
-    step.term = *term;
-    step.removed = true;
-    step.delta_bic = delta;
-    step.noise_before = ratio;
-    step.noise_after = PooledNoiseRatio(fit);
-    step.evidence = fmt::format("taken out again: with the empirical discrepancy in, the data do not support it "
-                                "(without it the BIC changes by {:+.1f}, less than {:g})",
-                                delta, options_.bic_threshold);
-    Say(fmt::format("removed {}: {}", *term, step.evidence));
-    result.steps.push_back(std::move(step));
-    current = std::move(fit);
-    ratio = PooledNoiseRatio(current);
-    term = decltype(term)(result.missing.erase(std::next(term).base()));
+    TermStart start = StartFromFit(*model, current);
+    // A function whose catalogue twin the term was joins the model with it gone; it stays at 0
+    // like every function no round chose.
+    for (const DiscrepancyFunction& f : DiscrepancyLibrary())
+      if (current.parameters.position_of_index(f.index) < 0) LeaveFunctionOut(*model, f, start);
+    if (TakeOutIfUnsupported(*term, false, *model, start, "with the empirical discrepancy in", current, ratio, result))
+      term = decltype(term)(result.missing.erase(std::next(term).base()));
+    else
+      ++term;
   }
   RemoveUnsupportedFunctions(current, ratio, result);
 }
@@ -1270,41 +1288,17 @@ void DiscoveryRun::RemoveUnsupportedFunctions(FitSummary& current, std::map<std:
   for (auto function = chosen.rbegin(); function != chosen.rend() && chosen.size() > 1;) {
     const auto entry = std::find_if(DiscrepancyLibrary().begin(), DiscrepancyLibrary().end(),
                                     [&](const DiscrepancyFunction& f) { return "discrepancy:" + f.name == *function; });
-    if (entry == DiscrepancyLibrary().end() || model.defaults().position_of_index(entry->index) < 0) {
-      ++function;
-      continue;
-    }
-    FitSummary fit;
-    try {
+    bool out = false;
+    if (entry != DiscrepancyLibrary().end() && model.defaults().position_of_index(entry->index) >= 0) {
       TermStart start = StartFromFit(model, current);
       LeaveFunctionOut(model, *entry, start);
-      fit = Estimator(model, session_options_.estimator).Fit(data_.experiments, start.start, start.choices, data_.issues);
-    } catch (const EstimationError& e) {
-      spdlog::debug("without {}: {}", *function, e.what());
-    } catch (const PeriodicSolverError& e) {
-      spdlog::debug("without {}: {}", *function, e.what());
+      out = TakeOutIfUnsupported(*function, true, model, start, "with the functions chosen after it", current, ratio,
+                                 result);
     }
-    const double delta = fit.bic - current.bic;
-    if (!fit.converged || !fit.IsSolutionUsable() || !(delta < options_.bic_threshold) ||
-        (AtNoiseFloor(current) && !AtNoiseFloor(fit))) {
+    if (out)
+      function = decltype(function)(chosen.erase(std::next(function).base()));
+    else
       ++function;
-      continue;
-    }
-    DiscoveryStep step;
-    step.term = *function;
-    step.empirical = true;
-    step.removed = true;
-    step.delta_bic = delta;
-    step.noise_before = ratio;
-    step.noise_after = PooledNoiseRatio(fit);
-    step.evidence = fmt::format("taken out again: with the functions chosen after it, the data do not support it "
-                                "(without it the BIC changes by {:+.1f}, less than {:g})",
-                                delta, options_.bic_threshold);
-    Say(fmt::format("removed {}: {}", *function, step.evidence));
-    result.steps.push_back(std::move(step));
-    current = std::move(fit);
-    ratio = PooledNoiseRatio(current);
-    function = decltype(function)(chosen.erase(std::next(function).base()));
   }
 }
 

@@ -1,6 +1,7 @@
 #include "strut/study/confusion.h"
 
 #include <fmt/format.h>
+#include <spdlog/spdlog.h>
 
 #include <algorithm>
 #include <chrono>
@@ -60,6 +61,7 @@ void Decide(const ident::DiscoveryResult& r, const sim::SimulatedRig& rig, const
   with_test.experiments.insert(with_test.experiments.end(), added.experiments.begin(), added.experiments.end());
   with_test.issues.insert(with_test.issues.end(), added.issues.begin(), added.issues.end());
   const ident::Decision d = ident::DecideAmbiguity(r, with_test, fit, discover);
+  spdlog::info("unit {}: {}", seed, d.conclusion);
   unit.decided = d.winner >= 0 ? d.models[d.winner] : "";
   unit.decided_right = d.winner >= 0 && d.models[d.winner] == rig.model().composition();
 }

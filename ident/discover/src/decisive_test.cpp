@@ -252,14 +252,33 @@ std::optional<DecisiveTest> ProposeDecisiveTest(const FitSummary& a, const FitSu
 }
 
 Decision Decide(const FitData& data, const std::vector<std::string>& models, const SessionFitOptions& options,
-                double margin, int threads) {
+                double margin, int threads, const std::vector<const FitSummary*>& starts) {
   if (models.size() < 2) throw std::invalid_argument("decide: at least two models to decide between");
+  if (!starts.empty() && starts.size() != models.size())
+    throw std::invalid_argument("decide: a starting fit for each model, or none");
   std::vector<FitSummary> fits(models.size());
   ParallelFor(static_cast<int>(models.size()), threads, [&](int k) {
     SessionFitOptions own = options;
     own.composition = models[k];
     own.estimator.threads = 1;
-    fits[k] = FitPrepared(data, Model::Build(models[k], options.causality), own).summary;
+    const Model model = Model::Build(models[k], options.causality);
+    // From the model's own fit of the sessions before the test, when there is one: the test's
+    // strokes may be where the data's own start has no periodic solution.
+    if (!starts.empty() && starts[k]) {
+      const TermStart start = StartFromFit(model, *starts[k]);
+      try {
+        fits[k] = Estimator(model, own.estimator).Fit(data.experiments, start.start, start.choices, data.issues);
+      } catch (const EstimationError& e) {
+        spdlog::debug("decide: {} from its fit before the test: {}", models[k], e.what());
+      } catch (const PeriodicSolverError& e) {
+        spdlog::debug("decide: {} from its fit before the test: {}", models[k], e.what());
+      }
+      if (fits[k].converged && fits[k].IsSolutionUsable()) return;
+    }
+    FitSummary prepared = FitPrepared(data, model, own).summary;
+    if (!(fits[k].converged && fits[k].IsSolutionUsable()) &&
+        (prepared.converged || !(fits[k].loglik > prepared.loglik)))
+      fits[k] = std::move(prepared);
   });
   return DecideByBic(models, std::move(fits), margin);
 }

@@ -1449,8 +1449,12 @@ Decision DecideAmbiguity(const DiscoveryResult& result, const FitData& with_test
   const Ambiguity* ambiguity = DecidableAmbiguity(result);
   if (!ambiguity) throw std::invalid_argument("decide: no two explanations fit alike, there is nothing to decide");
   std::vector<std::string> models{result.final_model};
-  for (const RivalExplanation& r : ambiguity->rivals) models.push_back(r.model);
-  return Decide(with_test, models, fit, options.ambiguity_bic_margin, options.threads);
+  std::vector<const FitSummary*> starts{&result.final_fit};
+  for (const RivalExplanation& r : ambiguity->rivals) {
+    models.push_back(r.model);
+    starts.push_back(r.fit.IsSolutionUsable() ? &r.fit : nullptr);
+  }
+  return Decide(with_test, models, fit, options.ambiguity_bic_margin, options.threads, starts);
 }
 
 DiscoveryResult Discover(const FitData& data, const SessionFitOptions& fit_options, const DiscoverOptions& options,

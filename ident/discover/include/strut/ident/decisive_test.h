@@ -86,8 +86,11 @@ struct Decision {
   double delta_bic = NAN;           //!< the runner-up's BIC minus the winner's (the best's, undecided)
   std::string conclusion;           //!< in words
 };
+//! `starts` (optional, one per model, null for none): each model's fit of the sessions before the
+//! test, from which its fit with the test starts; where that does not converge, it is fitted as
+//! identify fits it.
 Decision Decide(const FitData& data, const std::vector<std::string>& models, const SessionFitOptions& options,
-                double margin = 10.0, int threads = 1);
+                double margin = 10.0, int threads = 1, const std::vector<const FitSummary*>& starts = {});
 //! The decision from the models' fits: a winner only when every fit converged (a fit that stopped
 //! short has a BIC above its model's best, so losing by it rules nothing out).
 Decision DecideByBic(const std::vector<std::string>& models, std::vector<FitSummary> fits, double margin = 10.0);

@@ -782,9 +782,9 @@ constexpr double kRate = 0.1;         // m/s: the rate at which the linear dampi
 constexpr double kDirection = 2e-3;   // m/s: the width of the smoothed direction sgn(q')
 constexpr double kPressure = 1e6;     // Pa: the gas force unit theta4 kPressure
 constexpr double kLoopPressure = 1e7; // Pa: the pressure unit of the pressure-damping shape
-// Pa: the pressure at which the heat-flow function's power is 1, about the geometric middle of a
-// strut's 0.5-10 MPa, so that its coefficient and its exponent are nearly independent.
-constexpr double kConductancePressure = 2e6;
+// Pa: the heat-flow function's reference pressure, where it is 0 whatever its exponent: about the
+// geometric middle of a strut's 0.5-10 MPa.
+constexpr double kHeatFlowPressure = 2e6;
 // m/s: the widths of the low-speed friction shapes, spread over the 1-10 mm/s a seal's Stribeck
 // velocity spans (damper-physics.md §2.8), about twice apart: sums of neighbours take the widths
 // between them.
@@ -814,7 +814,7 @@ enum class Shape {
   kGasStatic,               // free gas + z/L
   kGasStaticSquared,        // free gas + (z/L)^2
   kVolumePressure,          // gas volume + p / p_r
-  kConductancePressure,     // wall heat flow x (p / p_r)^n, n the shape parameter
+  kConductancePressure,     // wall heat flow x ((p / p_r)^n - 1) / n, n the shape parameter
   kFrictionLowSpeed,        // F_f atan(theta10 q') exp(-(q'/v_1)^2)
   kFrictionLowSpeedWide,    // F_f atan(theta10 q') exp(-(q'/v_2)^2)
   kFrictionLowSpeedNarrow,  // F_f atan(theta10 q') exp(-(q'/v_0)^2)
@@ -910,7 +910,7 @@ class Discrepancy final : public Term {
     time_ = drift_ ? b.parameter_position(kSessionTimeIndex) : -1;
     static_position_ = static_ ? b.parameter_position(kStaticPositionIndex) : -1;
     pressure_ = b.has_state("pressure") ? b.state_position("pressure", name()) : -1;
-    if (b.has_term("heat-exchange")) {
+    if (std::any_of(used_.begin(), used_.end(), [](const Used& u) { return u.shape == discrepancy::Shape::kConductancePressure; })) {
       exponent_ = b.parameter_position(92);
       conductance_ = b.parameter_position(16);
       per_stroke_ = b.parameter_position(6);
@@ -1005,7 +1005,7 @@ class Discrepancy final : public Term {
           break;
         case Shape::kConductancePressure:
           if (balance) {
-            const S x = v.states[pressure_] * (1.0 / d::kConductancePressure);
+            const S x = v.states[pressure_] * (1.0 / d::kHeatFlowPressure);
             const S wall_heat_flow = c.theta[conductance_] * (1.0 + c.theta[per_stroke_] * v.stroke) *
                                      (v.states[temperature_] + c.theta[minus_ambient_]);
             // (x^n - 1) / n, the Box-Cox transform: 0 at 2 MPa whatever n, its slope in ln p there

@@ -32,7 +32,8 @@ std::vector<Case> AllCases() {
   const std::string library = "theta70=0.3,theta71=-0.2,theta72=0.1,theta73=0.2,theta74=0.4,theta75=-0.3,theta76=0.5,"
                               "theta77=0.1,theta78=-0.1,theta79=0.05,theta80=-0.02,theta81=0.01,theta82=0.004,"
                               "theta83=-0.002,theta84=0.01,theta85=-0.005,theta86=0.01,theta87=-0.005,theta88=0.004,"
-                              "theta89=-0.002,theta90=0.005,theta93=0.2,theta94=-0.1,theta95=0.15,theta38=0.5,theta40=0.15";
+                              "theta89=-0.002,theta90=0.005,theta93=0.2,theta94=-0.1,theta95=0.15,theta96=0.3,"
+                              "theta97=0.1315,theta98=0.2,theta38=0.5,theta40=0.15";
   // The heat-flow functions act where the model has a heat balance.
   const std::string heat_flow = ",theta91=0.8,theta92=0.7";
   for (Causality k : {Causality::kForceInput, Causality::kStrokeInput}) {

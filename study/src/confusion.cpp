@@ -124,6 +124,7 @@ const std::vector<std::string>& SignatureFunctions(const std::string& term) {
       {"friction-asymmetry", {"friction-direction"}},
       {"pressure-heat-transfer", {"conductance-pressure", "damping-pressure"}},
       {"stribeck-friction", {"friction-low-speed", "friction-low-speed-wide", "friction-low-speed-narrow"}},
+      {"end-stop", {"contact-top-out", "contact-top-out-rate"}},
       {"charge-loss", {"gas-drift", "force-drift"}},
       {"gas-solubility", {"gas-pressure"}},
       {"dead-volume", {"volume-stroke-squared", "volume-stroke-cubed", "stiffness-squared", "stiffness-cubed", "gas-pressure"}},

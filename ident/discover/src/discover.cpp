@@ -624,6 +624,22 @@ EmpiricalDiscrepancy DescribeDiscrepancy(const FitSummary& fit) {
                                        "that left at {:.1f} mm/s",
                                        100.0 * peak, half * 1e3));
   }
+  if (has([](int i) { return i == 96 || i == 98; })) {
+    // The contact's force at the least stroke the matrix reached, and where it sets in.
+    // Penetration 0.1 mm softplus((z_c - q) / 0.1 mm); force theta96 theta4 (1 MPa) per mm of it.
+    const double position = value_of(97), x = (position - m.q_lo) / 1e-4;
+    const double penetration = 1e-4 * (x > 30.0 ? x : std::log1p(std::exp(x)));
+    const double per_mm = value_of(96) * value_of(4) * 1e6;
+    // Its rate part: theta98 theta4 (1 MPa) per mm of penetration and 0.1 m/s of compression into it.
+    const double rate_per_mm = value_of(98) * value_of(4) * 1e6;
+    d.dependence.push_back(fmt::format("a contact pushing toward compression past {:.1f} mm of stroke: {:.0f} N at {:.1f} "
+                                       "mm at rest, a stiffness of {:.0f} N/mm{}",
+                                       position * 1e3, per_mm * penetration / 1e-3, m.q_lo * 1e3, per_mm,
+                                       rate_per_mm == 0.0 ? ""
+                                                          : fmt::format(", and {:+.0f} N/mm more per 0.1 m/s of "
+                                                                        "extension into it",
+                                                                        rate_per_mm)));
+  }
   // The static functions against the middle static position: the levels of the lowest and the
   // highest static-position group (the global levels theta11 and theta5 hold the middle one).
   const auto static_level = [&](int linear, int squared, double z) {
@@ -701,14 +717,40 @@ const TermEntry& CatalogueEntry(const std::string& term) {
   return *std::find_if(catalogue.begin(), catalogue.end(), [&](const TermEntry& e) { return e.name == term; });
 }
 
-// A discrepancy function out of a start: its coefficient at 0 and fixed, its shape fixed.
-void LeaveFunctionOut(const Model& model, const DiscrepancyFunction& f, TermStart& start) {
-  const int position = model.defaults().position_of_index(f.index);
-  if (position < 0) return;
-  start.start.set(model.defaults().spec(position).key(), 0.0);
-  start.choices[position] = ParameterChoice{};
-  if (const int shape = f.shape_index ? model.defaults().position_of_index(f.shape_index) : -1; shape >= 0)
-    start.choices[shape] = ParameterChoice{};
+// The discrepancy of a start holds the functions `in` (coefficient indices) and no other: each
+// other function's coefficient at 0 and fixed; a shape estimated where a function in holds it (a
+// contact's position serves its force and its rate part), fixed where none does. The coefficients
+// of the functions in keep their choices.
+void KeepOnlyFunctions(const Model& model, const std::vector<int>& in, TermStart& start) {
+  const auto held = [&](int index) { return std::find(in.begin(), in.end(), index) != in.end(); };
+  for (const DiscrepancyFunction& f : DiscrepancyLibrary()) {
+    const int position = model.defaults().position_of_index(f.index);
+    if (position < 0 || held(f.index)) continue;
+    start.start.set(model.defaults().spec(position).key(), 0.0);
+    start.choices[position] = ParameterChoice{};
+  }
+  for (const DiscrepancyFunction& f : DiscrepancyLibrary()) {
+    const int shape = f.shape_index ? model.defaults().position_of_index(f.shape_index) : -1;
+    if (shape < 0) continue;
+    const bool used = std::any_of(DiscrepancyLibrary().begin(), DiscrepancyLibrary().end(), [&](const DiscrepancyFunction& g) {
+      return g.shape_index == f.shape_index && held(g.index) && model.defaults().position_of_index(g.index) >= 0;
+    });
+    // Its shape is the data's to say: estimated without a prior.
+    if (!used)
+      start.choices[shape] = ParameterChoice{};
+    else if (!start.choices[shape].estimate)
+      start.choices[shape] = ParameterChoice{.estimate = true};
+  }
+}
+
+// The discrepancy functions a fit estimates (coefficient indices).
+std::vector<int> EstimatedFunctions(const FitSummary& fit) {
+  std::vector<int> out;
+  for (const DiscrepancyFunction& f : DiscrepancyLibrary())
+    if (const int p = fit.parameters.position_of_index(f.index);
+        p >= 0 && p < static_cast<int>(fit.estimates.size()) && fit.estimates[p].estimated)
+      out.push_back(f.index);
+  return out;
 }
 
 constexpr const char* kNotBetterHeldOut = "does not predict left-out experiments better";
@@ -910,19 +952,11 @@ Round DiscoveryRun::EmpiricalCandidates(const FitSummary& current) const {
     // one, which the current fit (once it holds the discrepancy) has fixed at 0.
     std::vector<std::string> log;
     TermStart t = StartWithTerm(model, "discrepancy", current);
-    for (const DiscrepancyFunction& f : DiscrepancyLibrary()) {
-      const int position = model.defaults().position_of_index(f.index);
-      if (position < 0) continue;
-      const auto p = current.parameters.find(model.defaults().spec(position).key());
-      if (f.index == round.function[c]) {
-        t.choices[position] = defaults[position];
-        // Its shape is the data's to say: estimated without a prior.
-        if (const int shape = f.shape_index ? model.defaults().position_of_index(f.shape_index) : -1; shape >= 0)
-          t.choices[shape] = ParameterChoice{.estimate = true};
-      } else if (!(p && current.estimates[*p].estimated)) {
-        LeaveFunctionOut(model, f, t);
-      }
-    }
+    std::vector<int> in = EstimatedFunctions(current);
+    in.push_back(round.function[c]);
+    const int position = model.defaults().position_of_index(round.function[c]);
+    t.choices[position] = defaults[position];
+    KeepOnlyFunctions(model, in, t);
     const CandidateStart start = DiscrepancyStartingValue(model, round.function[c], current, &log);
     for (const std::string& line : log) spdlog::debug("candidate {}: {}", round.candidates[c].first, line);
     for (const auto& [key, value] : start.values) t.start.set(key, value);
@@ -1266,8 +1300,7 @@ void DiscoveryRun::RemoveUnsupportedTerms(FitSummary& current, std::map<std::str
     TermStart start = StartFromFit(*model, current);
     // A function whose catalogue twin the term was joins the model with it gone; it stays at 0
     // like every function no round chose.
-    for (const DiscrepancyFunction& f : DiscrepancyLibrary())
-      if (current.parameters.position_of_index(f.index) < 0) LeaveFunctionOut(*model, f, start);
+    KeepOnlyFunctions(*model, EstimatedFunctions(current), start);
     if (TakeOutIfUnsupported(*term, false, *model, start, "with the empirical discrepancy in", current, ratio, result))
       term = decltype(term)(result.missing.erase(std::next(term).base()));
     else
@@ -1291,7 +1324,9 @@ void DiscoveryRun::RemoveUnsupportedFunctions(FitSummary& current, std::map<std:
     bool out = false;
     if (entry != DiscrepancyLibrary().end() && model.defaults().position_of_index(entry->index) >= 0) {
       TermStart start = StartFromFit(model, current);
-      LeaveFunctionOut(model, *entry, start);
+      std::vector<int> in = EstimatedFunctions(current);
+      std::erase(in, entry->index);
+      KeepOnlyFunctions(model, in, start);
       out = TakeOutIfUnsupported(*function, true, model, start, "with the functions chosen after it", current, ratio,
                                  result);
     }

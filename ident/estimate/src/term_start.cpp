@@ -484,8 +484,9 @@ CandidateStart DiscrepancyStartingValue(const Model& model, int index, const Fit
   std::vector<std::string> problems;
   SizeStep step(baseline, model, theta, size, problems);
   Regression r = step.At();
-  // A function with a shape (the heat flow's exponent) is linear in its coefficient only: one step
-  // at each shape of a grid, the shape whose step leaves the least residual.
+  // A function with a shape (the heat flow's exponent, a contact's position) is linear in its
+  // coefficient only: one step at each shape of its grid, the shape whose step leaves the least
+  // residual.
   const auto function = std::find_if(DiscrepancyLibrary().begin(), DiscrepancyLibrary().end(),
                                      [&](const DiscrepancyFunction& f) { return f.index == index; });
   const int shape = function != DiscrepancyLibrary().end() && function->shape_index
@@ -493,9 +494,9 @@ CandidateStart DiscrepancyStartingValue(const Model& model, int index, const Fit
                         : -1;
   double shape_value = NAN;
   if (shape >= 0)
-    for (const double n : {0.25, 0.4, 0.55, 0.7, 0.85, 1.0, 1.25, 1.5, 2.0}) {
-      const Regression at = step.At(shape, n);
-      if (at.ok && at.rss < (std::isfinite(shape_value) ? r.rss : INFINITY)) r = at, shape_value = n;
+    for (const double value : function->shape_grid) {
+      const Regression at = step.At(shape, value);
+      if (at.ok && at.rss < (std::isfinite(shape_value) ? r.rss : INFINITY)) r = at, shape_value = value;
     }
   if (log) {
     for (const auto& p : problems) log->push_back(fmt::format("{}: left out: {}", candidate.spec(size).name, p));

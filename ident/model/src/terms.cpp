@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <numbers>
+#include <utility>
 
 namespace strut::ident {
 namespace {
@@ -791,6 +792,17 @@ constexpr double kHeatFlowPressure = 2e6;
 constexpr double kLowSpeedNarrow = 2e-3;
 constexpr double kLowSpeed = 4.5e-3;
 constexpr double kLowSpeedWide = 1e-2;
+constexpr double kContactLength = 1e-3;    // m: the contact force's unit of penetration
+constexpr double kContactSmoothing = 1e-4; // m: the length over which the contact sets in
+
+// The shapes a start tries: powers of the pressure; contact positions from 2 mm beyond full
+// extension to 12 mm inside it, 0.5 mm apart.
+std::vector<double> ExponentGrid() { return {0.25, 0.4, 0.55, 0.7, 0.85, 1.0, 1.25, 1.5, 2.0}; }
+std::vector<double> ContactGrid() {
+  std::vector<double> grid;
+  for (int k = -4; k <= 24; ++k) grid.push_back(0.5e-3 * k);
+  return grid;
+}
 
 enum class Shape {
   kDampingDirection,        // theta3 q'^2: even in the rate
@@ -818,6 +830,8 @@ enum class Shape {
   kFrictionLowSpeed,        // F_f atan(theta10 q') exp(-(q'/v_1)^2)
   kFrictionLowSpeedWide,    // F_f atan(theta10 q') exp(-(q'/v_2)^2)
   kFrictionLowSpeedNarrow,  // F_f atan(theta10 q') exp(-(q'/v_0)^2)
+  kContactTopOut,           // -theta4 p_u d / 1 mm, d = w softplus((z_c - q) / w), z_c the shape parameter
+  kContactTopOutRate,       // -theta4 p_u (d / 1 mm)(-q' / 0.1 m/s): the contact's dissipation
 };
 
 struct Function {
@@ -856,23 +870,28 @@ const std::vector<Function>& Library() {
       // The wall heat flow of heat-exchange, theta16 (1 + theta6 q)(T + theta17), times a power of
       // the pressure less its value at 2 MPa, the exponent theta92 its shape: a heat-transfer
       // correlation's form (h grows as a power of the gas density), whose exponent the data give.
-      {Shape::kConductancePressure, {91, "conductance-pressure", "wall heat flow x ((p / 2 MPa)^theta92 - 1) / theta92 (a wall heat conductance growing as a power of the pressure)", "pressure-heat-transfer", 1.0, 92}, "heat-exchange", "pressure-heat-transfer", true},
+      {Shape::kConductancePressure, {91, "conductance-pressure", "wall heat flow x ((p / 2 MPa)^theta92 - 1) / theta92 (a wall heat conductance growing as a power of the pressure)", "pressure-heat-transfer", 1.0, 92, ExponentGrid()}, "heat-exchange", "pressure-heat-transfer", true},
       {Shape::kFrictionLowSpeed, {93, "friction-low-speed", "(theta8 + theta9 p) atan(theta10 q') exp(-(q' / 4.5 mm/s)^2) (friction higher near the reversals than sliding)", "stribeck-friction", 0.2}, "pressure-friction", "stribeck-friction"},
       {Shape::kFrictionLowSpeedWide, {94, "friction-low-speed-wide", "(theta8 + theta9 p) atan(theta10 q') exp(-(q' / 10 mm/s)^2) (friction higher at low speed, over a wider band)", "stribeck-friction", 0.2}, "pressure-friction", "stribeck-friction"},
       {Shape::kFrictionLowSpeedNarrow, {95, "friction-low-speed-narrow", "(theta8 + theta9 p) atan(theta10 q') exp(-(q' / 2 mm/s)^2) (friction higher only just at the reversals)", "stribeck-friction", 0.2}, "pressure-friction", "stribeck-friction"},
+      // A contact near full extension whose position theta97 the data give: a force toward
+      // compression growing with the penetration past it.
+      {Shape::kContactTopOut, {96, "contact-top-out", "-theta4 (1 MPa) d / 1 mm, d = 0.1 mm softplus((theta97 - q) / 0.1 mm) (a contact pushing toward compression past a stroke position)", "end-stop", 1.0, 97, ContactGrid()}, "gas-force", "end-stop"},
+      {Shape::kContactTopOutRate, {98, "contact-top-out-rate", "-theta4 (1 MPa) (d / 1 mm) (-q' / 0.1 m/s), d as above (the contact's force growing with the rate of compression into it)", "end-stop", 1.0, 97, ContactGrid()}, "gas-force", "end-stop"},
   };
   return functions;
 }
 
 }  // namespace discrepancy
 
-//! theta70..theta95: the empirical discrepancy, the library above. Functions whose level the model
+//! theta70..theta98: the empirical discrepancy, the library above. Functions whose level the model
 //! lacks, or whose catalogue twin it has, are left out.
 class Discrepancy final : public Term {
  public:
   unsigned phases() const override { return kBalancePhase | kGasStatePhase; }
   std::string_view name() const override { return "discrepancy"; }
   void Declare(ModelBuilder& b) override {
+    bool contact = false;
     for (const discrepancy::Function& f : discrepancy::Library()) {
       if (!b.has_term(f.needs) || (*f.twin && b.has_term(f.twin))) continue;
       const DiscrepancyFunction& p = f.public_part;
@@ -884,6 +903,12 @@ class Discrepancy final : public Term {
         b.add_parameter({.index = p.shape_index, .name = "discrepancy_conductance-pressure_exponent", .unit = "-",
                          .default_value = 1.0, .description = "empirical: the power of the pressure the wall heat conductance grows with",
                          .estimate_by_default = true, .typical = 0.5, .prior_sd = 0.5});
+      // The contact's force and its rate part share the position.
+      if ((f.shape == discrepancy::Shape::kContactTopOut || f.shape == discrepancy::Shape::kContactTopOutRate) &&
+          !std::exchange(contact, true))
+        b.add_parameter({.index = p.shape_index, .name = "discrepancy_contact-top-out_position", .unit = "m",
+                         .default_value = 0.0, .description = "empirical: the stroke below which the contact pushes",
+                         .estimate_by_default = true, .typical = 5e-3, .prior_sd = 5e-3});
       if (f.shape == discrepancy::Shape::kForceDrift || f.shape == discrepancy::Shape::kGasDrift) drift_ = true;
       if (IsStatic(f.shape)) static_ = true;
     }
@@ -917,6 +942,10 @@ class Discrepancy final : public Term {
       minus_ambient_ = b.parameter_position(17);
       temperature_ = b.state_position("temperature", name());
     }
+    if (std::any_of(used_.begin(), used_.end(), [](const Used& u) {
+          return u.shape == discrepancy::Shape::kContactTopOut || u.shape == discrepancy::Shape::kContactTopOutRate;
+        }))
+      contact_position_ = b.parameter_position(97);
   }
   template <class S>
   void Eval(TermContext<S>& c) const {
@@ -1033,6 +1062,15 @@ class Discrepancy final : public Term {
             c.force += coefficient * amplitude * Atan(S(c.theta[sharpness_] * rate)) * S(exp(S(-ratio * ratio)));
           }
           break;
+        case Shape::kContactTopOut:
+        case Shape::kContactTopOutRate:
+          if (balance) {
+            const S penetration =
+                d::kContactSmoothing * Softplus(S((c.theta[contact_position_] - v.stroke) * (1.0 / d::kContactSmoothing)));
+            const S force = coefficient * c.theta[area_] * d::kPressure * penetration * (1.0 / d::kContactLength);
+            c.force -= u.shape == Shape::kContactTopOut ? force : S(force * (-rate * (1.0 / d::kRate)));
+          }
+          break;
       }
     }
   }
@@ -1052,7 +1090,7 @@ class Discrepancy final : public Term {
   bool drift_ = false, static_ = false;
   int damping_ = -1, friction_base_ = -1, friction_pressure_ = -1, sharpness_ = -1, area_ = -1, time_ = -1,
       static_position_ = -1, pressure_ = -1, conductance_ = -1, per_stroke_ = -1, minus_ambient_ = -1,
-      temperature_ = -1, exponent_ = -1;
+      temperature_ = -1, exponent_ = -1, contact_position_ = -1;
 };
 
 // ---------------------------------------------------------------------------------------------
@@ -1256,7 +1294,7 @@ const std::vector<TermEntry>& Catalogue() {
        "wall heat conductance growing as (p / p_charge)^(2/3), weight theta35", "loop-pressure",
        "a thermal loop that grows with the pressure more than one wall conductance allows: natural convection"},
       // No locus: discovery adds its functions one by one when no catalogue term explains what is left.
-      {"discrepancy", &Make<Discrepancy>, "", "empirical discrepancy: a sparse sum of library functions, theta70..theta95",
+      {"discrepancy", &Make<Discrepancy>, "", "empirical discrepancy: a sparse sum of library functions, theta70..theta98",
        "", ""},
       // Generic oscillators (docs/silverbox.md); no locus yet: discovery does not propose them.
       {"linear-oscillator", &Make<LinearOscillator>, "", "forced oscillator theta50 y'' + theta51 y' + theta52 y = u", "", ""},

@@ -32,9 +32,11 @@ struct DiscrepancyFunction {
   std::string shape;      //!< the function, in symbols and words
   std::string resembles;  //!< the catalogue term whose signature it shares ("" none)
   double typical = 0.0;   //!< size of a meaningful coefficient (the prior's sd under --model ...+discrepancy)
-  //! theta<shape_index>: a parameter of the function's shape (an exponent), estimated where the
-  //! function is and fixed where it is not (0: none).
+  //! theta<shape_index>: a parameter of the function's shape (an exponent, a contact position),
+  //! estimated where the function is and fixed where it is not (0: none).
   int shape_index = 0;
+  //! The shape values a start tries: the one whose Gauss-Newton step leaves the least residual.
+  std::vector<double> shape_grid;
 };
 
 //! The discrepancy's whole library, in evaluation order (a model holds those its terms allow).

@@ -16,14 +16,23 @@ namespace {
 
 constexpr int kGrid = 400;
 
-// The first "NUMBER times" after `phrase` in the sentences, NaN when none says it.
-double TimesAfter(const std::vector<std::string>& sentences, const std::string& phrase) {
-  const std::regex pattern(phrase + R"( ([0-9.]+) times)");
+// The first capture of `pattern` in the sentences, as a number; NaN when none matches.
+double FirstMatch(const std::vector<std::string>& sentences, const std::regex& pattern) {
   for (const std::string& s : sentences) {
     std::smatch m;
     if (std::regex_search(s, m, pattern)) return std::stod(m[1].str());
   }
   return NAN;
+}
+
+// The first "NUMBER times" after `phrase` in the sentences, NaN when none says it.
+double TimesAfter(const std::vector<std::string>& sentences, const std::string& phrase) {
+  return FirstMatch(sentences, std::regex(phrase + R"( ([0-9.]+) times)"));
+}
+
+// The first number after `phrase` in the sentences, NaN when none says it.
+double NumberAfter(const std::vector<std::string>& sentences, const std::string& phrase) {
+  return FirstMatch(sentences, std::regex(phrase + R"( ([-+]?[0-9.]+))"));
 }
 
 std::string Lines(const std::vector<std::string>& lines) {
@@ -141,27 +150,28 @@ TEST(Discrepancy, ChargeLostLeftOutIsNeverBlamedOnTheGasLaw) {
     if (s.removed) EXPECT_LT(s.delta_bic, 10.0) << s.term << " was taken out though its absence costs " << s.delta_bic;
 }
 
-// The first number after `phrase` in the sentences, NaN when none says it.
-double NumberAfter(const std::vector<std::string>& sentences, const std::string& phrase) {
-  const std::regex pattern(phrase + R"( ([-+]?[0-9.]+))");
-  for (const std::string& s : sentences) {
-    std::smatch m;
-    if (std::regex_search(s, m, pattern)) return std::stod(m[1].str());
-  }
-  return NAN;
+// The verdict every left-out run must reach: no catalogue term named, the discrepancy in, the fit at
+// the noise floor. Null when the discrepancy is missing.
+const EmpiricalDiscrepancy* ModelledEmpirically(const DiscoveryResult& r) {
+  std::string steps;
+  for (const DiscoveryStep& s : r.steps) steps += (s.removed ? " -" : " +") + s.term;
+  EXPECT_TRUE(r.missing.empty()) << "a wrong catalogue term was named:" << steps << "\n" << r.conclusion;
+  EXPECT_EQ(r.final_fit.Verdict(), FitVerdict::kAtNoiseFloor) << steps << "\n" << r.conclusion;
+  EXPECT_TRUE(r.discrepancy.has_value()) << r.conclusion;
+  return r.discrepancy ? &*r.discrepancy : nullptr;
+}
+
+bool Resembles(const EmpiricalDiscrepancy& d, const std::string& term) {
+  return std::find(d.resembles.begin(), d.resembles.end(), term) != d.resembles.end();
 }
 
 TEST(Discrepancy, PressureDependentHeatTransferLeftOutIsAConductanceGrowingWithThePressure) {
   // The wall heat conductance grows as (p / p_charge)^(2/3): no force or gas function has that shape;
   // the heat-flow function, a power of the pressure whose exponent the data give, does.
   const LeftOut run = DiscoverWithout("pressure-heat-transfer", "theta35=0.6", 24);
-  const DiscoveryResult& r = run.result;
-  std::string steps;
-  for (const DiscoveryStep& s : r.steps) steps += (s.removed ? " -" : " +") + s.term;
-  EXPECT_TRUE(r.missing.empty()) << "a wrong catalogue term was named:" << steps << "\n" << r.conclusion;
-  ASSERT_TRUE(r.discrepancy.has_value()) << r.conclusion;
-  const EmpiricalDiscrepancy& d = *r.discrepancy;
-  EXPECT_EQ(r.final_fit.Verdict(), FitVerdict::kAtNoiseFloor) << steps << "\n" << r.conclusion;
+  const EmpiricalDiscrepancy* found = ModelledEmpirically(run.result);
+  ASSERT_NE(found, nullptr);
+  const EmpiricalDiscrepancy& d = *found;
   std::smatch m;
   std::string sentence;
   for (const std::string& line : d.dependence)
@@ -174,7 +184,7 @@ TEST(Discrepancy, PressureDependentHeatTransferLeftOutIsAConductanceGrowingWithT
   const auto truth = [&](double p) { return 1.0 + 0.6 * (std::pow(p / charge, 2.0 / 3.0) - 1.0); };
   const double hi = std::stod(m[2].str()) * 1e6, lo = std::stod(m[3].str()) * 1e6;
   EXPECT_NEAR(std::stod(m[1].str()), truth(hi) / truth(lo), 0.1 * truth(hi) / truth(lo)) << sentence;
-  EXPECT_NE(std::find(d.resembles.begin(), d.resembles.end(), "pressure-heat-transfer"), d.resembles.end());
+  EXPECT_TRUE(Resembles(d, "pressure-heat-transfer"));
 }
 
 TEST(Discrepancy, StribeckFrictionLeftOutIsFrictionHigherNearTheReversals) {
@@ -182,14 +192,13 @@ TEST(Discrepancy, StribeckFrictionLeftOutIsFrictionHigherNearTheReversals) {
   // three widths (2, 4.5 and 10 mm/s) is the truth's.
   const LeftOut run = DiscoverWithout("stribeck-friction", "theta19=0.3,theta20=0.006", 25);
   const DiscoveryResult& r = run.result;
-  EXPECT_TRUE(r.missing.empty()) << "a wrong catalogue term was named: " << r.conclusion;
-  ASSERT_TRUE(r.discrepancy.has_value()) << r.conclusion;
-  const EmpiricalDiscrepancy& d = *r.discrepancy;
-  EXPECT_EQ(r.final_fit.Verdict(), FitVerdict::kAtNoiseFloor) << r.conclusion;
+  const EmpiricalDiscrepancy* found = ModelledEmpirically(r);
+  ASSERT_NE(found, nullptr);
+  const EmpiricalDiscrepancy& d = *found;
   EXPECT_NEAR(NumberAfter(d.dependence, "friction"), 30.0, 10.0) << Lines(d.dependence);
   // Half of the excess is left at 6 mm/s (ln 2)^(1/2) = 5.0 mm/s.
   EXPECT_NEAR(NumberAfter(d.dependence, "half of that left at"), 5.0, 1.5) << Lines(d.dependence);
-  EXPECT_NE(std::find(d.resembles.begin(), d.resembles.end(), "stribeck-friction"), d.resembles.end());
+  EXPECT_TRUE(Resembles(d, "stribeck-friction"));
   // The friction's sharpness shapes its rise at the reversals, which the low-speed functions share.
   ExpectPhysicalParametersCover(r.final_fit, run.truth, {"theta10"});
 }
@@ -198,13 +207,25 @@ TEST(Discrepancy, OilCompressibilityLeftOutIsAGasVolumeGrowingWithThePressure) {
   // Oil and cylinder that give way, 1 / 1.2 GPa over an oil volume equal to the gas volume: the gas
   // gains 0.83 % of its charge volume per 10 MPa.
   const LeftOut run = DiscoverWithout("oil-compressibility", "theta26=8.33e-10", 26);
-  const DiscoveryResult& r = run.result;
-  EXPECT_TRUE(r.missing.empty()) << "a wrong catalogue term was named: " << r.conclusion;
-  ASSERT_TRUE(r.discrepancy.has_value()) << r.conclusion;
-  const EmpiricalDiscrepancy& d = *r.discrepancy;
-  EXPECT_EQ(r.final_fit.Verdict(), FitVerdict::kAtNoiseFloor) << r.conclusion;
+  const EmpiricalDiscrepancy* found = ModelledEmpirically(run.result);
+  ASSERT_NE(found, nullptr);
+  const EmpiricalDiscrepancy& d = *found;
   EXPECT_NEAR(NumberAfter(d.dependence, "a gas volume growing with the pressure,"), 0.833, 0.12) << Lines(d.dependence);
-  EXPECT_NE(std::find(d.resembles.begin(), d.resembles.end(), "oil-compressibility"), d.resembles.end());
+  EXPECT_TRUE(Resembles(d, "oil-compressibility"));
+}
+
+TEST(Discrepancy, EndStopLeftOutIsAContactNearFullExtension) {
+  // A snubber 6 mm inside full extension, 5e6 N/m, which the matrix's shallowest experiments press.
+  const LeftOut run = DiscoverWithout("end-stop", "theta23=0.006,theta21=5e6", 27);
+  const EmpiricalDiscrepancy* found = ModelledEmpirically(run.result);
+  ASSERT_NE(found, nullptr);
+  const EmpiricalDiscrepancy& d = *found;
+  EXPECT_TRUE(Has(d, "contact-top-out")) << Lines(d.dependence);
+  // Where it sets in (the smoothing puts the force's onset a little beyond the truth's position) and
+  // how stiff it is.
+  EXPECT_NEAR(NumberAfter(d.dependence, "a contact pushing toward compression past"), 6.0, 1.0) << Lines(d.dependence);
+  EXPECT_NEAR(NumberAfter(d.dependence, "a stiffness of"), 5000.0, 1500.0) << Lines(d.dependence);
+  EXPECT_TRUE(Resembles(d, "end-stop"));
 }
 
 TEST(Discrepancy, AFreeGasLevelPerStaticPositionGroupIsModelledAndSaidSo) {

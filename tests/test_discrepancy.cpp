@@ -16,13 +16,22 @@ namespace {
 
 constexpr int kGrid = 400;
 
-// The first capture of `pattern` in the sentences, as a number; NaN when none matches.
-double FirstMatch(const std::vector<std::string>& sentences, const std::regex& pattern) {
+// The numbers `pattern` captures in the first sentence it matches; empty when none does.
+std::vector<double> Said(const std::vector<std::string>& sentences, const std::regex& pattern) {
   for (const std::string& s : sentences) {
     std::smatch m;
-    if (std::regex_search(s, m, pattern)) return std::stod(m[1].str());
+    if (!std::regex_search(s, m, pattern)) continue;
+    std::vector<double> numbers;
+    for (std::size_t i = 1; i < m.size(); ++i) numbers.push_back(std::stod(m[i].str()));
+    return numbers;
   }
-  return NAN;
+  return {};
+}
+
+// The first capture of `pattern` in the sentences, as a number; NaN when none matches.
+double FirstMatch(const std::vector<std::string>& sentences, const std::regex& pattern) {
+  const std::vector<double> numbers = Said(sentences, pattern);
+  return numbers.empty() ? NAN : numbers.front();
 }
 
 // The first "NUMBER times" after `phrase` in the sentences, NaN when none says it.
@@ -115,15 +124,11 @@ TEST(Discrepancy, MeteringPinLeftOutIsDescribedAsDampingGrowingWithTheStroke) {
   const EmpiricalDiscrepancy& d = *r.discrepancy;
   EXPECT_EQ(r.final_fit.Verdict(), FitVerdict::kAtNoiseFloor) << r.conclusion;
   // The truth's growth over the stroke the matrix covers, read from the sentence's own range.
-  std::smatch m;
-  std::string sentence;
-  for (const std::string& s : d.dependence)
-    if (s.find("damping grows") != std::string::npos) sentence = s;
-  ASSERT_TRUE(std::regex_search(sentence, m, std::regex(R"(grows ([0-9.]+) times from ([0-9]+) mm to ([0-9]+) mm)")))
-      << Lines(d.dependence);
-  const double lo = std::stod(m[2].str()) * 1e-3, hi = std::stod(m[3].str()) * 1e-3;
+  const std::vector<double> said = Said(d.dependence, std::regex(R"(damping grows ([0-9.]+) times from ([0-9]+) mm to ([0-9]+) mm)"));
+  ASSERT_EQ(said.size(), 3u) << Lines(d.dependence);
+  const double lo = said[1] * 1e-3, hi = said[2] * 1e-3;
   const double truth_growth = (1.0 + gradient * hi) / (1.0 + gradient * lo);
-  EXPECT_NEAR(std::stod(m[1].str()), truth_growth, 0.1 * truth_growth) << sentence;
+  EXPECT_NEAR(said[0], truth_growth, 0.1 * truth_growth) << Lines(d.dependence);
   EXPECT_NE(std::find(d.resembles.begin(), d.resembles.end(), "metering-pin"), d.resembles.end());
   ExpectPhysicalParametersCover(r.final_fit, run.truth, {});
 }
@@ -140,12 +145,10 @@ TEST(Discrepancy, ChargeLostLeftOutIsNeverBlamedOnTheGasLaw) {
   ASSERT_TRUE(r.discrepancy.has_value()) << r.conclusion;
   EXPECT_TRUE(Has(*r.discrepancy, "gas-drift")) << steps;
   EXPECT_EQ(r.final_fit.Verdict(), FitVerdict::kAtNoiseFloor) << r.conclusion;
-  std::smatch m;
-  std::string sentence;
-  for (const std::string& s : r.discrepancy->dependence)
-    if (s.find("free gas changing by") != std::string::npos && s.find("first experiment") != std::string::npos) sentence = s;
-  ASSERT_TRUE(std::regex_search(sentence, m, std::regex(R"(changing by ([-+0-9.]+) %)"))) << Lines(r.discrepancy->dependence);
-  EXPECT_NEAR(std::stod(m[1].str()), -1.2, 0.2) << sentence;
+  const std::vector<double> said =
+      Said(r.discrepancy->dependence, std::regex(R"(free gas changing by ([-+0-9.]+) %.*first experiment)"));
+  ASSERT_EQ(said.size(), 1u) << Lines(r.discrepancy->dependence);
+  EXPECT_NEAR(said[0], -1.2, 0.2) << Lines(r.discrepancy->dependence);
   for (const DiscoveryStep& s : r.steps)
     if (s.removed) EXPECT_LT(s.delta_bic, 10.0) << s.term << " was taken out though its absence costs " << s.delta_bic;
 }
@@ -172,18 +175,15 @@ TEST(Discrepancy, PressureDependentHeatTransferLeftOutIsAConductanceGrowingWithT
   const EmpiricalDiscrepancy* found = ModelledEmpirically(run.result);
   ASSERT_NE(found, nullptr);
   const EmpiricalDiscrepancy& d = *found;
-  std::smatch m;
-  std::string sentence;
-  for (const std::string& line : d.dependence)
-    if (line.find("heat conductance") != std::string::npos) sentence = line;
-  ASSERT_TRUE(std::regex_search(sentence, m, std::regex(R"(([0-9.]+) times as high at ([0-9.]+) MPa as at ([0-9.]+) MPa)")))
-      << Lines(d.dependence);
+  const std::vector<double> said =
+      Said(d.dependence, std::regex(R"(heat conductance ([0-9.]+) times as high at ([0-9.]+) MPa as at ([0-9.]+) MPa)"));
+  ASSERT_EQ(said.size(), 3u) << Lines(d.dependence);
   // The truth's conductance 1 + 0.6 ((p / p_charge)^(2/3) - 1) at the two pressures the sentence names.
   const ParameterSet& t = run.truth;
   const double charge = -t.get("theta5") * t.get("theta17");
   const auto truth = [&](double p) { return 1.0 + 0.6 * (std::pow(p / charge, 2.0 / 3.0) - 1.0); };
-  const double hi = std::stod(m[2].str()) * 1e6, lo = std::stod(m[3].str()) * 1e6;
-  EXPECT_NEAR(std::stod(m[1].str()), truth(hi) / truth(lo), 0.1 * truth(hi) / truth(lo)) << sentence;
+  const double hi = said[1] * 1e6, lo = said[2] * 1e6;
+  EXPECT_NEAR(said[0], truth(hi) / truth(lo), 0.1 * truth(hi) / truth(lo)) << Lines(d.dependence);
   EXPECT_TRUE(Resembles(d, "pressure-heat-transfer"));
 }
 
@@ -248,18 +248,12 @@ TEST(Discrepancy, AFreeGasLevelPerStaticPositionGroupIsModelledAndSaidSo) {
     if (s.removed && s.empirical) EXPECT_LT(s.delta_bic, 10.0) << s.term;
   const std::regex said(R"(free gas changing with the experiment's static position: ([-+0-9.]+) % of the charge at )"
                         R"(([0-9]+) mm and ([-+0-9.]+) % of the charge at ([0-9]+) mm)");
-  std::smatch m;
-  bool found = false;
-  for (const std::string& line : r.discrepancy->dependence)
-    if (std::regex_search(line, m, said)) {
-      found = true;
-      // The truth's levels against the middle group: 0.3 % per 100 mm.
-      const double lo = std::stod(m[2].str()) * 1e-3, hi = std::stod(m[4].str()) * 1e-3;
-      EXPECT_LT(std::stod(m[1].str()), 0.0) << line;
-      EXPECT_NEAR(std::stod(m[3].str()) - std::stod(m[1].str()), 0.3 * (hi - lo) / 0.1, 0.1 * 0.3 * (hi - lo) / 0.1)
-          << line;
-    }
-  EXPECT_TRUE(found) << Lines(r.discrepancy->dependence);
+  const std::vector<double> levels = Said(r.discrepancy->dependence, said);
+  ASSERT_EQ(levels.size(), 4u) << Lines(r.discrepancy->dependence);
+  // The truth's levels against the middle group: 0.3 % per 100 mm.
+  const double lo = levels[1] * 1e-3, hi = levels[3] * 1e-3;
+  EXPECT_LT(levels[0], 0.0) << Lines(r.discrepancy->dependence);
+  EXPECT_NEAR(levels[2] - levels[0], 0.3 * (hi - lo) / 0.1, 0.1 * 0.3 * (hi - lo) / 0.1) << Lines(r.discrepancy->dependence);
 }
 
 TEST(Discrepancy, IdentifyWithTheWholeLibraryFitsItDirectly) {

@@ -610,31 +610,35 @@ EmpiricalDiscrepancy DescribeDiscrepancy(const FitSummary& fit) {
                                        exponent, sd));
   }
   if (has([](int i) { return i == 93 || i == 94 || i == 95; })) {
-    // The friction's excess over sliding where atan(theta10 q') has saturated: c93 e^-(v/4.5 mm/s)^2
-    // + c94 e^-(v/10 mm/s)^2 + c95 e^-(v/2 mm/s)^2 of the sliding level; the speed at which half of
-    // it is left.
+    // The low-speed functions' force over the sliding friction (theta8 + theta9 p) atan(theta10 q')
+    // at the same rate: their excess, whatever their widths; the speed at which half of it is left.
+    const auto low_speed = [](int i) { return i == 93 || i == 94 || i == 95; };
+    const double sliding = value_of(8) + value_of(9) * m.PressureAt(m.q_mid);
     const auto excess = [&](double speed) {
-      return value_of(93) * std::exp(-std::pow(speed / 4.5e-3, 2)) + value_of(94) * std::exp(-std::pow(speed / 1e-2, 2)) +
-             value_of(95) * std::exp(-std::pow(speed / 2e-3, 2));
+      return family_force(low_speed, m.q_mid, speed) / (sliding * std::atan(value_of(10) * speed));
     };
-    const double peak = excess(0.0);
-    double half = 0.0;
+    const double peak = excess(1e-5);
+    double half = 1e-5;
     while (half < 0.05 && std::abs(excess(half)) > 0.5 * std::abs(peak)) half += 1e-4;
     d.dependence.push_back(fmt::format("friction {:+.0f} % of the sliding friction near the velocity reversals, half of "
                                        "that left at {:.1f} mm/s",
                                        100.0 * peak, half * 1e3));
   }
   if (has([](int i) { return i == 96 || i == 98; })) {
-    // The contact's force at the least stroke the matrix reached, and where it sets in.
-    // Penetration 0.1 mm softplus((z_c - q) / 0.1 mm); force theta96 theta4 (1 MPa) per mm of it.
-    const double position = value_of(97), x = (position - m.q_lo) / 1e-4;
-    const double penetration = 1e-4 * (x > 30.0 ? x : std::log1p(std::exp(x)));
-    const double per_mm = value_of(96) * value_of(4) * 1e6;
-    // Its rate part: theta98 theta4 (1 MPa) per mm of penetration and 0.1 m/s of compression into it.
-    const double rate_per_mm = value_of(98) * value_of(4) * 1e6;
+    // The contact as the model gives it, pushing toward compression: its force at rest at the least
+    // stroke the matrix reached; its stiffness, and that of its rate part at 0.1 m/s of extension
+    // into it, over the millimetre from 1 to 2 mm past where it sets in.
+    const double position = value_of(97);
+    const auto contact = [&](int index, double q, double rate) {
+      return -family_force([index](int i) { return i == index; }, q, rate);
+    };
+    const auto per_mm = [&](int index, double rate) {  // two points a millimetre apart
+      return contact(index, position - 2e-3, rate) - contact(index, position - 1e-3, rate);
+    };
+    const double rate_per_mm = per_mm(98, -0.1);
     d.dependence.push_back(fmt::format("a contact pushing toward compression past {:.1f} mm of stroke: {:.0f} N at {:.1f} "
                                        "mm at rest, a stiffness of {:.0f} N/mm{}",
-                                       position * 1e3, per_mm * penetration / 1e-3, m.q_lo * 1e3, per_mm,
+                                       position * 1e3, contact(96, m.q_lo, 0.0), m.q_lo * 1e3, per_mm(96, 0.0),
                                        rate_per_mm == 0.0 ? ""
                                                           : fmt::format(", and {:+.0f} N/mm more per 0.1 m/s of "
                                                                         "extension into it",

@@ -214,6 +214,32 @@ TEST(Discrepancy, OilCompressibilityLeftOutIsAGasVolumeGrowingWithThePressure) {
   EXPECT_TRUE(Resembles(d, "oil-compressibility"));
 }
 
+TEST(Discrepancy, RealGasLeftOutIsAPressureFollowingTheTemperatureMoreNotALostCharge) {
+  // Virial nitrogen: at a given density its pressure rises with the temperature more than the ideal
+  // gas's, by the second virial coefficient's a rho / T^2 per kelvin. Over the standard matrix that
+  // departure follows the recording order closely enough that a charge lost over the session passes
+  // every rule; the library's function of the pressure and the temperature explains it better, and no
+  // catalogue term is named.
+  const LeftOut run = DiscoverWithout("real-gas", "theta31=1", 28);
+  const DiscoveryResult& r = run.result;
+  const EmpiricalDiscrepancy* found = ModelledEmpirically(r);
+  ASSERT_NE(found, nullptr);
+  const EmpiricalDiscrepancy& d = *found;
+  EXPECT_TRUE(Resembles(d, "real-gas")) << Lines(d.dependence);
+  const std::vector<double> said = Said(
+      d.dependence, std::regex(R"(following its temperature more .*: ([0-9.]+) % more per 10 K of heating at ([0-9.]+) MPa)"));
+  ASSERT_EQ(said.size(), 2u) << Lines(d.dependence);
+  // The truth at the pressure the sentence names: 10 K times a rho / T^2, rho = p / (R T), at 293 K
+  // (0.52 % at 6.9 MPa). The fit says less (0.21 % on this unit): the heat balance's own parameters,
+  // estimated beside it, set how far the gas temperature swings, and a gas volume shrinking with the
+  // pressure takes the rest of the stiffening. The order of size and the sign are the data's.
+  const ParameterSet& t = run.truth;
+  const double temperature = 293.15, density = said[1] * 1e6 / (8.314462618 * temperature);
+  const double truth = 100.0 * 10.0 * t.get("theta29") * density / (temperature * temperature);
+  EXPECT_GT(said[0], truth / 3.0) << Lines(d.dependence);
+  EXPECT_LT(said[0], truth * 3.0) << Lines(d.dependence);
+}
+
 TEST(Discrepancy, EndStopLeftOutIsAContactNearFullExtension) {
   // A snubber 6 mm inside full extension, 5e6 N/m, which the matrix's shallowest experiments press.
   const LeftOut run = DiscoverWithout("end-stop", "theta23=0.006,theta21=5e6", 27);

@@ -36,10 +36,11 @@ std::vector<Case> AllCases() {
                               "theta97=0.1315,theta98=0.2,theta38=0.5,theta40=0.15";
   // The heat-flow functions act where the model has a heat balance.
   const std::string heat_flow = ",theta91=0.8,theta92=0.7";
+  const std::string gas_temperature = ",theta99=0.2";
   for (Causality k : {Causality::kForceInput, Causality::kStrokeInput}) {
-    cases.push_back({"2dof+discrepancy", k, library + heat_flow});
+    cases.push_back({"2dof+discrepancy", k, library + heat_flow + gas_temperature});
     // Beside its catalogue twin the heat-flow function (and its exponent) is left out.
-    cases.push_back({"2dof+pressure-heat-transfer+discrepancy", k, library});
+    cases.push_back({"2dof+pressure-heat-transfer+discrepancy", k, library + gas_temperature});
     cases.push_back({"1dof+discrepancy", k, library});
   }
   return cases;

@@ -66,6 +66,20 @@ void Decide(const ident::DiscoveryResult& r, const sim::SimulatedRig& rig, const
   unit.decided_right = d.winner >= 0 && d.models[d.winner] == rig.model().composition();
 }
 
+// The function the discrepancy took first of those still in it at the end, and its coefficient's
+// sign ("<0" or ">0").
+std::pair<std::string, std::string> FirstFunction(const ident::DiscoveryResult& r) {
+  if (!r.discrepancy) return {};
+  constexpr std::string_view kPrefix = "discrepancy:";
+  for (const ident::DiscoveryStep& step : r.steps) {
+    if (!step.empirical || step.removed || !step.term.starts_with(kPrefix)) continue;
+    const std::string name = step.term.substr(kPrefix.size());
+    for (const ident::DiscrepancyTerm& f : r.discrepancy->functions)
+      if (f.name == name) return {name, f.value < 0.0 ? "<0" : ">0"};
+  }
+  return {};
+}
+
 ConfusionUnit DiscoverUnit(const ConfusionOptions& options, const ident::SessionFitOptions& fit,
                            const ident::Model& model, const std::string& effect, const StudyRange* study,
                            unsigned long seed, daq::Session& session) {
@@ -94,8 +108,9 @@ ConfusionUnit DiscoverUnit(const ConfusionOptions& options, const ident::Session
     unit.dependence = r.discrepancy->dependence;
   }
   const std::vector<std::string>& signature = SignatureFunctions(effect);
-  unit.described = !unit.empirical.empty() &&
-                   std::find(signature.begin(), signature.end(), unit.empirical.front()) != signature.end();
+  const auto [first, sign] = FirstFunction(r);
+  unit.described = !first.empty() && (std::find(signature.begin(), signature.end(), first) != signature.end() ||
+                                      std::find(signature.begin(), signature.end(), first + sign) != signature.end());
   unit.right_first = effect != "none" && !r.missing.empty() && r.missing.front() == effect;
   unit.truth_named = unit.right_first;
   for (const ident::Ambiguity& a : r.ambiguities)
@@ -129,7 +144,8 @@ const std::vector<std::string>& SignatureFunctions(const std::string& term) {
       {"gas-solubility", {"gas-pressure"}},
       {"dead-volume", {"volume-stroke-squared", "volume-stroke-cubed", "stiffness-squared", "stiffness-cubed", "gas-pressure"}},
       {"oil-compressibility", {"volume-pressure", "volume-stroke-squared", "volume-stroke-cubed", "stiffness-squared", "stiffness-cubed", "gas-pressure"}},
-      {"real-gas", {"volume-stroke-squared", "volume-stroke-cubed", "stiffness-squared", "stiffness-cubed", "gas-pressure"}},
+      {"real-gas", {"gas-pressure-temperature", "volume-pressure<0", "volume-stroke-squared", "volume-stroke-cubed",
+                    "stiffness-squared", "stiffness-cubed", "gas-pressure"}},
   };
   static const std::vector<std::string> none;
   const auto it = table.find(term);

@@ -490,9 +490,12 @@ EmpiricalDiscrepancy DescribeDiscrepancy(const FitSummary& fit) {
     const int position = p.position_of_index(f.index);
     if (position < 0 || position >= static_cast<int>(fit.estimates.size()) || !fit.estimates[position].estimated) continue;
     selected.push_back(position);
-    d.functions.push_back({f.index, f.name, f.shape, f.resembles, p.value(position), fit.estimates[position].sd});
-    if (!f.resembles.empty() && std::find(d.resembles.begin(), d.resembles.end(), f.resembles) == d.resembles.end())
-      d.resembles.push_back(f.resembles);
+    // A gas volume that shrinks as the pressure rises is a gas stiffening beyond the gas law, as a
+    // real gas does; one that grows is a compliance, as the oil's.
+    const std::string resembles = f.index == 90 && p.value(position) < 0.0 ? "real-gas" : f.resembles;
+    d.functions.push_back({f.index, f.name, f.shape, resembles, p.value(position), fit.estimates[position].sd});
+    if (!resembles.empty() && std::find(d.resembles.begin(), d.resembles.end(), resembles) == d.resembles.end())
+      d.resembles.push_back(resembles);
   }
   if (d.functions.empty()) return d;
   const MatrixReach m = Reach(fit);
@@ -590,8 +593,19 @@ EmpiricalDiscrepancy DescribeDiscrepancy(const FitSummary& fit) {
       d.dependence.push_back(fmt::format("free gas changing by {:+.2f} % of the charge from the first experiment to the last",
                                          100.0 * f.value));
     else if (f.index == 90)
-      d.dependence.push_back(fmt::format("a gas volume growing with the pressure, {:+.2f} % of the charge volume per 10 MPa",
-                                         100.0 * f.value));
+      d.dependence.push_back(
+          f.value >= 0.0
+              ? fmt::format("a gas volume growing with the pressure, {:.2f} % of the charge volume per 10 MPa", 100.0 * f.value)
+              : fmt::format("a gas volume shrinking as the pressure rises, {:.2f} % of the charge volume per 10 MPa: the "
+                            "gas stiffer at high pressure than the gas law holds",
+                            -100.0 * f.value));
+    else if (f.index == 99)
+      // The free gas, and so the pressure, per 10 K of heating at the highest pressure measured.
+      d.dependence.push_back(fmt::format("the gas pressure following its temperature {} than the gas law holds, the more "
+                                         "so the higher the pressure: {:.2f} % {} per 10 K of heating at {:.1f} MPa",
+                                         f.value >= 0.0 ? "more" : "less",
+                                         std::abs(100.0 * f.value * (m.p_hi / 1e7) * (10.0 / 293.15)),
+                                         f.value >= 0.0 ? "more" : "less", m.p_hi * 1e-6));
   }
   if (has([](int i) { return i == 91; }) && m.p_lo > 0) {
     // The wall's heat conductance relative to theta16's, 1 + c91 ((p / 2 MPa)^n - 1) / n, n = theta92,
@@ -603,10 +617,11 @@ EmpiricalDiscrepancy DescribeDiscrepancy(const FitSummary& fit) {
     };
     const int position = p.position_of_index(92);
     const double sd = position >= 0 && position < static_cast<int>(fit.estimates.size()) ? fit.estimates[position].sd : NAN;
-    d.dependence.push_back(fmt::format("heat flowing through the wall more readily at high pressure: the wall's heat "
-                                       "conductance {} as high at {:.1f} MPa as at {:.1f} MPa, its growth as the "
+    const double growth = conductance(m.p_hi) / conductance(m.p_lo);
+    d.dependence.push_back(fmt::format("heat flowing through the wall {} readily at high pressure: the wall's heat "
+                                       "conductance {} as high at {:.1f} MPa as at {:.1f} MPa, its change as the "
                                        "pressure to the power {:.2f} (sd {:.2f})",
-                                       Times(conductance(m.p_hi) / conductance(m.p_lo)), m.p_hi * 1e-6, m.p_lo * 1e-6,
+                                       growth >= 1.0 ? "more" : "less", Times(growth), m.p_hi * 1e-6, m.p_lo * 1e-6,
                                        exponent, sd));
   }
   if (has([](int i) { return i == 93 || i == 94 || i == 95; })) {
@@ -801,15 +816,18 @@ class DiscoveryRun {
     if (progress_) progress_(text);
   }
   FitSummary FitCandidate(const std::string& term, const Model& model, TermStart start, const FitSummary& previous,
-                          bool empirical) const;
-  FitSummary RefitFromTheCurrentFit(const std::string& term, const Model& model, TermStart nested,
+                          int function) const;
+  FitSummary RefitFromTheCurrentFit(const std::string& term, int function, const Model& model, TermStart nested,
                                     const FitSummary& previous, FitSummary stalled) const;
   std::optional<std::string> Screened(const TermStart& start, const FitSummary& current) const;
   Round Candidates(const FitSummary& current) const;
-  Round EmpiricalCandidates(const FitSummary& current) const;
+  Round EmpiricalCandidates(const FitSummary& current, std::string_view spare = {}) const;
   void Refit(Round& round, const FitSummary& current, int number);
   int Select(Round& round, const FitSummary& current, const Model& model, const std::map<std::string, double>& ratio,
-             int number);
+             int number, double bic_below = INFINITY, std::string_view below_what = {});
+  std::optional<std::pair<Round, int>> Challenge(const Round& round, int best, const FitSummary& current,
+                                                 const Model& model, const std::map<std::string, double>& ratio,
+                                                 int number);
   DiscoveryStep Step(const Round& round, int best, const FitSummary& current, const std::vector<Finding>& findings,
                      const std::map<std::string, double>& ratio) const;
   void Conclude(DiscoveryResult& result, bool exhausted, const std::map<std::string, double>& ratio) const;
@@ -853,16 +871,18 @@ std::optional<std::string> DiscoveryRun::Screened(const TermStart& start, const 
 
 // A candidate: the current fit's values and estimated set, plus the new term's own parameters (sizes
 // and shapes estimated, from where the located mismatch puts them: StartWithTerm).
+// `function`: the discrepancy coefficient's index of an empirical candidate, 0 for a catalogue term.
 FitSummary DiscoveryRun::FitCandidate(const std::string& term, const Model& model, TermStart term_start,
-                                      const FitSummary& previous, bool empirical) const {
+                                      const FitSummary& previous, int function) const {
+  const bool empirical = function > 0;
   const EstimatorOptions& estimator = session_options_.estimator;
   const std::string& composition = model.composition();
   const ParameterSet& start = term_start.start;
   const std::vector<ParameterChoice>& choices = term_start.choices;
   const Estimator fitter(model, estimator);
   FitSummary fit = fitter.Fit(data_.experiments, start, choices, data_.issues);
-  if (!fit.converged && fit.IsSolutionUsable() && fit.bic > previous.bic && !empirical)
-    return RefitFromTheCurrentFit(term, model, term_start, previous, std::move(fit));
+  if (!fit.converged && fit.IsSolutionUsable() && fit.bic > previous.bic)
+    return RefitFromTheCurrentFit(term, function, model, term_start, previous, std::move(fit));
   // Only a stalled candidate that already explains something (its BIC below the current one by the
   // threshold) is worth the second try: the others would be refused anyway.
   if (fit.converged || !fit.IsSolutionUsable() || !(fit.bic - previous.bic < -options_.bic_threshold)) return fit;
@@ -891,11 +911,13 @@ FitSummary DiscoveryRun::FitCandidate(const std::string& term, const Model& mode
 // put the size where the model's response is far from linear (a real gas on a gas law that the
 // heat balance has just bent), and the line search found no way back. With its sizes at 0 the
 // candidate is the current model exactly, so a fit from there cannot end worse; it is kept when it
-// converges.
-FitSummary DiscoveryRun::RefitFromTheCurrentFit(const std::string& term, const Model& model, TermStart nested,
-                                                const FitSummary& previous, FitSummary stalled) const {
+// converges. An empirical candidate (`function` its coefficient's index) starts with that coefficient
+// at 0: a gas function started by its Gauss-Newton step can stall the same way.
+FitSummary DiscoveryRun::RefitFromTheCurrentFit(const std::string& term, int function, const Model& model,
+                                                TermStart nested, const FitSummary& previous, FitSummary stalled) const {
   for (int i = 0; i < nested.start.size(); ++i)
-    if (nested.start.spec(i).sizes_term && !previous.parameters.find(nested.start.spec(i).key()))
+    if ((nested.start.spec(i).sizes_term && !previous.parameters.find(nested.start.spec(i).key())) ||
+        (function > 0 && nested.start.spec(i).index == function))
       nested.start.values()[i] = 0.0;
   const Stopwatch watch;
   FitSummary again = Estimator(model, session_options_.estimator)
@@ -931,15 +953,16 @@ Round DiscoveryRun::Candidates(const FitSummary& current) const {
 }
 
 // The discrepancy's functions not yet in the current fit, each started by its Gauss-Newton step;
-// all but the `discrepancy_refits` largest size scores are screened out before any refit.
-Round DiscoveryRun::EmpiricalCandidates(const FitSummary& current) const {
+// all but the `discrepancy_refits` largest size scores are screened out before any refit. Functions
+// that share the signature of the catalogue term `spare` are not candidates.
+Round DiscoveryRun::EmpiricalCandidates(const FitSummary& current, std::string_view spare) const {
   const bool has = Model::Build(current.model, causality_).has_term("discrepancy");
   const std::string composition = has ? current.model : current.model + "+discrepancy";
   const Model model = Model::Build(composition, causality_);
   Round round;
   for (const DiscrepancyFunction& f : DiscrepancyLibrary()) {
     const int position = model.defaults().position_of_index(f.index);
-    if (position < 0) continue;
+    if (position < 0 || (!spare.empty() && f.resembles == spare)) continue;
     if (const auto p = current.parameters.find(model.defaults().spec(position).key()); p && current.estimates[*p].estimated)
       continue;
     round.candidates.emplace_back("discrepancy:" + f.name, composition);
@@ -1006,11 +1029,12 @@ void DiscoveryRun::Refit(Round& round, const FitSummary& current, int number) {
     CandidateFit& r = round.results[c];
     if (r.screened) return;  // before the refits (EmpiricalCandidates)
     r.term = candidates[c].first;
-    const bool empirical = round.function[c] > 0;
     try {
       const Model model = Model::Build(candidates[c].second, causality_);
       std::vector<std::string> log;
       TermStart start = round.starts[c] ? *round.starts[c] : StartWithTerm(model, r.term, current, &log);
+      // A catalogue term beside the discrepancy: its functions stay as the current fit chose them.
+      if (!round.starts[c] && model.has_term("discrepancy")) KeepOnlyFunctions(model, EstimatedFunctions(current), start);
       for (const std::string& line : log) spdlog::debug("candidate {}: {}", r.term, line);
       r.size_score = start.size_score;
       if (const std::optional<std::string> why = Screened(start, current)) {
@@ -1020,7 +1044,7 @@ void DiscoveryRun::Refit(Round& round, const FitSummary& current, int number) {
         seconds[c] = watch.Seconds();
         return;
       }
-      round.fits[c] = FitCandidate(r.term, model, std::move(start), current, empirical);
+      round.fits[c] = FitCandidate(r.term, model, std::move(start), current, round.function[c]);
       r.ok = round.fits[c].IsSolutionUsable() && round.fits[c].converged;
       if (!r.ok) r.error = round.fits[c].VerdictText();
       r.delta_bic = round.fits[c].bic - current.bic;
@@ -1045,9 +1069,11 @@ void DiscoveryRun::Refit(Round& round, const FitSummary& current, int number) {
 }
 
 // Candidates by BIC; the best that also brings the off channels down and predicts experiments left
-// out of its fit better than the current model is kept. Returns its index, or -1.
+// out of its fit better than the current model is kept. Returns its index, or -1. A candidate whose
+// BIC change is not below `bic_below` (what `below_what` reaches) is not a choice.
 int DiscoveryRun::Select(Round& round, const FitSummary& current, const Model& model,
-                         const std::map<std::string, double>& ratio, int number) {
+                         const std::map<std::string, double>& ratio, int number, double bic_below,
+                         std::string_view below_what) {
   std::vector<CandidateFit>& results = round.results;
   std::vector<std::size_t> order;
   for (std::size_t c = 0; c < results.size(); ++c) {
@@ -1058,6 +1084,8 @@ int DiscoveryRun::Select(Round& round, const FitSummary& current, const Model& m
       r.verdict = "no converged fit";
     } else if (r.delta_bic > -options_.bic_threshold) {
       r.verdict = fmt::format("BIC does not fall by {}", options_.bic_threshold);
+    } else if (!(r.delta_bic < bic_below)) {
+      r.verdict = fmt::format("BIC not {} below {}'s", options_.bic_threshold, below_what);
     } else if (MeanRatio(r.noise_ratio) - 1.0 > options_.min_improvement * (MeanRatio(ratio) - 1.0) ||
                !FallsBeyondNoise(current, round.fits[c])) {
       r.verdict = "noise ratio barely falls";
@@ -1087,6 +1115,26 @@ int DiscoveryRun::Select(Round& round, const FitSummary& current, const Model& m
     results[c].verdict = kNotBetterHeldOut;
   }
   return -1;
+}
+
+// The library against the term a catalogue round keeps (DiscoverOptions::challenge_terms): the
+// functions that do not share its signature, refitted on the current fit. The empirical round and
+// the function kept in the term's place, or nullopt when none explains the data better than the term
+// by bic_threshold and predicts left-out experiments better than the current model.
+std::optional<std::pair<Round, int>> DiscoveryRun::Challenge(const Round& round, int best, const FitSummary& current,
+                                                             const Model& model,
+                                                             const std::map<std::string, double>& ratio, int number) {
+  const CandidateFit& kept = round.results[best];
+  Round challengers = EmpiricalCandidates(current, kept.term);
+  Say(fmt::format("round {}: the library against {}, {} functions of another signature refitted", number, kept.term,
+                  std::min<std::size_t>(challengers.candidates.size(), options_.discrepancy_refits)));
+  Refit(challengers, current, number);
+  const int e = Select(challengers, current, model, ratio, number, kept.delta_bic - options_.bic_threshold, kept.term);
+  for (const CandidateFit& c : challengers.results)
+    spdlog::info("  {:<20} ΔBIC {:>12.1f}  worst noise ratio {:8.2f}  {}", c.term, c.delta_bic, WorstRatio(c.noise_ratio),
+                 c.ok ? c.verdict : c.error);
+  if (e < 0) return std::nullopt;
+  return std::make_pair(std::move(challengers), e);
 }
 
 DiscoveryStep DiscoveryRun::Step(const Round& round, int best, const FitSummary& current,
@@ -1140,10 +1188,24 @@ bool DiscoveryRun::Advance(int number, bool empirical, FitSummary& current, std:
       for (const Finding& f : findings)
         if (f.locus == entry.locus) c.evidence = std::max(c.evidence, f.score);
     }
-  const int best = Select(round, current, model, ratio, number);
+  int best = Select(round, current, model, ratio, number);
   for (const CandidateFit& c : round.results)
     spdlog::info("  {:<20} ΔBIC {:>12.1f}  worst noise ratio {:8.2f}  evidence {:6.1f}  {}", c.term, c.delta_bic,
                  WorstRatio(c.noise_ratio), c.evidence, c.ok ? c.verdict : c.error);
+  // A term the library explains better is not named: the function takes its place, empirical.
+  std::vector<CandidateFit> outdone;
+  if (!empirical && best >= 0 && options_.discrepancy && options_.challenge_terms)
+    if (auto challenge = Challenge(round, best, current, model, ratio, number)) {
+      CandidateFit& term = round.results[best];
+      const CandidateFit& function = challenge->first.results[challenge->second];
+      term.verdict = fmt::format("not named: the empirical {} explains the data better (ΔBIC {:+.1f} against {:+.1f})",
+                                 function.term, function.delta_bic, term.delta_bic);
+      Say(fmt::format("{} is {}", term.term, term.verdict));
+      outdone = round.results;
+      round = std::move(challenge->first);
+      best = challenge->second;
+      empirical = true;
+    }
   if (best < 0) {
     Say(empirical ? "no further function of the discrepancy improves the fit beyond what it costs and predicts "
                     "left-out experiments better"
@@ -1153,6 +1215,7 @@ bool DiscoveryRun::Advance(int number, bool empirical, FitSummary& current, std:
   }
   round.results[best].verdict = "kept";
   DiscoveryStep step = Step(round, best, current, findings, ratio);
+  step.candidates.insert(step.candidates.begin(), outdone.begin(), outdone.end());
   Say(fmt::format("added {}: ΔBIC {:+.1f}; {}", step.term, step.delta_bic, step.evidence));
   if (!empirical) {
     result.missing.push_back(step.term);
@@ -1456,10 +1519,10 @@ DiscoveryResult DiscoveryRun::Run() {
     Say("no catalogue term explains what is left: it is modelled empirically, the discrepancy's functions one at a time");
     for (int added = 0; added < options_.max_discrepancy_functions && !AtNoiseFloor(current); ++added, ++number)
       if (!Advance(number, /*empirical=*/true, current, ratio, result)) break;
-    if (Model::Build(current.model, causality_).has_term("discrepancy")) {
-      RemoveUnsupportedTerms(current, ratio, result);
-      result.discrepancy = DescribeDiscrepancy(current);
-    }
+  }
+  if (Model::Build(current.model, causality_).has_term("discrepancy")) {
+    RemoveUnsupportedTerms(current, ratio, result);
+    result.discrepancy = DescribeDiscrepancy(current);
   }
 
   result.final_model = current.model;

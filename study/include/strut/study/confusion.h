@@ -64,8 +64,9 @@ struct ConfusionOptions {
 void CheckConfusionEffects(const ConfusionOptions& options);
 
 //! The empirical discrepancy's functions whose shape is the signature of a catalogue term (the
-//! leave-one-out study's automatic check of the description; empty: no function of the library has
-//! that shape, e.g. the Stribeck spike at the reversals or a contact at full extension).
+//! leave-one-out study's automatic check of the description: the first function discovery chose of
+//! those it kept). A name ending in "<0" or ">0" counts only with its coefficient of that sign (a gas
+//! volume shrinking as the pressure rises is a real gas's stiffening, one growing an oil's give).
 const std::vector<std::string>& SignatureFunctions(const std::string& term);
 
 //! One unit's discovery.
@@ -82,7 +83,7 @@ struct ConfusionUnit {
     std::string verdict;
   };
   std::optional<FirstRound> first_round;  //!< the effect's candidate in discovery's first round
-  std::vector<std::string> empirical;     //!< the discrepancy's functions discovery chose, in order
+  std::vector<std::string> empirical;     //!< the discrepancy's functions discovery kept, in the library's order
   std::vector<std::string> dependence;    //!< and what it said the missing force depends on
   bool at_floor = false;                  //!< the final fit at the noise floor
   //! Leave-one-out: the first chosen function is one of SignatureFunctions(effect).

@@ -50,6 +50,14 @@ struct DiscoverOptions {
   bool discrepancy = true;
   int max_discrepancy_functions = 6;
   int discrepancy_refits = 4;
+  //! A catalogue term is named only when no function of the library explains the data better: in
+  //! the round that keeps a term, the functions that do not share its signature (those whose
+  //! `resembles` is another term or none) are refitted beside it, and one whose BIC falls below the
+  //! term's by more than bic_threshold, and that predicts the left-out experiments better than the
+  //! current model, is kept instead, empirical. A term that fits only because it stands in for
+  //! physics the catalogue lacks (a charge lost over the session standing in for a real gas, whose
+  //! departure follows the recording order of the standard matrix) is then not named.
+  bool challenge_terms = true;
   //! Catalogue terms discovery does not propose (the leave-one-out study conceals them this way).
   std::vector<std::string> leave_out;
   //! Honest ambiguity (docs/discovery.md "Explanations that fit alike"): a rival of a kept term (a
@@ -117,7 +125,7 @@ struct DiscrepancyTerm {
 //! What no catalogue term explained, as an empirical sum of library functions: marked empirical,
 //! never a catalogue name. `dependence` says in words what the missing force (or gas) depends on.
 struct EmpiricalDiscrepancy {
-  std::vector<DiscrepancyTerm> functions;  //!< in the order discovery added them
+  std::vector<DiscrepancyTerm> functions;  //!< in the library's order
   std::vector<std::string> dependence;     //!< e.g. "damping in extension 2.4 times compression at 0.20 m/s"
   std::vector<std::string> resembles;      //!< catalogue terms whose signatures the functions share
   //! The missing force against the stroke rate at the middle static position, per direction, and

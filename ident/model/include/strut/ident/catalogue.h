@@ -27,7 +27,7 @@ const std::vector<TermEntry>& Catalogue();
 //! One function of the empirical discrepancy's library (the `discrepancy` term, docs/discovery.md):
 //! its coefficient theta<index> is dimensionless, 0 absent.
 struct DiscrepancyFunction {
-  int index = 0;          //!< paper-style index of its coefficient (70..98)
+  int index = 0;          //!< paper-style index of its coefficient (70..99)
   std::string name;       //!< e.g. "damping-direction"
   std::string shape;      //!< the function, in symbols and words
   std::string resembles;  //!< the catalogue term whose signature it shares ("" none)

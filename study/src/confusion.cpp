@@ -137,14 +137,14 @@ const std::vector<std::string>& SignatureFunctions(const std::string& term) {
       {"metering-pin", {"damping-stroke", "damping-stroke-squared", "damping-stroke-direction"}},
       {"viscous-damping", {"viscous"}},
       {"friction-asymmetry", {"friction-direction"}},
-      {"pressure-heat-transfer", {"conductance-pressure", "damping-pressure"}},
+      {"pressure-heat-transfer", {"conductance-pressure>0", "damping-pressure"}},
       {"stribeck-friction", {"friction-low-speed", "friction-low-speed-wide", "friction-low-speed-narrow"}},
       {"end-stop", {"contact-top-out", "contact-top-out-rate"}},
       {"charge-loss", {"gas-drift", "force-drift"}},
       {"gas-solubility", {"gas-pressure"}},
       {"dead-volume", {"volume-stroke-squared", "volume-stroke-cubed", "stiffness-squared", "stiffness-cubed", "gas-pressure"}},
       {"oil-compressibility", {"volume-pressure", "volume-stroke-squared", "volume-stroke-cubed", "stiffness-squared", "stiffness-cubed", "gas-pressure"}},
-      {"real-gas", {"gas-pressure-temperature", "volume-pressure<0", "volume-stroke-squared", "volume-stroke-cubed",
+      {"real-gas", {"gas-pressure-temperature", "volume-pressure<0", "conductance-pressure<0", "volume-stroke-squared", "volume-stroke-cubed",
                     "stiffness-squared", "stiffness-cubed", "gas-pressure"}},
   };
   static const std::vector<std::string> none;

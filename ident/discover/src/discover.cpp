@@ -4,6 +4,7 @@
 #include <chrono>
 #include <climits>
 #include <cmath>
+#include <deque>
 #include <fmt/format.h>
 #include <numeric>
 #include <numbers>
@@ -491,8 +492,11 @@ EmpiricalDiscrepancy DescribeDiscrepancy(const FitSummary& fit) {
     if (position < 0 || position >= static_cast<int>(fit.estimates.size()) || !fit.estimates[position].estimated) continue;
     selected.push_back(position);
     // A gas volume that shrinks as the pressure rises is a gas stiffening beyond the gas law, as a
-    // real gas does; one that grows is a compliance, as the oil's.
-    const std::string resembles = f.index == 90 && p.value(position) < 0.0 ? "real-gas" : f.resembles;
+    // real gas does; one that grows is a compliance, as the oil's. A wall conductance that falls as
+    // the pressure rises is no heat transfer's (it grows with the gas density): on the thermal loop it
+    // acts as a gas whose pressure follows its temperature more at high pressure, a real gas.
+    const bool falling = p.value(position) < 0.0 && (f.index == 90 || f.index == 91);
+    const std::string resembles = falling ? "real-gas" : f.resembles;
     d.functions.push_back({f.index, f.name, f.shape, resembles, p.value(position), fit.estimates[position].sd});
     if (!resembles.empty() && std::find(d.resembles.begin(), d.resembles.end(), resembles) == d.resembles.end())
       d.resembles.push_back(resembles);
@@ -620,9 +624,14 @@ EmpiricalDiscrepancy DescribeDiscrepancy(const FitSummary& fit) {
     const double growth = conductance(m.p_hi) / conductance(m.p_lo);
     d.dependence.push_back(fmt::format("heat flowing through the wall {} readily at high pressure: the wall's heat "
                                        "conductance {} as high at {:.1f} MPa as at {:.1f} MPa, its change as the "
-                                       "pressure to the power {:.2f} (sd {:.2f})",
+                                       "pressure to the power {:.2f} (sd {:.2f}){}",
                                        growth >= 1.0 ? "more" : "less", Times(growth), m.p_hi * 1e-6, m.p_lo * 1e-6,
-                                       exponent, sd));
+                                       exponent, sd,
+                                       growth >= 1.0 ? ""
+                                                     : "; heat transfer grows with the gas density, so this rather "
+                                                       "says that the thermal loop grows with the pressure, as a gas "
+                                                       "whose pressure follows its temperature more at high pressure "
+                                                       "(a real gas) makes it"));
   }
   if (has([](int i) { return i == 93 || i == 94 || i == 95; })) {
     // The low-speed functions' force over the sliding friction (theta8 + theta9 p) atan(theta10 q')
@@ -784,6 +793,9 @@ struct Round {
   std::vector<CandidateFit> results;
   std::vector<FitSummary> fits;
   std::vector<HeldOut> held_out;  // per candidate, its held-out ratios where it was cross-validated
+  std::vector<bool> refitted;     // per candidate, whether Refit has fitted it
+  // Empirical rounds: the candidates screened out by their size score's rank, largest score first.
+  std::deque<std::size_t> waiting;
 };
 
 // A kept catalogue term's rivals: the round's other candidates that passed the BIC and noise-ratio
@@ -947,6 +959,7 @@ Round DiscoveryRun::Candidates(const FitSummary& current) const {
   round.results.resize(round.candidates.size());
   round.fits.resize(round.candidates.size());
   round.held_out.resize(round.candidates.size());
+  round.refitted.assign(round.candidates.size(), false);
   round.function.assign(round.candidates.size(), 0);
   round.starts.resize(round.candidates.size());
   return round;
@@ -972,6 +985,7 @@ Round DiscoveryRun::EmpiricalCandidates(const FitSummary& current, std::string_v
   round.results.resize(n);
   round.fits.resize(n);
   round.held_out.resize(n);
+  round.refitted.assign(n, false);
   round.starts.resize(n);
   const std::vector<ParameterChoice> defaults = DefaultChoices(model);
   ParallelFor(static_cast<int>(n), options_.threads, [&](int c) {
@@ -998,6 +1012,7 @@ Round DiscoveryRun::EmpiricalCandidates(const FitSummary& current, std::string_v
   };
   std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return score(a) > score(b); });
   for (std::size_t k = static_cast<std::size_t>(options_.discrepancy_refits); k < n; ++k) {
+    if (score(order[k]) >= 0.0) round.waiting.push_back(order[k]);
     CandidateFit& r = round.results[order[k]];
     r.term = round.candidates[order[k]].first;
     r.size_score = round.starts[order[k]]->size_score;
@@ -1027,7 +1042,8 @@ void DiscoveryRun::Refit(Round& round, const FitSummary& current, int number) {
     const int c = queue[k];
     const Stopwatch watch;
     CandidateFit& r = round.results[c];
-    if (r.screened) return;  // before the refits (EmpiricalCandidates)
+    if (r.screened || round.refitted[c]) return;  // before the refits (EmpiricalCandidates), or done
+    round.refitted[c] = true;
     r.term = candidates[c].first;
     try {
       const Model model = Model::Build(candidates[c].second, causality_);
@@ -1078,8 +1094,8 @@ int DiscoveryRun::Select(Round& round, const FitSummary& current, const Model& m
   std::vector<std::size_t> order;
   for (std::size_t c = 0; c < results.size(); ++c) {
     CandidateFit& r = results[c];
-    if (r.screened) {
-      continue;  // its verdict says why
+    if (r.screened || r.verdict == kNotBetterHeldOut) {
+      continue;  // its verdict says why (a candidate the held-out test refused in an earlier pass)
     } else if (!r.ok) {
       r.verdict = "no converged fit";
     } else if (r.delta_bic > -options_.bic_threshold) {
@@ -1189,6 +1205,21 @@ bool DiscoveryRun::Advance(int number, bool empirical, FitSummary& current, std:
         if (f.locus == entry.locus) c.evidence = std::max(c.evidence, f.score);
     }
   int best = Select(round, current, model, ratio, number);
+  // An empirical round whose refitted functions all fail goes on to the next largest size scores,
+  // once: far from the floor the Gauss-Newton step ranks poorly (a real gas at 7 times the noise
+  // ranked a volume curving with the stroke and a drift above its own shape).
+  if (empirical && best < 0 && !round.waiting.empty()) {
+    for (int k = 0; k < options_.discrepancy_refits && !round.waiting.empty(); ++k) {
+      CandidateFit& r = round.results[round.waiting.front()];
+      round.waiting.pop_front();
+      r.screened = false;
+      r.verdict.clear();
+      r.error.clear();
+    }
+    Say(fmt::format("round {}: no function kept, the next {} size scores refitted", number, options_.discrepancy_refits));
+    Refit(round, current, number);
+    best = Select(round, current, model, ratio, number);
+  }
   for (const CandidateFit& c : round.results)
     spdlog::info("  {:<20} ΔBIC {:>12.1f}  worst noise ratio {:8.2f}  evidence {:6.1f}  {}", c.term, c.delta_bic,
                  WorstRatio(c.noise_ratio), c.evidence, c.ok ? c.verdict : c.error);

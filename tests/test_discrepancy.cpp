@@ -226,6 +226,12 @@ TEST(Discrepancy, RealGasLeftOutIsAPressureFollowingTheTemperatureMoreNotALostCh
   ASSERT_NE(found, nullptr);
   const EmpiricalDiscrepancy& d = *found;
   EXPECT_TRUE(Resembles(d, "real-gas")) << Lines(d.dependence);
+  // The lost charge passed the rules and was refused its name: the library explained more.
+  ASSERT_FALSE(r.steps.empty());
+  const auto& first = r.steps.front().candidates;
+  EXPECT_TRUE(std::any_of(first.begin(), first.end(), [](const CandidateFit& c) {
+    return c.term == "charge-loss" && c.verdict.starts_with("not named: the empirical");
+  })) << r.conclusion;
   const std::vector<double> said = Said(
       d.dependence, std::regex(R"(following its temperature more .*: ([0-9.]+) % more per 10 K of heating at ([0-9.]+) MPa)"));
   ASSERT_EQ(said.size(), 2u) << Lines(d.dependence);

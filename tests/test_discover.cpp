@@ -175,7 +175,9 @@ TEST(Discover, ScreeningLeavesTheAnswerAsRefittingEveryCandidateGivesIt) {
       // A screened candidate's refit, where it was made, did not pass the BIC threshold.
       for (const DiscoveryStep& full : b.steps)
         for (const CandidateFit& f : full.candidates)
-          if (f.term == c.term && f.ok) EXPECT_GT(f.delta_bic, -DiscoverOptions().bic_threshold) << c.term;
+          if (f.term == c.term && f.ok) {
+            EXPECT_GT(f.delta_bic, -DiscoverOptions().bic_threshold) << c.term;
+          }
     }
   EXPECT_GT(skipped, 0);
 }

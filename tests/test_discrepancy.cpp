@@ -150,7 +150,9 @@ TEST(Discrepancy, ChargeLostLeftOutIsNeverBlamedOnTheGasLaw) {
   ASSERT_EQ(said.size(), 1u) << Lines(r.discrepancy->dependence);
   EXPECT_NEAR(said[0], -1.2, 0.2) << Lines(r.discrepancy->dependence);
   for (const DiscoveryStep& s : r.steps)
-    if (s.removed) EXPECT_LT(s.delta_bic, 10.0) << s.term << " was taken out though its absence costs " << s.delta_bic;
+    if (s.removed) {
+      EXPECT_LT(s.delta_bic, 10.0) << s.term << " was taken out though its absence costs " << s.delta_bic;
+    }
 }
 
 // The verdict every left-out run must reach: no catalogue term named, the discrepancy in, the fit at
@@ -277,7 +279,9 @@ TEST(Discrepancy, AFreeGasLevelPerStaticPositionGroupIsModelledAndSaidSo) {
   // charge-loss is taken out again, and stays at 0 like every function no round chose.
   EXPECT_FALSE(Has(*r.discrepancy, "gas-drift")) << Lines(r.discrepancy->dependence);
   for (const DiscoveryStep& s : r.steps)
-    if (s.removed && s.empirical) EXPECT_LT(s.delta_bic, 10.0) << s.term;
+    if (s.removed && s.empirical) {
+      EXPECT_LT(s.delta_bic, 10.0) << s.term;
+    }
   const std::regex said(R"(free gas changing with the experiment's static position: ([-+0-9.]+) % of the charge at )"
                         R"(([0-9]+) mm and ([-+0-9.]+) % of the charge at ([0-9]+) mm)");
   const std::vector<double> levels = Said(r.discrepancy->dependence, said);

@@ -425,7 +425,6 @@ namespace {
 
 // The families of the discrepancy's functions, by coefficient index (DiscrepancyLibrary).
 bool IsDamping(int index) { return index >= 70 && index <= 76; }
-bool IsFriction(int index) { return index == 77 || index == 78; }
 bool IsStiffness(int index) { return index == 79 || index == 80; }
 
 double Median(std::vector<double> v) {
@@ -767,7 +766,7 @@ void KeepOnlyFunctions(const Model& model, const std::vector<int>& in, TermStart
     if (!used)
       start.choices[shape] = ParameterChoice{};
     else if (!start.choices[shape].estimate)
-      start.choices[shape] = ParameterChoice{.estimate = true};
+      start.choices[shape] = ParameterChoice{.estimate = true, .prior_sd = std::nullopt};
   }
 }
 

@@ -490,12 +490,8 @@ EmpiricalDiscrepancy DescribeDiscrepancy(const FitSummary& fit) {
     const int position = p.position_of_index(f.index);
     if (position < 0 || position >= static_cast<int>(fit.estimates.size()) || !fit.estimates[position].estimated) continue;
     selected.push_back(position);
-    // A gas volume that shrinks as the pressure rises is a gas stiffening beyond the gas law, as a
-    // real gas does; one that grows is a compliance, as the oil's. A wall conductance that falls as
-    // the pressure rises is no heat transfer's (it grows with the gas density): on the thermal loop it
-    // acts as a gas whose pressure follows its temperature more at high pressure, a real gas.
-    const bool falling = p.value(position) < 0.0 && (f.index == 90 || f.index == 91);
-    const std::string resembles = falling ? "real-gas" : f.resembles;
+    const std::string& resembles =
+        p.value(position) < 0.0 && !f.resembles_when_negative.empty() ? f.resembles_when_negative : f.resembles;
     d.functions.push_back({f.index, f.name, f.shape, resembles, p.value(position), fit.estimates[position].sd});
     if (!resembles.empty() && std::find(d.resembles.begin(), d.resembles.end(), resembles) == d.resembles.end())
       d.resembles.push_back(resembles);
@@ -796,6 +792,13 @@ struct Round {
   // Empirical rounds: the candidates screened out by their size score's rank, largest score first.
   std::deque<std::size_t> waiting;
 };
+
+// A round's candidates and their verdicts, one line each.
+void LogCandidates(const Round& round) {
+  for (const CandidateFit& c : round.results)
+    spdlog::info("  {:<20} ΔBIC {:>12.1f}  worst noise ratio {:8.2f}  evidence {:6.1f}  {}", c.term, c.delta_bic,
+                 WorstRatio(c.noise_ratio), c.evidence, c.ok ? c.verdict : c.error);
+}
 
 // A kept catalogue term's rivals: the round's other candidates that passed the BIC and noise-ratio
 // rules and were not refused by the held-out test, with their fits (the current model plus the rival).
@@ -1145,9 +1148,7 @@ std::optional<std::pair<Round, int>> DiscoveryRun::Challenge(const Round& round,
                   std::min<std::size_t>(challengers.candidates.size(), options_.discrepancy_refits)));
   Refit(challengers, current, number);
   const int e = Select(challengers, current, model, ratio, number, kept.delta_bic - options_.bic_threshold, kept.term);
-  for (const CandidateFit& c : challengers.results)
-    spdlog::info("  {:<20} ΔBIC {:>12.1f}  worst noise ratio {:8.2f}  {}", c.term, c.delta_bic, WorstRatio(c.noise_ratio),
-                 c.ok ? c.verdict : c.error);
+  LogCandidates(challengers);
   if (e < 0) return std::nullopt;
   return std::make_pair(std::move(challengers), e);
 }
@@ -1219,9 +1220,7 @@ bool DiscoveryRun::Advance(int number, bool empirical, FitSummary& current, std:
     Refit(round, current, number);
     best = Select(round, current, model, ratio, number);
   }
-  for (const CandidateFit& c : round.results)
-    spdlog::info("  {:<20} ΔBIC {:>12.1f}  worst noise ratio {:8.2f}  evidence {:6.1f}  {}", c.term, c.delta_bic,
-                 WorstRatio(c.noise_ratio), c.evidence, c.ok ? c.verdict : c.error);
+  LogCandidates(round);
   // A term the library explains better is not named: the function takes its place, empirical.
   std::vector<CandidateFit> outdone;
   if (!empirical && best >= 0 && options_.discrepancy && options_.challenge_terms)

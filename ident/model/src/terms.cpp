@@ -867,11 +867,15 @@ const std::vector<Function>& Library() {
       {Shape::kForceStaticSquared, {87, "force-static-position-squared", "theta4 (1 MPa) (z / 0.1 m)^2 (a force level curving with the static position)", "", 0.01}, "gas-force", ""},
       {Shape::kGasStatic, {88, "gas-static-position", "free gas + z / 0.1 m (free gas that changes with the experiment's static position z)", "", 0.01}, "gas-volume", "", true},
       {Shape::kGasStaticSquared, {89, "gas-static-position-squared", "free gas + (z / 0.1 m)^2 (free gas curving with the static position)", "", 0.01}, "gas-volume", "", true},
-      {Shape::kVolumePressure, {90, "volume-pressure", "gas volume + p / 10 MPa (a gas volume growing with the pressure: oil or cylinder that give way)", "oil-compressibility", 0.01}, "gas-volume", "oil-compressibility", true},
+      // A gas volume shrinking as the pressure rises is a gas stiffer than its law, as a real gas is.
+      {Shape::kVolumePressure, {90, "volume-pressure", "gas volume + p / 10 MPa (a gas volume growing with the pressure: oil or cylinder that give way)", "oil-compressibility", 0.01, 0, {}, "real-gas"}, "gas-volume", "oil-compressibility", true},
       // The wall heat flow of heat-exchange, theta16 (1 + theta6 q)(T + theta17), times a power of
       // the pressure less its value at 2 MPa, the exponent theta92 its shape: a heat-transfer
       // correlation's form (h grows as a power of the gas density), whose exponent the data give.
-      {Shape::kConductancePressure, {91, "conductance-pressure", "wall heat flow x ((p / 2 MPa)^theta92 - 1) / theta92 (a wall heat conductance growing as a power of the pressure)", "pressure-heat-transfer", 1.0, 92, ExponentGrid()}, "heat-exchange", "pressure-heat-transfer", true},
+      // A conductance falling as the pressure rises is no heat transfer's (it grows with the gas
+      // density): on the thermal loop it acts as a gas whose pressure follows its temperature more
+      // at high pressure, a real gas.
+      {Shape::kConductancePressure, {91, "conductance-pressure", "wall heat flow x ((p / 2 MPa)^theta92 - 1) / theta92 (a wall heat conductance growing as a power of the pressure)", "pressure-heat-transfer", 1.0, 92, ExponentGrid(), "real-gas"}, "heat-exchange", "pressure-heat-transfer", true},
       {Shape::kFrictionLowSpeed, {93, "friction-low-speed", "(theta8 + theta9 p) atan(theta10 q') exp(-(q' / 4.5 mm/s)^2) (friction higher near the reversals than sliding)", "stribeck-friction", 0.2}, "pressure-friction", "stribeck-friction"},
       {Shape::kFrictionLowSpeedWide, {94, "friction-low-speed-wide", "(theta8 + theta9 p) atan(theta10 q') exp(-(q' / 10 mm/s)^2) (friction higher at low speed, over a wider band)", "stribeck-friction", 0.2}, "pressure-friction", "stribeck-friction"},
       {Shape::kFrictionLowSpeedNarrow, {95, "friction-low-speed-narrow", "(theta8 + theta9 p) atan(theta10 q') exp(-(q' / 2 mm/s)^2) (friction higher only just at the reversals)", "stribeck-friction", 0.2}, "pressure-friction", "stribeck-friction"},

@@ -37,6 +37,9 @@ struct DiscrepancyFunction {
   int shape_index = 0;
   //! The shape values a start tries: the one whose Gauss-Newton step leaves the least residual.
   std::vector<double> shape_grid;
+  //! The catalogue term whose signature the function shares with a negative coefficient, where that
+  //! is another than `resembles` ("" the same).
+  std::string resembles_when_negative;
 };
 
 //! The discrepancy's whole library, in evaluation order (a model holds those its terms allow).
